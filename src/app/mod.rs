@@ -1,0 +1,1 @@
+//! The desktop app (eframe/egui): arrives with the app issue.

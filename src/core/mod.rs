@@ -1,0 +1,13 @@
+//! The numerical core: robot model, kinematics, surface sampling, torques.
+//!
+//! Pure math on `glam` f64 types, SI units, no I/O and no UI.
+
+pub mod builtin;
+pub mod bvh;
+pub mod kinematics;
+pub mod mesh;
+pub mod primitives;
+pub mod rng;
+pub mod robot;
+pub mod surface;
+pub mod torque;

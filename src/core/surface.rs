@@ -1,0 +1,623 @@
+//! Surface samples of the candidate links: points with inward unit normals
+//! and area weights, evenly spread, with buried points removed.
+
+use std::cmp::Ordering;
+use std::collections::{BinaryHeap, HashMap};
+
+use glam::DVec3;
+
+use crate::core::bvh::Bvh;
+use crate::core::kinematics::RobotPose;
+use crate::core::mesh::{TriMesh, triangle_area};
+use crate::core::rng::Rng;
+use crate::core::robot::{LinkId, Robot};
+
+/// How far off the surface the buried test looks, m.
+pub const BURIED_PROBE_M: f64 = 5e-4;
+
+/// Candidates drawn per kept sample before thinning (more gives a more even
+/// spread and costs time linearly).
+pub const OVERSAMPLE: usize = 4;
+
+/// Force directions per point on a one-dimensional link (the simple robot).
+pub const SEGMENT_DIRECTIONS: usize = 8;
+
+/// What to sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceRequest {
+    /// Links on which contacts may lie.
+    pub links: Vec<LinkId>,
+    /// Total number of samples over those links.
+    pub total_points: usize,
+    /// Seed of the sampling; the same seed gives the same samples.
+    pub seed: u64,
+}
+
+/// What sampling found on one link.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinkSurfaceStats {
+    /// The link.
+    pub link: LinkId,
+    /// Total area of its mesh (or length of its segment), m² (m).
+    pub mesh_area_m2: f64,
+    /// Estimated area not buried inside its own other shells, m².
+    pub exposed_area_m2: f64,
+    /// Candidates drawn.
+    pub drawn: usize,
+    /// Candidates whose outside lies inside the link's mesh.
+    pub buried: usize,
+    /// Candidates on open sheets (their inside is not inside).
+    pub open_or_thin: usize,
+    /// Samples kept.
+    pub kept: usize,
+    /// Closed shells found in the mesh.
+    pub shells: usize,
+    /// Shells that were wound inward and flipped.
+    pub flipped_shells: usize,
+    /// Degenerate triangles skipped.
+    pub degenerate_triangles: usize,
+}
+
+/// Surface samples in structure-of-arrays form, grouped by link.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Surface {
+    /// Link of each sample.
+    pub link: Vec<LinkId>,
+    /// Position in the link frame, m.
+    pub point_in_link: Vec<DVec3>,
+    /// Inward unit normal in the link frame: the direction of a push.
+    pub inward_normal_in_link: Vec<DVec3>,
+    /// Area represented by the sample, m² (m of length on a segment link).
+    pub area_m2: Vec<f64>,
+    /// Per sampled link, in the order of [`SurfaceRequest::links`] sorted.
+    pub stats: Vec<LinkSurfaceStats>,
+}
+
+/// Why a surface could not be sampled.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SurfaceError {
+    /// No candidate link was given.
+    #[error("no candidate links: name at least one link that can be touched")]
+    NoLinks,
+    /// A candidate link index is not in the robot.
+    #[error("candidate link index {link} is not a link of the robot")]
+    BadLink {
+        /// The index.
+        link: LinkId,
+    },
+    /// A candidate link has no geometry to touch.
+    #[error("candidate link '{link}' has no surface (no mesh and no segment)")]
+    NoSurface {
+        /// The link name.
+        link: String,
+    },
+    /// Zero samples requested.
+    #[error("the surface resolution must be at least 1 point per candidate link, got {requested} for {links} links")]
+    TooFewPoints {
+        /// Points asked for.
+        requested: usize,
+        /// Candidate links.
+        links: usize,
+    },
+}
+
+impl Surface {
+    /// Number of samples.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.link.len()
+    }
+
+    /// True without samples.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.link.is_empty()
+    }
+
+    /// Sample `i`'s position in the world for a pose.
+    #[must_use]
+    pub fn point_world(&self, pose: &RobotPose, i: usize) -> Option<DVec3> {
+        let link = *self.link.get(i)?;
+        Some(pose.point_to_world(link, *self.point_in_link.get(i)?))
+    }
+
+    /// Samples a robot's candidate links.
+    pub fn sample(robot: &Robot, request: &SurfaceRequest) -> Result<Self, SurfaceError> {
+        let mut links = request.links.clone();
+        links.sort_unstable();
+        links.dedup();
+        if links.is_empty() {
+            return Err(SurfaceError::NoLinks);
+        }
+        if request.total_points < links.len() {
+            return Err(SurfaceError::TooFewPoints {
+                requested: request.total_points,
+                links: links.len(),
+            });
+        }
+        let mut prepared = Vec::with_capacity(links.len());
+        for &l in &links {
+            let link = robot.links.get(l).ok_or(SurfaceError::BadLink { link: l })?;
+            let p = if let Some(segment) = link.segment {
+                Prepared::segment(l, segment)
+            } else {
+                Prepared::mesh(l, &link.mesh)
+            };
+            if !(p.area() > 0.0) {
+                return Err(SurfaceError::NoSurface { link: link.name.clone() });
+            }
+            prepared.push(p);
+        }
+
+        let mut rng = Rng::new(request.seed);
+        // First pass: draw candidates in proportion to total area and find
+        // what is exposed; second: share the points by exposed area.
+        let areas: Vec<f64> = prepared.iter().map(Prepared::area).collect();
+        let first = apportion(request.total_points, &areas, &vec![usize::MAX; areas.len()]);
+        let mut drawn: Vec<Candidates> = prepared
+            .iter()
+            .zip(&first)
+            .map(|(p, &n)| p.draw(n.max(1), &mut rng))
+            .collect();
+        let exposed: Vec<f64> = drawn.iter().map(|d| d.exposed_area_m2).collect();
+        let caps: Vec<usize> = drawn.iter().map(|d| d.points.len()).collect();
+        let second = apportion(request.total_points, &exposed, &caps);
+
+        let mut surface = Self::default();
+        for ((p, cands), &keep) in prepared.iter().zip(&mut drawn).zip(&second) {
+            let kept = match p {
+                Prepared::Mesh { .. } => eliminate(&cands.points, keep, cands.exposed_area_m2),
+                Prepared::Segment { .. } => (0..cands.points.len()).collect(),
+            };
+            let weight = if kept.is_empty() { 0.0 } else { cands.exposed_area_m2 / kept.len() as f64 };
+            for &i in &kept {
+                surface.link.push(p.link());
+                surface.point_in_link.push(cands.points[i]);
+                surface.inward_normal_in_link.push(cands.inward_normals[i]);
+                surface.area_m2.push(weight);
+            }
+            cands.stats.kept = kept.len();
+            surface.stats.push(cands.stats.clone());
+        }
+        Ok(surface)
+    }
+}
+
+enum Prepared {
+    Mesh {
+        link: LinkId,
+        mesh: TriMesh,
+        bvh: Bvh,
+        cdf: Vec<f64>,
+        stats: LinkSurfaceStats,
+    },
+    Segment {
+        link: LinkId,
+        segment: [DVec3; 2],
+    },
+}
+
+struct Candidates {
+    points: Vec<DVec3>,
+    inward_normals: Vec<DVec3>,
+    exposed_area_m2: f64,
+    stats: LinkSurfaceStats,
+}
+
+impl Prepared {
+    fn mesh(link: LinkId, mesh: &TriMesh) -> Self {
+        let mut mesh = mesh.clone();
+        let report = mesh.orient_shells();
+        let mut cdf = Vec::with_capacity(mesh.triangles.len());
+        let mut total = 0.0;
+        for c in mesh.triangle_corners() {
+            total += triangle_area(&c);
+            cdf.push(total);
+        }
+        let bvh = Bvh::new(&mesh);
+        Self::Mesh {
+            link,
+            mesh,
+            bvh,
+            cdf,
+            stats: LinkSurfaceStats {
+                link,
+                mesh_area_m2: total,
+                exposed_area_m2: total,
+                drawn: 0,
+                buried: 0,
+                open_or_thin: 0,
+                kept: 0,
+                shells: report.shells,
+                flipped_shells: report.flipped,
+                degenerate_triangles: report.degenerate,
+            },
+        }
+    }
+
+    fn segment(link: LinkId, segment: [DVec3; 2]) -> Self {
+        Self::Segment { link, segment }
+    }
+
+    fn link(&self) -> LinkId {
+        match self {
+            Self::Mesh { link, .. } | Self::Segment { link, .. } => *link,
+        }
+    }
+
+    fn area(&self) -> f64 {
+        match self {
+            Self::Mesh { cdf, .. } => cdf.last().copied().unwrap_or(0.0),
+            Self::Segment { segment, .. } => segment[0].distance(segment[1]),
+        }
+    }
+
+    /// Candidates for about `target` final samples.
+    fn draw(&self, target: usize, rng: &mut Rng) -> Candidates {
+        match self {
+            Self::Mesh {
+                link,
+                mesh,
+                bvh,
+                cdf,
+                stats,
+            } => {
+                let mut stats = stats.clone();
+                let total = self.area();
+                let n = (OVERSAMPLE * target).max(16);
+                let mut points = Vec::with_capacity(n);
+                let mut inward_normals = Vec::with_capacity(n);
+                for _ in 0..n {
+                    let x = rng.uniform() * total;
+                    let tri = cdf.partition_point(|&c| c <= x).min(cdf.len().saturating_sub(1));
+                    let (u1, u2) = (rng.uniform(), rng.uniform());
+                    let Some(c) = mesh.corners(tri) else { continue };
+                    let s = u1.sqrt();
+                    let p = c[0] * (1.0 - s) + c[1] * (s * (1.0 - u2)) + c[2] * (s * u2);
+                    let outward = (c[1] - c[0]).cross(c[2] - c[0]).normalize_or_zero();
+                    stats.drawn += 1;
+                    if bvh.winding_number(p + outward * BURIED_PROBE_M) >= 1 {
+                        stats.buried += 1;
+                    } else if bvh.winding_number(p - outward * BURIED_PROBE_M) < 1 {
+                        stats.open_or_thin += 1;
+                    } else {
+                        points.push(p);
+                        inward_normals.push(-outward);
+                    }
+                }
+                let exposed = if stats.drawn > 0 {
+                    total * points.len() as f64 / stats.drawn as f64
+                } else {
+                    0.0
+                };
+                stats.exposed_area_m2 = exposed;
+                let _ = link;
+                Candidates {
+                    points,
+                    inward_normals,
+                    exposed_area_m2: exposed,
+                    stats,
+                }
+            }
+            Self::Segment { link, segment } => {
+                let positions = target.div_ceil(SEGMENT_DIRECTIONS).max(1);
+                let axis = (segment[1] - segment[0]).normalize_or(DVec3::Z);
+                let (u, v) = axis.any_orthonormal_pair();
+                let phase = rng.uniform();
+                let mut points = Vec::with_capacity(positions * SEGMENT_DIRECTIONS);
+                let mut inward_normals = Vec::with_capacity(positions * SEGMENT_DIRECTIONS);
+                for i in 0..positions {
+                    let t = (i as f64 + 0.5) / positions as f64;
+                    let p = segment[0].lerp(segment[1], t);
+                    for d in 0..SEGMENT_DIRECTIONS {
+                        let theta = std::f64::consts::TAU * (d as f64 + phase) / SEGMENT_DIRECTIONS as f64;
+                        points.push(p);
+                        inward_normals.push(u * theta.cos() + v * theta.sin());
+                    }
+                }
+                let length = self.area();
+                Candidates {
+                    stats: LinkSurfaceStats {
+                        link: *link,
+                        mesh_area_m2: length,
+                        exposed_area_m2: length,
+                        drawn: points.len(),
+                        buried: 0,
+                        open_or_thin: 0,
+                        kept: 0,
+                        shells: 0,
+                        flipped_shells: 0,
+                        degenerate_triangles: 0,
+                    },
+                    points,
+                    inward_normals,
+                    exposed_area_m2: length,
+                }
+            }
+        }
+    }
+}
+
+/// Shares `total` among parts in proportion to `weights` (largest
+/// remainder), at least one each where the cap allows, never above `caps`.
+fn apportion(total: usize, weights: &[f64], caps: &[usize]) -> Vec<usize> {
+    let n = weights.len();
+    let mut out = vec![0usize; n];
+    let mut open: Vec<usize> = (0..n).filter(|&i| caps[i] > 0 && weights[i] > 0.0).collect();
+    let mut left = total;
+    while left > 0 && !open.is_empty() {
+        let sum: f64 = open.iter().map(|&i| weights[i]).sum();
+        let shares: Vec<f64> = open.iter().map(|&i| left as f64 * weights[i] / sum).collect();
+        let mut given = 0;
+        for (k, &i) in open.iter().enumerate() {
+            let room = caps[i] - out[i];
+            let add = (shares[k].floor() as usize).min(room);
+            out[i] += add;
+            given += add;
+        }
+        let mut rest = left - given;
+        // Hand out the remainder by largest fractional part, then index.
+        let mut order: Vec<usize> = (0..open.len()).collect();
+        order.sort_by(|&a, &b| {
+            let fa = shares[a] - shares[a].floor();
+            let fb = shares[b] - shares[b].floor();
+            fb.total_cmp(&fa).then(a.cmp(&b))
+        });
+        for k in order {
+            if rest == 0 {
+                break;
+            }
+            let i = open[k];
+            if out[i] < caps[i] {
+                out[i] += 1;
+                rest -= 1;
+            }
+        }
+        left = rest;
+        open.retain(|&i| out[i] < caps[i]);
+        if given == 0 && rest == left && left > 0 && open.is_empty() {
+            break;
+        }
+    }
+    out
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Weight(f64, usize);
+impl Eq for Weight {}
+impl PartialOrd for Weight {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Weight {
+    fn cmp(&self, other: &Self) -> Ordering {
+        self.0.total_cmp(&other.0).then(other.1.cmp(&self.1))
+    }
+}
+
+/// Weighted sample elimination: keeps `keep` of `points` spread as evenly
+/// as possible over a surface of `area` (returns sorted indices).
+fn eliminate(points: &[DVec3], keep: usize, area: f64) -> Vec<usize> {
+    let n = points.len();
+    if keep >= n {
+        return (0..n).collect();
+    }
+    if keep == 0 {
+        return Vec::new();
+    }
+    // Radius of a disk in the densest packing of `keep` disks on the area.
+    let r_max = (area / (2.0 * 3f64.sqrt() * keep as f64)).sqrt();
+    let d_max = 2.0 * r_max;
+    let cell = |p: DVec3| {
+        let c = (p / d_max).floor();
+        (c.x as i64, c.y as i64, c.z as i64)
+    };
+    let mut grid: HashMap<(i64, i64, i64), Vec<usize>> = HashMap::new();
+    for (i, p) in points.iter().enumerate() {
+        grid.entry(cell(*p)).or_default().push(i);
+    }
+    let mut neighbours: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+    for (i, p) in points.iter().enumerate() {
+        let (cx, cy, cz) = cell(*p);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let Some(bucket) = grid.get(&(cx + dx, cy + dy, cz + dz)) else {
+                        continue;
+                    };
+                    for &j in bucket {
+                        let d = p.distance(points[j]);
+                        if j != i && d < d_max {
+                            neighbours[i].push((j, (1.0 - d / d_max).powi(8)));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let mut weight: Vec<f64> = neighbours.iter().map(|ns| ns.iter().map(|(_, w)| w).sum()).collect();
+    let mut heap: BinaryHeap<Weight> = weight.iter().enumerate().map(|(i, &w)| Weight(w, i)).collect();
+    let mut removed = vec![false; n];
+    let mut left = n;
+    while left > keep {
+        let Some(Weight(w, i)) = heap.pop() else { break };
+        if removed[i] || w.to_bits() != weight[i].to_bits() {
+            continue;
+        }
+        removed[i] = true;
+        left -= 1;
+        for &(j, wj) in &neighbours[i] {
+            if !removed[j] {
+                weight[j] -= wj;
+                heap.push(Weight(weight[j], j));
+            }
+        }
+    }
+    (0..n).filter(|&i| !removed[i]).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::builtin;
+    use crate::core::primitives::{self, Primitive};
+    use crate::core::robot::{JointKind, JointSpec, LinkSpec};
+    use glam::DAffine3;
+
+    fn one_link_robot(mesh: TriMesh) -> Robot {
+        Robot::new(
+            "one",
+            vec![
+                LinkSpec {
+                    name: "base".to_owned(),
+                    ..LinkSpec::default()
+                },
+                LinkSpec {
+                    name: "body".to_owned(),
+                    mesh,
+                    segment: None,
+                },
+            ],
+            vec![JointSpec {
+                name: "j".to_owned(),
+                kind: JointKind::Continuous,
+                parent: "base".to_owned(),
+                child: "body".to_owned(),
+                parent_from_joint: DAffine3::IDENTITY,
+                axis: DVec3::Z,
+                limits: None,
+                mimic: None,
+            }],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn area_weights_sum_to_the_closed_form_area_of_a_box() {
+        let size = DVec3::new(0.1, 0.2, 0.3);
+        let robot = one_link_robot(primitives::cuboid(size));
+        let s = Surface::sample(&robot, &SurfaceRequest { links: vec![1], total_points: 500, seed: 3 }).unwrap();
+        let exact = 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x);
+        let sum: f64 = s.area_m2.iter().sum();
+        assert_eq!(s.len(), 500);
+        assert!((sum - exact).abs() <= 1e-9 * exact, "{sum} vs {exact}");
+    }
+
+    #[test]
+    fn inward_normals_of_a_box_point_inside_it() {
+        let half = DVec3::new(0.05, 0.1, 0.15);
+        let robot = one_link_robot(primitives::cuboid(2.0 * half));
+        let s = Surface::sample(&robot, &SurfaceRequest { links: vec![1], total_points: 300, seed: 1 }).unwrap();
+        for (p, n) in s.point_in_link.iter().zip(&s.inward_normal_in_link) {
+            let q = *p + *n * 1e-3;
+            assert!(q.abs().cmple(half).all(), "{p} + 1 mm {n} is outside");
+            assert!((n.length() - 1.0).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn inward_wound_mesh_gives_the_same_normals() {
+        let mut flipped = primitives::cuboid(DVec3::ONE);
+        for t in &mut flipped.triangles {
+            t.swap(1, 2);
+        }
+        let a = Surface::sample(&one_link_robot(primitives::cuboid(DVec3::ONE)), &SurfaceRequest { links: vec![1], total_points: 50, seed: 9 }).unwrap();
+        let b = Surface::sample(&one_link_robot(flipped), &SurfaceRequest { links: vec![1], total_points: 50, seed: 9 }).unwrap();
+        for (na, nb) in a.inward_normal_in_link.iter().zip(&b.inward_normal_in_link) {
+            assert!((*na - *nb).length() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn sampling_is_deterministic_per_seed() {
+        let robot = builtin::lwr4plus_generated().unwrap();
+        let links = robot.default_candidate_links();
+        let req = SurfaceRequest { links, total_points: 700, seed: 42 };
+        let a = Surface::sample(&robot, &req).unwrap();
+        let b = Surface::sample(&robot, &req).unwrap();
+        assert_eq!(a, b);
+        let c = Surface::sample(&robot, &SurfaceRequest { seed: 43, ..req }).unwrap();
+        assert_ne!(a.point_in_link, c.point_in_link);
+        assert_eq!(a.len(), 700);
+    }
+
+    /// Against the primitives' exact distance functions: every kept sample
+    /// lies on the union's surface, is not buried in another primitive, and
+    /// 1 mm along its inward normal is inside.
+    #[test]
+    fn builtin_lwr_samples_are_exposed_and_normals_point_inside() {
+        let robot = builtin::lwr4plus_generated().unwrap();
+        let links = robot.default_candidate_links();
+        assert_eq!(links.len(), 7);
+        let s = Surface::sample(&robot, &SurfaceRequest { links, total_points: 2000, seed: 5 }).unwrap();
+        let shapes = builtin::lwr4plus_primitives();
+        let mut buried_total = 0;
+        for st in &s.stats {
+            buried_total += st.buried;
+        }
+        assert!(buried_total > 0, "the overlapping primitives must bury some candidates");
+        for i in 0..s.len() {
+            let name = &robot.links[s.link[i]].name;
+            let parts = &shapes.iter().find(|(n, _)| n == name).unwrap().1;
+            let union = |p: DVec3| parts.iter().map(|q| q.signed_distance(p)).fold(f64::INFINITY, f64::min);
+            let p = s.point_in_link[i];
+            let n = s.inward_normal_in_link[i];
+            // On the faceted surface: within the chord error of a 40-gon.
+            assert!(union(p).abs() < 2e-3, "{name} {p}: {}", union(p));
+            assert!(union(p - n * 1e-3) > 0.0, "{name} {p} is buried");
+            assert!(union(p + n * 1e-3) < 0.0, "{name} {p}: 1 mm inward is outside");
+        }
+    }
+
+    #[test]
+    fn samples_are_evenly_spread() {
+        // On a unit sphere, nearest-neighbour distances of an even spread
+        // vary little; pure random sampling has many near-coincident pairs.
+        let robot = one_link_robot(Primitive::Sphere { center: DVec3::ZERO, radius: 1.0 }.mesh(64));
+        let s = Surface::sample(&robot, &SurfaceRequest { links: vec![1], total_points: 400, seed: 2 }).unwrap();
+        let nn: Vec<f64> = s
+            .point_in_link
+            .iter()
+            .map(|p| {
+                s.point_in_link
+                    .iter()
+                    .filter(|q| *q != p)
+                    .map(|q| p.distance(*q))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        let mean = nn.iter().sum::<f64>() / nn.len() as f64;
+        let min = nn.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(min > 0.5 * mean, "min {min} mean {mean}");
+    }
+
+    #[test]
+    fn simple6_samples_lie_on_the_segments_with_perpendicular_normals() {
+        let robot = builtin::simple6().unwrap();
+        let links = robot.default_candidate_links();
+        assert_eq!(links.len(), 6);
+        let s = Surface::sample(&robot, &SurfaceRequest { links, total_points: 480, seed: 0 }).unwrap();
+        let total_length: f64 = s.area_m2.iter().sum();
+        assert!((total_length - (5.0 + 2f64.sqrt())).abs() < 1e-9);
+        for i in 0..s.len() {
+            let [a, b] = robot.links[s.link[i]].segment.unwrap();
+            let axis = (b - a).normalize();
+            let rel = s.point_in_link[i] - a;
+            assert!(rel.cross(axis).length() < 1e-12);
+            assert!(s.inward_normal_in_link[i].dot(axis).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn bad_requests_are_named() {
+        let robot = builtin::lwr4plus_generated().unwrap();
+        let e = Surface::sample(&robot, &SurfaceRequest { links: vec![], total_points: 10, seed: 0 }).unwrap_err();
+        assert!(e.to_string().contains("no candidate links"));
+        let e = Surface::sample(&robot, &SurfaceRequest { links: vec![1, 2], total_points: 1, seed: 0 }).unwrap_err();
+        assert!(e.to_string().contains("resolution"));
+        let kin = builtin::lwr4plus_kinematics().unwrap();
+        let e = Surface::sample(&kin, &SurfaceRequest { links: vec![1], total_points: 10, seed: 0 }).unwrap_err();
+        assert!(e.to_string().contains("lwr_1_link"));
+    }
+}

@@ -1,0 +1,10 @@
+//! Proprioscope: where a robot arm is touched, and how hard, from its joint
+//! torque sensors alone.
+//!
+//! `core` is the numerical heart (no I/O), `io` reads and writes robots,
+//! meshes and scenes, `render` and `app` are the desktop program.
+
+pub mod app;
+pub mod core;
+pub mod io;
+pub mod render;

@@ -1,0 +1,1 @@
+//! GPU rendering (wgpu): arrives with the app issue.
