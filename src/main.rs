@@ -1,1 +1,245 @@
-fn main(){}
+//! The `proprioscope` command line: headless commands over the same core
+//! the desktop app uses.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context as _, Result, bail};
+use clap::{Parser, Subcommand};
+use glam::DVec3;
+
+use proprioscope::core::kinematics::RobotPose;
+use proprioscope::core::robot::Robot;
+use proprioscope::core::torque::joint_torques;
+use proprioscope::io::builtin::{LWR4PLUS_GLB_PATH, load_robot, lwr4plus_glb_generated};
+use proprioscope::io::scene::Scene;
+use proprioscope::io::urdf::{MeshSelection, UrdfOptions};
+
+#[derive(Parser)]
+#[command(name = "proprioscope", version, about = "Where is a robot arm touched, and how hard, from its joint torques alone")]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Joint torques of a push: from a scene file, or from --robot, --q,
+    /// --link, --point and --force (world frame, SI).
+    Torques(TorquesArgs),
+    /// Links and joints of a robot (built-in name or URDF path).
+    RobotInfo {
+        /// `simple6`, `lwr4plus` or a URDF file.
+        robot: String,
+        /// Extra folder for `package://` URIs (repeatable).
+        #[arg(long = "package-path")]
+        package_paths: Vec<PathBuf>,
+    },
+    /// Regenerates the shipped assets (`assets/lwr4plus.glb`) from the
+    /// built-in robot's primitives.
+    ExportAssets {
+        /// Repository root to write under.
+        #[arg(long, default_value = ".")]
+        root: PathBuf,
+    },
+}
+
+#[derive(clap::Args)]
+struct TorquesArgs {
+    /// A scene file (JSON); or use --robot and the options below.
+    scene: Option<PathBuf>,
+    /// `simple6`, `lwr4plus` or a URDF file.
+    #[arg(long, conflicts_with = "scene")]
+    robot: Option<String>,
+    /// Sensed joint positions, rad, comma separated (default all 0).
+    #[arg(long, allow_hyphen_values = true, value_delimiter = ',')]
+    q: Vec<f64>,
+    /// The link pushed.
+    #[arg(long)]
+    link: Option<String>,
+    /// Contact point x,y,z in the world frame, m.
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_vec3)]
+    point: Option<DVec3>,
+    /// Force fx,fy,fz applied to the robot, world frame, N.
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_vec3)]
+    force: Option<DVec3>,
+    /// Extra folder for `package://` URIs (repeatable).
+    #[arg(long = "package-path")]
+    package_paths: Vec<PathBuf>,
+    /// Print N·cm instead of N·m.
+    #[arg(long)]
+    ncm: bool,
+    /// Print `{"joints": [{"name": ..., "torque": <N·m>}, ...]}`.
+    #[arg(long)]
+    json: bool,
+}
+
+fn parse_vec3(text: &str) -> Result<DVec3, String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let [x, y, z] = parts.as_slice() else {
+        return Err(format!("'{text}' is not three comma-separated numbers x,y,z"));
+    };
+    let num = |s: &str| {
+        s.parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("'{s}' in '{text}' is not a finite number"))
+    };
+    Ok(DVec3::new(num(x)?, num(y)?, num(z)?))
+}
+
+fn main() -> Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Some(Command::Torques(args)) => torques(&args),
+        Some(Command::RobotInfo { robot, package_paths }) => robot_info(&robot, package_paths),
+        Some(Command::ExportAssets { root }) => export_assets(&root),
+        None => {
+            println!(
+                "The desktop app is not built yet. Headless commands: proprioscope torques, robot-info, export-assets (see --help)."
+            );
+            Ok(())
+        }
+    }
+}
+
+/// The push to report: robot, pose, link, point and force in the world.
+struct PushCase {
+    robot: Robot,
+    pose: RobotPose,
+    link: usize,
+    point_world: DVec3,
+    force_world: DVec3,
+    measured: Option<Vec<f64>>,
+}
+
+fn torques(args: &TorquesArgs) -> Result<()> {
+    let case = if let Some(path) = &args.scene {
+        let loaded = Scene::read(path)?.load(path)?;
+        let Some(push) = loaded.push else {
+            bail!("{}: the scene has no push, so there are no torques to print", path.display());
+        };
+        let measured = (loaded.scene.noise.sigma_newton_metres > 0.0).then(|| loaded.measured_torques());
+        PushCase {
+            robot: loaded.robot,
+            pose: loaded.pose,
+            link: push.link,
+            point_world: push.point_world,
+            force_world: push.force_world,
+            measured,
+        }
+    } else {
+        let Some(spec) = &args.robot else {
+            bail!("give a scene file, or --robot with --link, --point and --force");
+        };
+        let (Some(link), Some(point_world), Some(force_world)) = (&args.link, args.point, args.force) else {
+            bail!("--robot needs --link, --point x,y,z and --force fx,fy,fz");
+        };
+        let options = UrdfOptions {
+            package_paths: args.package_paths.clone(),
+            meshes: MeshSelection::None,
+        };
+        let robot = load_robot(spec, Path::new("."), &options)?;
+        let q = if args.q.is_empty() { vec![0.0; robot.sensed().len()] } else { args.q.clone() };
+        let positions = robot.joint_positions(&q, &[]).context("--q")?;
+        let pose = RobotPose::new(&robot, &positions);
+        let link = robot.link_id(link).context("--link")?;
+        PushCase {
+            robot,
+            pose,
+            link,
+            point_world,
+            force_world,
+            measured: None,
+        }
+    };
+    let tau = joint_torques(&case.robot, &case.pose, case.link, case.point_world, case.force_world);
+    let names = case.robot.sensed_names();
+    if args.json {
+        let joints: Vec<serde_json::Value> = names
+            .iter()
+            .zip(&tau)
+            .map(|(n, t)| serde_json::json!({ "name": n, "torque": t }))
+            .collect();
+        println!("{}", serde_json::json!({ "joints": joints }));
+        return Ok(());
+    }
+    let (unit, scale) = if args.ncm { ("N·cm", 100.0) } else { ("N·m", 1.0) };
+    let link_name = &case.robot.links[case.link].name;
+    let (p, f) = (case.point_world, case.force_world);
+    println!(
+        "robot {} · link {link_name} · point ({:.4}, {:.4}, {:.4}) m · force ({:.3}, {:.3}, {:.3}) N, world frame",
+        case.robot.name, p.x, p.y, p.z, f.x, f.y, f.z
+    );
+    let width = names.iter().map(|n| n.len()).max().unwrap_or(5).max(5);
+    match &case.measured {
+        Some(_) => println!("{:width$}  {:>12}  {:>12}", "joint", format!("torque [{unit}]"), "measured"),
+        None => println!("{:width$}  {:>12}", "joint", format!("torque [{unit}]")),
+    }
+    for (i, (name, t)) in names.iter().zip(&tau).enumerate() {
+        match case.measured.as_ref().and_then(|m| m.get(i)) {
+            Some(m) => println!("{name:width$}  {:>12.4}  {:>12.4}", t * scale, m * scale),
+            None => println!("{name:width$}  {:>12.4}", t * scale),
+        }
+    }
+    let path = case.robot.path_joints(case.link);
+    let distal: Vec<&str> = case
+        .robot
+        .sensed()
+        .iter()
+        .zip(&names)
+        .filter(|(j, _)| !path.contains(j))
+        .map(|(_, n)| *n)
+        .collect();
+    let scale_nm = f.length() * 1e-12;
+    let zero: Vec<&str> = case
+        .robot
+        .sensed()
+        .iter()
+        .zip(names.iter().zip(&tau))
+        .filter(|(j, (_, t))| path.contains(j) && t.abs() <= scale_nm)
+        .map(|(_, (n, _))| *n)
+        .collect();
+    if !distal.is_empty() {
+        println!("Sense nothing (they do not move {link_name}): {}", distal.join(", "));
+    }
+    if !zero.is_empty() {
+        println!("Read zero here (the force line meets or parallels their axis): {}", zero.join(", "));
+    }
+    Ok(())
+}
+
+fn robot_info(spec: &str, package_paths: Vec<PathBuf>) -> Result<()> {
+    let options = UrdfOptions {
+        package_paths,
+        meshes: MeshSelection::All,
+    };
+    let robot = load_robot(spec, Path::new("."), &options)?;
+    println!("robot {}: {} links, {} joints", robot.name, robot.links.len(), robot.joints.len());
+    println!("sensed joints (order of q and tau): {}", robot.sensed_names().join(", "));
+    let candidates = robot.default_candidate_links();
+    for (i, link) in robot.links.iter().enumerate() {
+        let joint = link
+            .parent_joint
+            .map(|j| format!("{} ({:?})", robot.joints[j].name, robot.joints[j].kind))
+            .unwrap_or_else(|| "root".to_owned());
+        println!(
+            "  link {:<24} {:>7} triangles  area {:>8.4} m²  moved by {joint}{}",
+            link.name,
+            link.mesh.triangles.len(),
+            link.mesh.area() + 0.0, // an empty sum is -0.0
+            if candidates.contains(&i) { "  [candidate]" } else { "" }
+        );
+    }
+    Ok(())
+}
+
+fn export_assets(root: &Path) -> Result<()> {
+    let path = root.join(LWR4PLUS_GLB_PATH);
+    let bytes = lwr4plus_glb_generated();
+    if let Some(folder) = path.parent() {
+        std::fs::create_dir_all(folder).with_context(|| format!("creating {}", folder.display()))?;
+    }
+    std::fs::write(&path, &bytes).with_context(|| format!("writing {}", path.display()))?;
+    println!("wrote {} ({} bytes)", path.display(), bytes.len());
+    Ok(())
+}

@@ -4,6 +4,7 @@
 use glam::DVec3;
 
 use crate::core::kinematics::RobotPose;
+use crate::core::rng::Rng;
 use crate::core::robot::{JointKind, LinkId, Robot};
 
 /// Torques (N·m, or N for prismatic joints) on the sensed joints, in order,
@@ -36,9 +37,19 @@ pub fn joint_torques(
                     };
                     gain * per_unit
                 })
-                .sum()
+                .sum::<f64>()
+                // An empty sum is -0.0; users should read 0.
+                + 0.0
         })
         .collect()
+}
+
+/// What torque sensors with Gaussian noise of `sigma` (N·m, the same on
+/// every joint) read for the true torques `tau`; deterministic per seed.
+#[must_use]
+pub fn with_sensor_noise(tau: &[f64], sigma: f64, seed: u64) -> Vec<f64> {
+    let mut rng = Rng::new(seed);
+    tau.iter().map(|t| t + sigma * rng.normal()).collect()
 }
 
 /// One sensed joint's twist seen from a link's frame: the torque per newton
@@ -178,6 +189,113 @@ mod tests {
                 assert!((t * 100.0 - e).abs() <= 0.3, "{tau:?} vs {expected_ncm:?} N·cm");
             }
         }
+    }
+
+    use crate::core::robot::{JointKind, JointSpec, LinkSpec, Robot};
+    use glam::{DAffine3, DQuat};
+    use proptest::prelude::*;
+
+    fn kind_of(k: u8) -> JointKind {
+        match k % 4 {
+            0 => JointKind::Revolute,
+            1 => JointKind::Continuous,
+            2 => JointKind::Prismatic,
+            _ => JointKind::Fixed,
+        }
+    }
+
+    fn vec3() -> impl Strategy<Value = DVec3> {
+        (-1.0..1.0f64, -1.0..1.0f64, -1.0..1.0f64).prop_map(|(x, y, z)| DVec3::new(x, y, z))
+    }
+
+    /// A random serial chain (some joints mimic an earlier one), every
+    /// movable non-mimic joint sensed.
+    fn chain() -> impl Strategy<Value = Robot> {
+        prop::collection::vec((any::<u8>(), vec3(), vec3(), vec3(), any::<u8>()), 1..7).prop_map(|specs| {
+            let mut links = vec![LinkSpec { name: "l0".to_owned(), ..LinkSpec::default() }];
+            let mut joints: Vec<JointSpec> = Vec::new();
+            for (i, (kind, t, r, axis, mimic)) in specs.into_iter().enumerate() {
+                links.push(LinkSpec { name: format!("l{}", i + 1), ..LinkSpec::default() });
+                let leader = joints
+                    .iter()
+                    .filter(|j| j.kind.is_movable() && j.mimic.is_none())
+                    .map(|j| j.name.clone())
+                    .next_back();
+                let kind = kind_of(kind);
+                joints.push(JointSpec {
+                    name: format!("j{i}"),
+                    kind,
+                    parent: format!("l{i}"),
+                    child: format!("l{}", i + 1),
+                    parent_from_joint: DAffine3::from_rotation_translation(
+                        DQuat::from_scaled_axis(r * 2.0),
+                        t * 0.5,
+                    ),
+                    axis: axis + DVec3::new(0.0, 0.0, 1.5),
+                    limits: None,
+                    mimic: leader.filter(|_| mimic % 3 == 0 && kind.is_movable()).map(|l| (l, -1.5, 0.2)),
+                });
+            }
+            let mut robot = Robot::new("chain", links, joints).unwrap();
+            let sensed: Vec<String> = robot
+                .joints
+                .iter()
+                .filter(|j| j.kind.is_movable() && j.mimic.is_none())
+                .map(|j| j.name.clone())
+                .collect();
+            robot.set_sensed(&sensed).unwrap();
+            robot
+        })
+    }
+
+    proptest! {
+        /// tau_i is the derivative of the force's work F · p(q) with
+        /// respect to q_i (virtual work), by central differences.
+        #[test]
+        fn torques_equal_the_virtual_work_derivative(
+            robot in chain(),
+            q_seed in prop::collection::vec(-3.0..3.0f64, 7),
+            link_pick in any::<usize>(),
+            p_link in vec3(),
+            force in vec3(),
+        ) {
+            let n = robot.sensed().len();
+            let q: Vec<f64> = q_seed[..n].to_vec();
+            let link = 1 + link_pick % (robot.links.len() - 1);
+            let force = force * 10.0;
+            let work = |q: &[f64]| {
+                let pose = RobotPose::new(&robot, &robot.joint_positions(q, &[]).unwrap());
+                force.dot(pose.point_to_world(link, p_link))
+            };
+            let pose = RobotPose::new(&robot, &robot.joint_positions(&q, &[]).unwrap());
+            let tau = joint_torques(&robot, &pose, link, pose.point_to_world(link, p_link), force);
+            let all: Vec<usize> = (0..robot.links.len()).collect();
+            let fast = TorqueModel::new(&robot, &pose, &all).torques(
+                link,
+                p_link,
+                pose.world_from_link[link].inverse().transform_vector3(force),
+            );
+            let h = 1e-6;
+            for i in 0..n {
+                let (mut up, mut down) = (q.clone(), q.clone());
+                up[i] += h;
+                down[i] -= h;
+                let fd = (work(&up) - work(&down)) / (2.0 * h);
+                let scale = tau[i].abs().max(force.length());
+                prop_assert!((fd - tau[i]).abs() <= 1e-6 * scale, "joint {i}: fd {fd} vs tau {}", tau[i]);
+                prop_assert!((fast[i] - tau[i]).abs() <= 1e-12 * scale, "joint {i}: plucker {} vs tau {}", fast[i], tau[i]);
+            }
+        }
+    }
+
+    #[test]
+    fn sensor_noise_is_seeded_and_of_the_right_size() {
+        let tau = vec![0.0; 20_000];
+        let a = with_sensor_noise(&tau, 0.05, 1);
+        assert_eq!(a, with_sensor_noise(&tau, 0.05, 1));
+        assert_ne!(a, with_sensor_noise(&tau, 0.05, 2));
+        let var = a.iter().map(|x| x * x).sum::<f64>() / a.len() as f64;
+        assert!((var.sqrt() - 0.05).abs() < 0.002);
     }
 
     #[test]

@@ -1,1 +1,7 @@
-//! Loading and saving: URDF, meshes, scenes.
+//! Loading and saving: URDF and mesh files, the built-in robots' assets,
+//! scenes. Each reader has its own error type naming the file and element.
+
+pub mod builtin;
+pub mod mesh;
+pub mod scene;
+pub mod urdf;

@@ -1,0 +1,577 @@
+//! Mesh files: STL, OBJ, glTF/GLB and COLLADA (`.dae`), read into a
+//! [`TriMesh`] in metres in the file's own frame (node transforms and
+//! COLLADA units and up axis applied).
+
+use std::path::{Path, PathBuf};
+
+use glam::{DAffine3, DMat3, DMat4, DVec3};
+
+use crate::core::mesh::TriMesh;
+
+/// Why a mesh file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum MeshError {
+    /// The file could not be opened or read.
+    #[error("{path}: cannot read the mesh: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The system's reason.
+        source: std::io::Error,
+    },
+    /// The file's content is malformed.
+    #[error("{path}: {element}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The element, record or chunk at fault.
+        element: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The extension names no format we read.
+    #[error("{path}: unsupported mesh format '{extension}' (STL, OBJ, glTF, GLB and DAE are read)")]
+    Unsupported {
+        /// The file.
+        path: PathBuf,
+        /// Its extension.
+        extension: String,
+    },
+}
+
+fn parse_error(path: &Path, element: impl Into<String>, message: impl ToString) -> MeshError {
+    MeshError::Parse {
+        path: path.to_owned(),
+        element: element.into(),
+        message: message.to_string(),
+    }
+}
+
+fn read_bytes(path: &Path) -> Result<Vec<u8>, MeshError> {
+    std::fs::read(path).map_err(|source| MeshError::Read {
+        path: path.to_owned(),
+        source,
+    })
+}
+
+/// Reads any supported mesh file, chosen by extension (case-insensitive).
+pub fn load_mesh(path: &Path) -> Result<TriMesh, MeshError> {
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or_default()
+        .to_ascii_lowercase();
+    match extension.as_str() {
+        "stl" => load_stl(path),
+        "obj" => load_obj(path),
+        "gltf" | "glb" => {
+            let bytes = read_bytes(path)?;
+            let nodes = read_gltf_nodes(&bytes, path)?;
+            let mut mesh = TriMesh::default();
+            for (_, m) in &nodes {
+                mesh.append(m);
+            }
+            Ok(mesh)
+        }
+        "dae" => {
+            let bytes = read_bytes(path)?;
+            let text = String::from_utf8_lossy(&bytes);
+            read_dae(&text, path)
+        }
+        _ => Err(MeshError::Unsupported {
+            path: path.to_owned(),
+            extension,
+        }),
+    }
+}
+
+/// STL, binary or ASCII.
+pub fn load_stl(path: &Path) -> Result<TriMesh, MeshError> {
+    let bytes = read_bytes(path)?;
+    let mesh = stl_io::read_stl(&mut std::io::Cursor::new(bytes)).map_err(|e| parse_error(path, "STL", e))?;
+    let positions = mesh
+        .vertices
+        .iter()
+        .map(|v| DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])))
+        .collect();
+    let triangles = mesh
+        .faces
+        .iter()
+        .map(|f| [f.vertices[0] as u32, f.vertices[1] as u32, f.vertices[2] as u32])
+        .collect();
+    checked(TriMesh::new(positions, triangles), path, "STL facets")
+}
+
+/// Wavefront OBJ (faces triangulated; materials ignored).
+pub fn load_obj(path: &Path) -> Result<TriMesh, MeshError> {
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        ignore_points: true,
+        ignore_lines: true,
+        ..tobj::LoadOptions::default()
+    };
+    let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| parse_error(path, "OBJ", e))?;
+    let mut mesh = TriMesh::default();
+    for model in &models {
+        let positions = model
+            .mesh
+            .positions
+            .chunks_exact(3)
+            .map(|p| DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
+            .collect();
+        let triangles = model.mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        let part = checked(TriMesh::new(positions, triangles), path, &format!("object '{}'", model.name))?;
+        mesh.append(&part);
+    }
+    Ok(mesh)
+}
+
+fn checked(mesh: TriMesh, path: &Path, element: &str) -> Result<TriMesh, MeshError> {
+    if let Some(t) = mesh.first_bad_index() {
+        return Err(parse_error(
+            path,
+            element,
+            format!("triangle {t} points past the {} vertices", mesh.positions.len()),
+        ));
+    }
+    if let Some(v) = mesh.positions.iter().position(|p| !p.is_finite()) {
+        return Err(parse_error(path, element, format!("vertex {v} is not finite")));
+    }
+    Ok(mesh)
+}
+
+/// The meshes of a glTF or GLB document, one per node that has a mesh,
+/// with the node's name and its scene transform applied. `path` names the
+/// file in errors and locates external buffers.
+pub fn read_gltf_nodes(bytes: &[u8], path: &Path) -> Result<Vec<(String, TriMesh)>, MeshError> {
+    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| parse_error(path, "glTF", e))?;
+    let mut buffers: Vec<Vec<u8>> = Vec::new();
+    for buffer in gltf.buffers() {
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => gltf
+                .blob
+                .clone()
+                .ok_or_else(|| parse_error(path, format!("buffer {}", buffer.index()), "the GLB has no BIN chunk"))?,
+            gltf::buffer::Source::Uri(uri) => {
+                if let Some(rest) = uri.strip_prefix("data:") {
+                    let encoded = rest.split_once(";base64,").map(|(_, d)| d).ok_or_else(|| {
+                        parse_error(path, format!("buffer {}", buffer.index()), "data URI without base64")
+                    })?;
+                    use base64::Engine as _;
+                    base64::engine::general_purpose::STANDARD
+                        .decode(encoded)
+                        .map_err(|e| parse_error(path, format!("buffer {}", buffer.index()), e))?
+                } else {
+                    let file = path.parent().unwrap_or(Path::new(".")).join(uri);
+                    read_bytes(&file)?
+                }
+            }
+        };
+        buffers.push(data);
+    }
+    let mut out = Vec::new();
+    let roots: Vec<gltf::Node> = match gltf.default_scene().or_else(|| gltf.scenes().next()) {
+        Some(scene) => scene.nodes().collect(),
+        None => gltf.nodes().collect(),
+    };
+    let mut stack: Vec<(gltf::Node, DMat4)> = roots.into_iter().map(|n| (n, DMat4::IDENTITY)).collect();
+    while let Some((node, parent)) = stack.pop() {
+        let local = node.transform().matrix();
+        let world = parent * DMat4::from_cols_array_2d(&local.map(|c| c.map(f64::from)));
+        if let Some(mesh) = node.mesh() {
+            let mut part = TriMesh::default();
+            for primitive in mesh.primitives() {
+                if primitive.mode() != gltf::mesh::Mode::Triangles {
+                    continue;
+                }
+                let reader = primitive.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+                let Some(positions) = reader.read_positions() else {
+                    continue;
+                };
+                let positions: Vec<DVec3> = positions
+                    .map(|p| DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
+                    .collect();
+                let indices: Vec<u32> = match reader.read_indices() {
+                    Some(i) => i.into_u32().collect(),
+                    None => (0..positions.len() as u32).collect(),
+                };
+                let triangles = indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+                let element = format!("mesh '{}'", mesh.name().unwrap_or_default());
+                part.append(&checked(TriMesh::new(positions, triangles), path, &element)?);
+            }
+            let name = node.name().unwrap_or_default().to_owned();
+            out.push((name, part.transformed(&DAffine3::from_mat4(world))));
+        }
+        for child in node.children() {
+            stack.push((child, world));
+        }
+    }
+    out.sort_by(|a, b| a.0.cmp(&b.0));
+    Ok(out)
+}
+
+/// Encodes named meshes as a binary glTF (GLB): one node and mesh per
+/// name, f32 positions and u32 indices, keys sorted, so the same meshes
+/// always give the same bytes.
+#[must_use]
+pub fn encode_glb(meshes: &[(String, TriMesh)]) -> Vec<u8> {
+    let mut bin: Vec<u8> = Vec::new();
+    let mut nodes = Vec::new();
+    let mut gltf_meshes = Vec::new();
+    let mut views = Vec::new();
+    let mut accessors = Vec::new();
+    for (i, (name, mesh)) in meshes.iter().enumerate() {
+        let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.as_vec3().to_array()).collect();
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for p in &positions {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        if positions.is_empty() {
+            (lo, hi) = ([0.0; 3], [0.0; 3]);
+        }
+        let offset = bin.len();
+        for p in &positions {
+            for c in p {
+                bin.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        views.push(serde_json::json!({
+            "buffer": 0, "byteOffset": offset, "byteLength": bin.len() - offset, "target": 34962
+        }));
+        let offset = bin.len();
+        for t in &mesh.triangles {
+            for c in t {
+                bin.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        views.push(serde_json::json!({
+            "buffer": 0, "byteOffset": offset, "byteLength": bin.len() - offset, "target": 34963
+        }));
+        accessors.push(serde_json::json!({
+            "bufferView": 2 * i, "componentType": 5126, "count": positions.len(), "type": "VEC3",
+            "min": lo, "max": hi
+        }));
+        accessors.push(serde_json::json!({
+            "bufferView": 2 * i + 1, "componentType": 5125, "count": 3 * mesh.triangles.len(), "type": "SCALAR"
+        }));
+        gltf_meshes.push(serde_json::json!({
+            "name": name,
+            "primitives": [{ "attributes": { "POSITION": 2 * i }, "indices": 2 * i + 1, "mode": 4 }]
+        }));
+        nodes.push(serde_json::json!({ "name": name, "mesh": i }));
+    }
+    let document = serde_json::json!({
+        "asset": { "version": "2.0", "generator": "proprioscope export-assets" },
+        "scene": 0,
+        "scenes": [{ "nodes": (0..meshes.len()).collect::<Vec<_>>() }],
+        "nodes": nodes,
+        "meshes": gltf_meshes,
+        "buffers": [{ "byteLength": bin.len() }],
+        "bufferViews": views,
+        "accessors": accessors,
+    });
+    let mut json = document.to_string().into_bytes();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out
+}
+
+/// COLLADA: `<triangles>`, `<polylist>` and `<polygons>` of every geometry
+/// instanced in the visual scene, with node transforms (`<matrix>`,
+/// `<translate>`, `<rotate>`, `<scale>`), `<unit meter>` and `<up_axis>`
+/// applied so that the result is in metres, z up.
+pub fn read_dae(text: &str, path: &Path) -> Result<TriMesh, MeshError> {
+    let doc = roxmltree::Document::parse(text).map_err(|e| parse_error(path, "XML", e))?;
+    let root = doc.root_element();
+    let asset = child(root, "asset");
+    let meter = match asset.and_then(|a| child(a, "unit")).and_then(|u| u.attribute("meter")) {
+        Some(m) => m
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|m| m.is_finite() && *m > 0.0)
+            .ok_or_else(|| parse_error(path, "<unit meter>", format!("'{m}' is not a positive number")))?,
+        None => 1.0,
+    };
+    let up = asset
+        .and_then(|a| child(a, "up_axis"))
+        .and_then(|u| u.text())
+        .unwrap_or("Y_UP")
+        .trim();
+    let up_to_z = match up {
+        "Z_UP" => DMat3::IDENTITY,
+        "X_UP" => DMat3::from_rotation_y(-std::f64::consts::FRAC_PI_2),
+        _ => DMat3::from_rotation_x(std::f64::consts::FRAC_PI_2),
+    };
+    let root_transform = DMat4::from_mat3(up_to_z) * DMat4::from_scale(DVec3::splat(meter));
+
+    let by_id = |id: &str| doc.descendants().find(|n| n.attribute("id") == Some(id));
+    let mut mesh = TriMesh::default();
+    let scene = child(root, "scene")
+        .and_then(|s| child(s, "instance_visual_scene"))
+        .and_then(|i| i.attribute("url"))
+        .and_then(|u| by_id(u.trim_start_matches('#')))
+        .or_else(|| doc.descendants().find(|n| n.has_tag_name("visual_scene")));
+    match scene {
+        Some(scene) => {
+            let mut stack: Vec<(roxmltree::Node, DMat4)> = scene
+                .children()
+                .filter(|c| c.has_tag_name("node"))
+                .map(|n| (n, root_transform))
+                .collect();
+            while let Some((node, parent)) = stack.pop() {
+                let world = parent * node_transform(node, path)?;
+                for c in node.children() {
+                    if c.has_tag_name("node") {
+                        stack.push((c, world));
+                    } else if c.has_tag_name("instance_node") {
+                        if let Some(target) = c.attribute("url").and_then(|u| by_id(u.trim_start_matches('#'))) {
+                            stack.push((target, world));
+                        }
+                    } else if c.has_tag_name("instance_geometry") {
+                        let url = c.attribute("url").unwrap_or_default();
+                        let geometry = by_id(url.trim_start_matches('#')).ok_or_else(|| {
+                            parse_error(path, "<instance_geometry>", format!("no geometry with id '{url}'"))
+                        })?;
+                        let part = dae_geometry(geometry, &doc, path)?;
+                        mesh.append(&part.transformed(&DAffine3::from_mat4(world)));
+                    }
+                }
+            }
+        }
+        None => {
+            for geometry in doc.descendants().filter(|n| n.has_tag_name("geometry")) {
+                let part = dae_geometry(geometry, &doc, path)?;
+                mesh.append(&part.transformed(&DAffine3::from_mat4(root_transform)));
+            }
+        }
+    }
+    Ok(mesh)
+}
+
+fn child<'a, 'input>(node: roxmltree::Node<'a, 'input>, name: &str) -> Option<roxmltree::Node<'a, 'input>> {
+    node.children().find(|c| c.has_tag_name(name))
+}
+
+fn floats(text: Option<&str>, path: &Path, element: &str) -> Result<Vec<f64>, MeshError> {
+    text.unwrap_or_default()
+        .split_ascii_whitespace()
+        .map(|s| {
+            s.parse::<f64>()
+                .map_err(|_| parse_error(path, element, format!("'{s}' is not a number")))
+        })
+        .collect()
+}
+
+fn node_transform(node: roxmltree::Node, path: &Path) -> Result<DMat4, MeshError> {
+    let mut m = DMat4::IDENTITY;
+    for c in node.children().filter(roxmltree::Node::is_element) {
+        let name = c.tag_name().name();
+        let element = format!("<{name}> of node '{}'", node.attribute("id").unwrap_or_default());
+        let v = match name {
+            "matrix" | "translate" | "rotate" | "scale" => floats(c.text(), path, &element)?,
+            _ => continue,
+        };
+        let need = match name {
+            "matrix" => 16,
+            "rotate" => 4,
+            _ => 3,
+        };
+        if v.len() != need {
+            return Err(parse_error(path, element, format!("expected {need} numbers, got {}", v.len())));
+        }
+        m *= match name {
+            // COLLADA writes matrices row by row.
+            "matrix" => DMat4::from_cols_slice(&v).transpose(),
+            "translate" => DMat4::from_translation(DVec3::new(v[0], v[1], v[2])),
+            "rotate" => DMat4::from_axis_angle(
+                DVec3::new(v[0], v[1], v[2]).normalize_or(DVec3::Z),
+                v[3].to_radians(),
+            ),
+            _ => DMat4::from_scale(DVec3::new(v[0], v[1], v[2])),
+        };
+    }
+    Ok(m)
+}
+
+fn dae_geometry(geometry: roxmltree::Node, doc: &roxmltree::Document, path: &Path) -> Result<TriMesh, MeshError> {
+    let gid = geometry.attribute("id").unwrap_or_default();
+    let mut out = TriMesh::default();
+    let Some(mesh) = geometry.children().find(|c| c.has_tag_name("mesh")) else {
+        return Ok(out);
+    };
+    let by_id = |id: &str| doc.descendants().find(|n| n.attribute("id") == Some(id.trim_start_matches('#')));
+    // POSITION source of the <vertices> element.
+    let vertices = mesh
+        .children()
+        .find(|c| c.has_tag_name("vertices"))
+        .ok_or_else(|| parse_error(path, format!("geometry '{gid}'"), "no <vertices>"))?;
+    let source_url = vertices
+        .children()
+        .find(|c| c.has_tag_name("input") && c.attribute("semantic") == Some("POSITION"))
+        .and_then(|i| i.attribute("source"))
+        .ok_or_else(|| parse_error(path, format!("geometry '{gid}' <vertices>"), "no POSITION input"))?;
+    let source = by_id(source_url)
+        .ok_or_else(|| parse_error(path, format!("geometry '{gid}'"), format!("no source '{source_url}'")))?;
+    let element = format!("geometry '{gid}' <source '{source_url}'>");
+    let array = source.descendants().find(|c| c.has_tag_name("float_array"));
+    let values = floats(array.and_then(|a| a.text()), path, &element)?;
+    let stride = source
+        .descendants()
+        .find(|c| c.has_tag_name("accessor"))
+        .and_then(|a| a.attribute("stride"))
+        .and_then(|s| s.parse::<usize>().ok())
+        .unwrap_or(3)
+        .max(3);
+    out.positions = values
+        .chunks_exact(stride)
+        .map(|c| DVec3::new(c[0], c[1], c[2]))
+        .collect();
+
+    for prim in mesh.children().filter(roxmltree::Node::is_element) {
+        let kind = prim.tag_name().name();
+        if !matches!(kind, "triangles" | "polylist" | "polygons") {
+            continue;
+        }
+        let element = format!("geometry '{gid}' <{kind}>");
+        let inputs: Vec<roxmltree::Node> = prim.children().filter(|c| c.has_tag_name("input")).collect();
+        let offset_of = |i: &roxmltree::Node| i.attribute("offset").and_then(|o| o.parse::<usize>().ok()).unwrap_or(0);
+        let step = inputs.iter().map(offset_of).max().unwrap_or(0) + 1;
+        let vertex_offset = inputs
+            .iter()
+            .find(|i| i.attribute("semantic") == Some("VERTEX"))
+            .map(offset_of)
+            .ok_or_else(|| parse_error(path, &element, "no VERTEX input"))?;
+        let counts: Option<Vec<usize>> = match kind {
+            "polylist" => Some(
+                floats(prim.children().find(|c| c.has_tag_name("vcount")).and_then(|v| v.text()), path, &element)?
+                    .iter()
+                    .map(|v| *v as usize)
+                    .collect(),
+            ),
+            _ => None,
+        };
+        let polygons: Vec<Vec<u32>> = {
+            let mut polys = Vec::new();
+            for p in prim.children().filter(|c| c.has_tag_name("p")) {
+                let idx = floats(p.text(), path, &element)?;
+                let corners: Vec<u32> = idx.iter().skip(vertex_offset).step_by(step).map(|v| *v as u32).collect();
+                match (kind, &counts) {
+                    ("triangles", _) => polys.extend(corners.chunks_exact(3).map(<[u32]>::to_vec)),
+                    ("polylist", Some(counts)) => {
+                        let mut at = 0;
+                        for &n in counts {
+                            let Some(poly) = corners.get(at..at + n) else {
+                                return Err(parse_error(path, &element, "<vcount> needs more indices than <p> has"));
+                            };
+                            polys.push(poly.to_vec());
+                            at += n;
+                        }
+                    }
+                    _ => polys.push(corners),
+                }
+            }
+            polys
+        };
+        for poly in polygons {
+            for k in 1..poly.len().saturating_sub(1) {
+                out.triangles.push([poly[0], poly[k], poly[k + 1]]);
+            }
+        }
+    }
+    checked(out, path, &format!("geometry '{gid}'"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DAE: &str = r##"<?xml version="1.0"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+  <asset><unit name="centimeter" meter="0.01"/><up_axis>Z_UP</up_axis></asset>
+  <library_geometries>
+    <geometry id="tri-mesh"><mesh>
+      <source id="tri-pos"><float_array id="tri-pos-array" count="12">0 0 0 1 0 0 0 1 0 1 1 0</float_array>
+        <technique_common><accessor source="#tri-pos-array" count="4" stride="3"/></technique_common></source>
+      <vertices id="tri-verts"><input semantic="POSITION" source="#tri-pos"/></vertices>
+      <polylist count="1"><input semantic="VERTEX" source="#tri-verts" offset="0"/>
+        <input semantic="NORMAL" source="#n" offset="1"/>
+        <vcount>4</vcount><p>0 0 1 0 3 0 2 0</p></polylist>
+    </mesh></geometry>
+  </library_geometries>
+  <library_visual_scenes><visual_scene id="Scene">
+    <node id="n1"><matrix>1 0 0 100  0 1 0 0  0 0 1 0  0 0 0 1</matrix>
+      <node id="n2"><rotate>0 0 1 90</rotate><instance_geometry url="#tri-mesh"/></node>
+    </node>
+  </visual_scene></library_visual_scenes>
+  <scene><instance_visual_scene url="#Scene"/></scene>
+</COLLADA>"##;
+
+    #[test]
+    fn dae_applies_units_nested_transforms_and_triangulates_polylists() {
+        let mesh = read_dae(DAE, Path::new("t.dae")).unwrap();
+        assert_eq!(mesh.triangles.len(), 2);
+        // Vertex (1, 0, 0) cm, turned 90° about z, then moved 100 cm along x.
+        let expected = DVec3::new(1.0, 0.01, 0.0);
+        assert!(mesh.positions.iter().any(|p| (*p - expected).length() < 1e-12), "{:?}", mesh.positions);
+        assert!((mesh.area() - 1e-4).abs() < 1e-15);
+    }
+
+    #[test]
+    fn dae_y_up_is_turned_to_z_up() {
+        let text = DAE.replace("Z_UP", "Y_UP").replace("<rotate>0 0 1 90</rotate>", "");
+        let mesh = read_dae(&text, Path::new("t.dae")).unwrap();
+        // (0, 1, 0) cm in a y-up file is up: (1 m offset, 0, 0.01) once z is up.
+        let expected = DVec3::new(0.0, 0.0, 0.01) + DMat3::from_rotation_x(std::f64::consts::FRAC_PI_2) * DVec3::new(1.0, 0.0, 0.0);
+        assert!(mesh.positions.iter().any(|p| (*p - expected).length() < 1e-12), "{:?}", mesh.positions);
+    }
+
+    #[test]
+    fn dae_errors_name_the_element() {
+        let text = DAE.replace("0 0 0 1 0 0", "0 0 zero 1 0 0");
+        let e = read_dae(&text, Path::new("t.dae")).unwrap_err().to_string();
+        assert!(e.contains("t.dae") && e.contains("tri-mesh") && e.contains("zero"), "{e}");
+        let text = DAE.replace("<p>0 0 1 0 3 0 2 0</p>", "<p>0 0 1 0 9 0 2 0</p>");
+        let e = read_dae(&text, Path::new("t.dae")).unwrap_err().to_string();
+        assert!(e.contains("tri-mesh") && e.contains("past"), "{e}");
+    }
+
+    #[test]
+    fn glb_round_trips_names_and_geometry() {
+        let cube = crate::core::primitives::cuboid(DVec3::new(0.5, 0.25, 1.0));
+        let meshes = vec![("b".to_owned(), cube.clone()), ("a".to_owned(), cube.transformed(&DAffine3::from_translation(DVec3::X)))];
+        let bytes = encode_glb(&meshes);
+        assert_eq!(bytes, encode_glb(&meshes));
+        let back = read_gltf_nodes(&bytes, Path::new("x.glb")).unwrap();
+        assert_eq!(back.len(), 2);
+        assert_eq!(back[0].0, "a");
+        assert_eq!(back[1].1, cube);
+        assert!((back[0].1.signed_volume() - 0.125).abs() < 1e-9);
+    }
+
+    #[test]
+    fn unsupported_and_missing_files_are_named() {
+        let e = load_mesh(Path::new("robot/link.ply")).unwrap_err().to_string();
+        assert!(e.contains("link.ply") && e.contains("ply"), "{e}");
+        let e = load_mesh(Path::new("/nonexistent/link.stl")).unwrap_err().to_string();
+        assert!(e.contains("/nonexistent/link.stl"), "{e}");
+    }
+}

@@ -1,0 +1,594 @@
+//! Scene files (JSON, `"version": 1`): a robot in a configuration, the
+//! links that can be touched, the surface resolution, an applied push,
+//! sensor noise and the estimator settings.
+//!
+//! Unknown fields are rejected; every optional field has the default
+//! documented on it.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+
+use crate::core::kinematics::RobotPose;
+use crate::core::robot::{LinkId, Robot, RobotError};
+use crate::core::torque::{joint_torques, with_sensor_noise};
+use crate::io::builtin::{LoadRobotError, load_robot};
+use crate::io::urdf::{MeshSelection, UrdfOptions};
+
+/// The scene format version this program reads and writes.
+pub const SCENE_VERSION: u32 = 1;
+
+/// A scene as stored.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Always 1.
+    pub version: u32,
+    /// Short title. Default: empty.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub name: String,
+    /// What the scene shows. Default: empty.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub description: String,
+    /// A built-in robot (`simple6`, `lwr4plus`) or a URDF path relative to
+    /// the scene file.
+    pub robot: String,
+    /// Extra folders for `package://` URIs, relative to the scene file. Default: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub package_paths: Vec<String>,
+    /// The joints with torque sensors, in the order of `q`. Default: every
+    /// revolute and continuous joint, depth-first from the root.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensed_joints: Option<Vec<String>>,
+    /// Positions of the sensed joints, rad (m for prismatic).
+    pub q: Vec<f64>,
+    /// Positions of other movable joints by name. Default: all 0.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub other_joints: BTreeMap<String, f64>,
+    /// Links that can be touched. Default: every link with a surface that a
+    /// revolute or continuous joint moves.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub candidate_links: Option<Vec<String>>,
+    /// Surface samples over the candidate links. Default: 5000.
+    #[serde(default = "default_surface_points")]
+    pub surface_points: usize,
+    /// Seed of the surface sampling. Default: 0.
+    #[serde(default)]
+    pub surface_seed: u64,
+    /// The applied push. Default: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub push: Option<Push>,
+    /// Sensor noise added to the push's torques. Default: none.
+    #[serde(default)]
+    pub noise: Noise,
+    /// Estimator settings. Default: see [`EstimatorSettings`].
+    #[serde(default)]
+    pub estimator: EstimatorSettings,
+}
+
+fn default_surface_points() -> usize {
+    5000
+}
+
+/// A push on the robot. Give the point as `point_in_link` or `point_world`,
+/// and the force as `force_world` (N) or `force_newtons` (along the inward
+/// surface normal nearest the point).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Push {
+    /// The link touched.
+    pub link: String,
+    /// Contact point in the link frame, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub point_in_link: Option<[f64; 3]>,
+    /// Contact point in the world (base) frame, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub point_world: Option<[f64; 3]>,
+    /// Force applied to the robot, world frame, N.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_world: Option<[f64; 3]>,
+    /// Magnitude of a push along the inward surface normal, N.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_newtons: Option<f64>,
+}
+
+/// Gaussian noise on the torque sensors.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Noise {
+    /// Standard deviation per joint, N·m. Default: 0 (exact torques).
+    #[serde(default)]
+    pub sigma_newton_metres: f64,
+    /// Seed of the noise. Default: 0.
+    #[serde(default)]
+    pub seed: u64,
+}
+
+/// Estimator mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// Per surface point, the likelihood maximised and integrated over the
+    /// force magnitude in closed form.
+    #[default]
+    Exact,
+    /// The thesis' particles.
+    Particles,
+}
+
+/// How particles get their force magnitudes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Sampling {
+    /// `m` magnitudes per point (eq. 2.10).
+    #[default]
+    Deterministic,
+    /// Uniform random points and magnitudes (§3.1.1, §3.1.2).
+    Random,
+}
+
+/// One σ for all joints or one per joint, N·m.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Sigma {
+    /// The same for every joint.
+    All(f64),
+    /// One per sensed joint.
+    PerJoint(Vec<f64>),
+}
+
+impl Default for Sigma {
+    fn default() -> Self {
+        Self::All(0.1)
+    }
+}
+
+/// Coarse-to-fine phases A/B/C (§2.4).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Phases {
+    /// Use them. Default: false.
+    #[serde(default)]
+    pub enabled: bool,
+    /// Sizes of phases A and B (C is every point). Default: [200, 1000].
+    #[serde(default = "default_phase_sizes")]
+    pub sizes: [usize; 2],
+    /// Keep clusters with P ≥ α·P_max. Default: 0.5.
+    #[serde(default = "default_alpha")]
+    pub alpha: f64,
+}
+
+impl Default for Phases {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            sizes: default_phase_sizes(),
+            alpha: default_alpha(),
+        }
+    }
+}
+
+fn default_phase_sizes() -> [usize; 2] {
+    [200, 1000]
+}
+
+fn default_alpha() -> f64 {
+    0.5
+}
+
+/// Estimator settings (used by the estimator and the app).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EstimatorSettings {
+    /// Default: exact.
+    #[serde(default)]
+    pub mode: Mode,
+    /// Likelihood σ, N·m. Default: 0.1.
+    #[serde(default)]
+    pub sigma_newton_metres: Sigma,
+    /// Particle sampling. Default: deterministic.
+    #[serde(default)]
+    pub sampling: Sampling,
+    /// Number of particles N (particle mode). Default: 20000.
+    #[serde(default = "default_particles")]
+    pub particles: usize,
+    /// Magnitudes per point m (deterministic sampling). Default: 5.
+    #[serde(default = "default_magnitudes")]
+    pub magnitudes_per_point: usize,
+    /// Default: off, sizes [200, 1000], α 0.5.
+    #[serde(default)]
+    pub phases: Phases,
+    /// Smallest push considered, N. Default: 1.
+    #[serde(default = "default_force_min")]
+    pub force_min_newtons: f64,
+    /// Largest push considered, N. Default: 30.
+    #[serde(default = "default_force_max")]
+    pub force_max_newtons: f64,
+}
+
+impl Default for EstimatorSettings {
+    fn default() -> Self {
+        Self {
+            mode: Mode::default(),
+            sigma_newton_metres: Sigma::default(),
+            sampling: Sampling::default(),
+            particles: default_particles(),
+            magnitudes_per_point: default_magnitudes(),
+            phases: Phases::default(),
+            force_min_newtons: default_force_min(),
+            force_max_newtons: default_force_max(),
+        }
+    }
+}
+
+fn default_particles() -> usize {
+    20_000
+}
+fn default_magnitudes() -> usize {
+    5
+}
+fn default_force_min() -> f64 {
+    1.0
+}
+fn default_force_max() -> f64 {
+    30.0
+}
+
+/// Why a scene could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The file could not be read.
+    #[error("{path}: cannot read the scene: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The system's reason.
+        source: std::io::Error,
+    },
+    /// Not valid JSON, or not the scene schema.
+    #[error("{path}:{line}:{column}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// Line of the error.
+        line: usize,
+        /// Column of the error.
+        column: usize,
+        /// What the parser says.
+        message: String,
+    },
+    /// A field holds a value that makes no sense.
+    #[error("{path}: field '{field}': {message}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// The field, dotted (`push.force_world`).
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The robot could not be loaded.
+    #[error("{path}: field 'robot': {source}")]
+    Robot {
+        /// The scene file.
+        path: PathBuf,
+        /// What went wrong.
+        source: LoadRobotError,
+    },
+    /// The scene does not fit its robot.
+    #[error("{path}: field '{field}': {source}")]
+    Model {
+        /// The scene file.
+        path: PathBuf,
+        /// The field.
+        field: String,
+        /// What is wrong.
+        source: RobotError,
+    },
+}
+
+/// A push resolved against the robot: link, point and force in the world.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ResolvedPush {
+    /// The link touched.
+    pub link: LinkId,
+    /// Contact point, world frame, m.
+    pub point_world: DVec3,
+    /// Force applied to the robot, world frame, N.
+    pub force_world: DVec3,
+}
+
+/// A scene with its robot loaded and posed.
+#[derive(Debug, Clone)]
+pub struct LoadedScene {
+    /// The scene as read.
+    pub scene: Scene,
+    /// Its robot, sensed joints set.
+    pub robot: Robot,
+    /// Every joint's position.
+    pub joint_positions: Vec<f64>,
+    /// The posed robot.
+    pub pose: RobotPose,
+    /// The candidate links.
+    pub candidate_links: Vec<LinkId>,
+    /// The push, if any.
+    pub push: Option<ResolvedPush>,
+}
+
+impl LoadedScene {
+    /// Exact torques of the push on the sensed joints (zeros without push).
+    #[must_use]
+    pub fn push_torques(&self) -> Vec<f64> {
+        match self.push {
+            Some(p) => joint_torques(&self.robot, &self.pose, p.link, p.point_world, p.force_world),
+            None => vec![0.0; self.robot.sensed().len()],
+        }
+    }
+
+    /// What the sensors read: the push's torques plus the scene's noise.
+    #[must_use]
+    pub fn measured_torques(&self) -> Vec<f64> {
+        with_sensor_noise(&self.push_torques(), self.scene.noise.sigma_newton_metres, self.scene.noise.seed)
+    }
+}
+
+impl Scene {
+    /// Reads and checks a scene file (the robot is not loaded).
+    pub fn read(path: &Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses and checks scene JSON; `path` names the source in errors.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, SceneError> {
+        let scene: Self = serde_json::from_str(text).map_err(|e| {
+            let mut message = e.to_string();
+            // serde_json appends " at line L column C"; we lead with it.
+            if let Some(i) = message.rfind(" at line ") {
+                message.truncate(i);
+            }
+            if text.contains("NaN") || text.contains("Infinity") {
+                message.push_str(" (NaN and Infinity are not JSON numbers)");
+            }
+            SceneError::Parse {
+                path: path.to_owned(),
+                line: e.line(),
+                column: e.column(),
+                message,
+            }
+        })?;
+        scene.validate(path)?;
+        Ok(scene)
+    }
+
+    /// The scene as pretty JSON.
+    pub fn to_json(&self) -> Result<String, serde_json::Error> {
+        serde_json::to_string_pretty(self)
+    }
+
+    fn validate(&self, path: &Path) -> Result<(), SceneError> {
+        let invalid = |field: &str, message: String| SceneError::Invalid {
+            path: path.to_owned(),
+            field: field.to_owned(),
+            message,
+        };
+        let finite3 = |field: &str, v: &[f64; 3]| {
+            if v.iter().all(|x| x.is_finite()) {
+                Ok(())
+            } else {
+                Err(invalid(field, format!("{v:?} is not finite")))
+            }
+        };
+        if self.version != SCENE_VERSION {
+            return Err(invalid("version", format!("{} is not supported (this program reads version {SCENE_VERSION})", self.version)));
+        }
+        if let Some(i) = self.q.iter().position(|v| !v.is_finite()) {
+            return Err(invalid(&format!("q[{i}]"), format!("{} is not finite", self.q[i])));
+        }
+        for (name, v) in &self.other_joints {
+            if !v.is_finite() {
+                return Err(invalid(&format!("other_joints.{name}"), format!("{v} is not finite")));
+            }
+        }
+        if self.surface_points == 0 {
+            return Err(invalid("surface_points", "must be at least 1".to_owned()));
+        }
+        if let Some(push) = &self.push {
+            match (&push.point_in_link, &push.point_world) {
+                (Some(p), None) => finite3("push.point_in_link", p)?,
+                (None, Some(p)) => finite3("push.point_world", p)?,
+                _ => return Err(invalid("push", "give exactly one of point_in_link and point_world".to_owned())),
+            }
+            match (&push.force_world, push.force_newtons) {
+                (Some(f), None) => finite3("push.force_world", f)?,
+                (None, Some(f)) if f.is_finite() && f > 0.0 => {}
+                (None, Some(f)) => return Err(invalid("push.force_newtons", format!("{f} is not a positive number"))),
+                _ => return Err(invalid("push", "give exactly one of force_world and force_newtons".to_owned())),
+            }
+        }
+        let n = &self.noise;
+        if !(n.sigma_newton_metres.is_finite() && n.sigma_newton_metres >= 0.0) {
+            return Err(invalid("noise.sigma_newton_metres", format!("{} is not a number ≥ 0", n.sigma_newton_metres)));
+        }
+        let e = &self.estimator;
+        let sigmas: Vec<f64> = match &e.sigma_newton_metres {
+            Sigma::All(s) => vec![*s],
+            Sigma::PerJoint(v) => v.clone(),
+        };
+        if let Some(s) = sigmas.iter().find(|s| !(s.is_finite() && **s > 0.0)) {
+            return Err(invalid("estimator.sigma_newton_metres", format!("{s} is not a positive number")));
+        }
+        if !(e.force_min_newtons.is_finite() && e.force_max_newtons.is_finite() && e.force_min_newtons >= 0.0) {
+            return Err(invalid("estimator.force_min_newtons", "the force range must be finite and ≥ 0".to_owned()));
+        }
+        if e.force_min_newtons > e.force_max_newtons {
+            return Err(invalid(
+                "estimator.force_min_newtons",
+                format!("{} is above force_max_newtons {}", e.force_min_newtons, e.force_max_newtons),
+            ));
+        }
+        if !(e.phases.alpha > 0.0 && e.phases.alpha < 1.0) {
+            return Err(invalid("estimator.phases.alpha", format!("{} is not in (0, 1)", e.phases.alpha)));
+        }
+        if e.particles == 0 || e.magnitudes_per_point == 0 {
+            return Err(invalid("estimator.particles", "particles and magnitudes_per_point must be at least 1".to_owned()));
+        }
+        Ok(())
+    }
+
+    /// Loads the robot (relative to `scene_path`'s folder), poses it and
+    /// resolves the push.
+    pub fn load(self, scene_path: &Path) -> Result<LoadedScene, SceneError> {
+        let folder = scene_path.parent().unwrap_or(Path::new(".")).to_owned();
+        let options = UrdfOptions {
+            package_paths: self.package_paths.iter().map(|p| folder.join(p)).collect(),
+            meshes: MeshSelection::All,
+        };
+        let mut robot = load_robot(&self.robot, &folder, &options).map_err(|source| SceneError::Robot {
+            path: scene_path.to_owned(),
+            source,
+        })?;
+        let model = |field: &str| {
+            let field = field.to_owned();
+            let path = scene_path.to_owned();
+            move |source| SceneError::Model { path, field, source }
+        };
+        if let Some(names) = &self.sensed_joints {
+            robot.set_sensed(names).map_err(model("sensed_joints"))?;
+        }
+        let others: Vec<(String, f64)> = self.other_joints.iter().map(|(k, v)| (k.clone(), *v)).collect();
+        let joint_positions = robot.joint_positions(&self.q, &others).map_err(model("q"))?;
+        let pose = RobotPose::new(&robot, &joint_positions);
+        let candidate_links = match &self.candidate_links {
+            Some(names) => names
+                .iter()
+                .map(|n| robot.link_id(n))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(model("candidate_links"))?,
+            None => robot.default_candidate_links(),
+        };
+        let push = match &self.push {
+            None => None,
+            Some(p) => Some(resolve_push(&robot, &pose, p, scene_path)?),
+        };
+        Ok(LoadedScene {
+            scene: self,
+            robot,
+            joint_positions,
+            pose,
+            candidate_links,
+            push,
+        })
+    }
+}
+
+fn resolve_push(robot: &Robot, pose: &RobotPose, push: &Push, scene_path: &Path) -> Result<ResolvedPush, SceneError> {
+    let link = robot.link_id(&push.link).map_err(|source| SceneError::Model {
+        path: scene_path.to_owned(),
+        field: "push.link".to_owned(),
+        source,
+    })?;
+    let world_from_link = pose.world_from_link[link];
+    let point_world = match (push.point_in_link, push.point_world) {
+        (Some(p), _) => world_from_link.transform_point3(DVec3::from_array(p)),
+        (None, Some(p)) => DVec3::from_array(p),
+        (None, None) => DVec3::ZERO,
+    };
+    let force_world = match (push.force_world, push.force_newtons) {
+        (Some(f), _) => DVec3::from_array(f),
+        (None, Some(magnitude)) => {
+            let point_in_link = world_from_link.inverse().transform_point3(point_world);
+            let (_, outward) = robot.links[link].mesh.closest_point(point_in_link).ok_or_else(|| SceneError::Invalid {
+                path: scene_path.to_owned(),
+                field: "push.force_newtons".to_owned(),
+                message: format!(
+                    "link '{}' has no mesh to take the surface normal from: give push.force_world",
+                    push.link
+                ),
+            })?;
+            -world_from_link.transform_vector3(outward) * magnitude
+        }
+        (None, None) => DVec3::ZERO,
+    };
+    Ok(ResolvedPush {
+        link,
+        point_world,
+        force_world,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MINIMAL: &str = r#"{"version": 1, "robot": "lwr4plus", "q": [0, 0, 0, 0, 0, 0, 0]}"#;
+
+    #[test]
+    fn defaults_fill_missing_optional_fields() {
+        let s = Scene::parse(MINIMAL, Path::new("m.json")).unwrap();
+        assert_eq!(s.surface_points, 5000);
+        assert_eq!(s.estimator.mode, Mode::Exact);
+        assert_eq!(s.estimator.phases.sizes, [200, 1000]);
+        assert!(s.push.is_none());
+    }
+
+    #[test]
+    fn unknown_field_is_rejected_by_name() {
+        let text = MINIMAL.replace("\"q\"", "\"surface_pionts\": 3, \"q\"");
+        let e = Scene::parse(&text, Path::new("typo.json")).unwrap_err().to_string();
+        assert!(e.contains("typo.json") && e.contains("surface_pionts"), "{e}");
+    }
+
+    #[test]
+    fn nan_is_reported_with_its_place() {
+        let text = MINIMAL.replace("[0, 0, 0,", "[0, NaN, 0,");
+        let e = Scene::parse(&text, Path::new("nan.json")).unwrap_err().to_string();
+        assert!(e.contains("nan.json:1:") && e.contains("NaN"), "{e}");
+    }
+
+    #[test]
+    fn wrong_joint_count_names_the_field_and_the_joints() {
+        let text = MINIMAL.replace("[0, 0, 0, 0, 0, 0, 0]", "[0, 0, 0]");
+        let e = Scene::parse(&text, Path::new("short.json")).unwrap().load(Path::new("short.json")).unwrap_err().to_string();
+        assert!(e.contains("short.json") && e.contains("'q'") && e.contains("expected 7") && e.contains("got 3"), "{e}");
+    }
+
+    #[test]
+    fn invalid_values_name_their_field() {
+        let cases = [
+            (r#""push": {"link": "lwr_2_link", "point_world": [0, 0, 0.4]}, "q""#, "push"),
+            (r#""estimator": {"force_min_newtons": 5, "force_max_newtons": 2}, "q""#, "force_min_newtons"),
+            (r#""estimator": {"sigma_newton_metres": [0.1, -1]}, "q""#, "sigma_newton_metres"),
+            (r#""version": 2, "q""#, "version"),
+        ];
+        for (insert, field) in cases {
+            let text = MINIMAL.replace("\"q\"", insert).replace(r#"{"version": 1, "robot": "lwr4plus", "version": 2"#, r#"{"robot": "lwr4plus", "version": 2"#);
+            let e = Scene::parse(&text, Path::new("bad.json")).unwrap_err().to_string();
+            assert!(e.contains(field), "{insert}: {e}");
+        }
+    }
+
+    #[test]
+    fn push_by_magnitude_follows_the_inward_normal() {
+        let text = MINIMAL.replace(
+            "\"q\"",
+            r#""push": {"link": "lwr_7_link", "point_in_link": [0.0, 0.0, 0.0], "force_newtons": 4}, "q""#,
+        );
+        let loaded = Scene::parse(&text, Path::new("x.json")).unwrap().load(Path::new("x.json")).unwrap();
+        let push = loaded.push.unwrap();
+        // The flange's top face: the inward normal points down.
+        assert!((push.force_world - DVec3::new(0.0, 0.0, -4.0)).length() < 1e-6, "{}", push.force_world);
+    }
+
+    #[test]
+    fn round_trip_through_json() {
+        let s = Scene::parse(MINIMAL, Path::new("m.json")).unwrap();
+        let again = Scene::parse(&s.to_json().unwrap(), Path::new("m.json")).unwrap();
+        assert_eq!(s, again);
+    }
+}
