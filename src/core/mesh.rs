@@ -174,10 +174,24 @@ impl TriMesh {
             shell_of_triangle.push(*shell_of_root.entry(root).or_insert(next));
         }
         report.shells = shell_of_root.len();
+        // Signed volume about each shell's own area centroid: for a closed
+        // shell the reference point does not matter, and for a shell with
+        // small holes (common in visual meshes) the missing caps then add
+        // little, whereas about a far origin they can flip the sign.
+        let mut centroid = vec![(DVec3::ZERO, 0.0); report.shells];
+        for (i, &s) in shell_of_triangle.iter().enumerate() {
+            if let Some(c) = self.corners(i) {
+                let area = triangle_area(&c);
+                centroid[s].0 += (c[0] + c[1] + c[2]) / 3.0 * area;
+                centroid[s].1 += area;
+            }
+        }
         let mut volume = vec![0.0; report.shells];
         for (i, &s) in shell_of_triangle.iter().enumerate() {
-            if let Some([a, b, c]) = self.corners(i) {
-                volume[s] += a.dot(b.cross(c)) / 6.0;
+            if let Some(c) = self.corners(i) {
+                let o = centroid[s].0 / centroid[s].1;
+                let [a, b, cc] = c.map(|p| p - o);
+                volume[s] += a.dot(b.cross(cc)) / 6.0;
             }
         }
         report.flipped = volume.iter().filter(|v| **v < 0.0).count();

@@ -276,9 +276,9 @@ impl Prepared {
                     let p = c[0] * (1.0 - s) + c[1] * (s * (1.0 - u2)) + c[2] * (s * u2);
                     let outward = (c[1] - c[0]).cross(c[2] - c[0]).normalize_or_zero();
                     stats.drawn += 1;
-                    if bvh.winding_number(p + outward * BURIED_PROBE_M) >= 1 {
+                    if bvh.winding_number(p + outward * BURIED_PROBE_M) > 0.5 {
                         stats.buried += 1;
-                    } else if bvh.winding_number(p - outward * BURIED_PROBE_M) < 1 {
+                    } else if bvh.winding_number(p - outward * BURIED_PROBE_M) < 0.5 {
                         stats.open_or_thin += 1;
                     } else {
                         points.push(p);
