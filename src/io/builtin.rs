@@ -19,22 +19,22 @@ pub const LWR4PLUS_GLB: &[u8] = include_bytes!("../../assets/lwr4plus.glb");
 #[derive(Debug, thiserror::Error)]
 pub enum LoadRobotError {
     /// The shipped asset does not decode.
-    #[error("built-in robot '{name}': its asset {asset} is unreadable: {source}")]
+    #[error("built-in robot '{name}': its asset {asset} is unreadable: {cause}")]
     Asset {
         /// Robot name.
         name: String,
         /// Asset path in the repository.
         asset: String,
         /// What went wrong.
-        source: MeshError,
+        cause: MeshError,
     },
     /// The built-in description is inconsistent (a bug).
-    #[error("built-in robot '{name}': {source}")]
+    #[error("built-in robot '{name}': {cause}")]
     Builtin {
         /// Robot name.
         name: String,
         /// What is wrong.
-        source: RobotError,
+        cause: RobotError,
     },
     /// A URDF failed to import.
     #[error(transparent)]
@@ -63,18 +63,18 @@ pub fn is_builtin(spec: &str) -> bool {
 
 /// A built-in robot by name, or a URDF at `spec` (relative to `base_dir`).
 pub fn load_robot(spec: &str, base_dir: &Path, options: &UrdfOptions) -> Result<Robot, LoadRobotError> {
-    let builtin_error = |source| LoadRobotError::Builtin {
+    let builtin_error = |cause| LoadRobotError::Builtin {
         name: spec.to_owned(),
-        source,
+        cause,
     };
     match spec {
         "simple6" => builtin::simple6().map_err(builtin_error),
         "lwr4plus" => {
-            let meshes = read_gltf_nodes(LWR4PLUS_GLB, Path::new(LWR4PLUS_GLB_PATH)).map_err(|source| {
+            let meshes = read_gltf_nodes(LWR4PLUS_GLB, Path::new(LWR4PLUS_GLB_PATH)).map_err(|cause| {
                 LoadRobotError::Asset {
                     name: spec.to_owned(),
                     asset: LWR4PLUS_GLB_PATH.to_owned(),
-                    source,
+                    cause,
                 }
             })?;
             builtin::lwr4plus_with_meshes(&meshes).map_err(builtin_error)

@@ -12,12 +12,12 @@ use crate::core::mesh::TriMesh;
 #[derive(Debug, thiserror::Error)]
 pub enum MeshError {
     /// The file could not be opened or read.
-    #[error("{path}: cannot read the mesh: {source}")]
+    #[error("{path}: cannot read the mesh: {cause}")]
     Read {
         /// The file.
         path: PathBuf,
         /// The system's reason.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The file's content is malformed.
     #[error("{path}: {element}: {message}")]
@@ -48,9 +48,9 @@ fn parse_error(path: &Path, element: impl Into<String>, message: impl ToString) 
 }
 
 fn read_bytes(path: &Path) -> Result<Vec<u8>, MeshError> {
-    std::fs::read(path).map_err(|source| MeshError::Read {
+    std::fs::read(path).map_err(|cause| MeshError::Read {
         path: path.to_owned(),
-        source,
+        cause,
     })
 }
 
@@ -429,12 +429,12 @@ fn dae_geometry(geometry: roxmltree::Node, doc: &roxmltree::Document, path: &Pat
         .find(|c| c.has_tag_name("input") && c.attribute("semantic") == Some("POSITION"))
         .and_then(|i| i.attribute("source"))
         .ok_or_else(|| parse_error(path, format!("geometry '{gid}' <vertices>"), "no POSITION input"))?;
-    let source = by_id(source_url)
+    let source_node = by_id(source_url)
         .ok_or_else(|| parse_error(path, format!("geometry '{gid}'"), format!("no source '{source_url}'")))?;
     let element = format!("geometry '{gid}' <source '{source_url}'>");
-    let array = source.descendants().find(|c| c.has_tag_name("float_array"));
+    let array = source_node.descendants().find(|c| c.has_tag_name("float_array"));
     let values = floats(array.and_then(|a| a.text()), path, &element)?;
-    let stride = source
+    let stride = source_node
         .descendants()
         .find(|c| c.has_tag_name("accessor"))
         .and_then(|a| a.attribute("stride"))

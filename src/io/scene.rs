@@ -240,12 +240,12 @@ fn default_force_max() -> f64 {
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// The file could not be read.
-    #[error("{path}: cannot read the scene: {source}")]
+    #[error("{path}: cannot read the scene: {cause}")]
     Read {
         /// The file.
         path: PathBuf,
         /// The system's reason.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// Not valid JSON, or not the scene schema.
     #[error("{path}:{line}:{column}: {message}")]
@@ -270,22 +270,22 @@ pub enum SceneError {
         message: String,
     },
     /// The robot could not be loaded.
-    #[error("{path}: field 'robot': {source}")]
+    #[error("{path}: field 'robot': {cause}")]
     Robot {
         /// The scene file.
         path: PathBuf,
         /// What went wrong.
-        source: LoadRobotError,
+        cause: LoadRobotError,
     },
     /// The scene does not fit its robot.
-    #[error("{path}: field '{field}': {source}")]
+    #[error("{path}: field '{field}': {cause}")]
     Model {
         /// The scene file.
         path: PathBuf,
         /// The field.
         field: String,
         /// What is wrong.
-        source: RobotError,
+        cause: RobotError,
     },
 }
 
@@ -337,9 +337,9 @@ impl LoadedScene {
 impl Scene {
     /// Reads and checks a scene file (the robot is not loaded).
     pub fn read(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+        let text = std::fs::read_to_string(path).map_err(|cause| SceneError::Read {
             path: path.to_owned(),
-            source,
+            cause,
         })?;
         Self::parse(&text, path)
     }
@@ -449,14 +449,14 @@ impl Scene {
             package_paths: self.package_paths.iter().map(|p| folder.join(p)).collect(),
             meshes: MeshSelection::All,
         };
-        let mut robot = load_robot(&self.robot, &folder, &options).map_err(|source| SceneError::Robot {
+        let mut robot = load_robot(&self.robot, &folder, &options).map_err(|cause| SceneError::Robot {
             path: scene_path.to_owned(),
-            source,
+            cause,
         })?;
         let model = |field: &str| {
             let field = field.to_owned();
             let path = scene_path.to_owned();
-            move |source| SceneError::Model { path, field, source }
+            move |cause| SceneError::Model { path, field, cause }
         };
         if let Some(names) = &self.sensed_joints {
             robot.set_sensed(names).map_err(model("sensed_joints"))?;
@@ -488,10 +488,10 @@ impl Scene {
 }
 
 fn resolve_push(robot: &Robot, pose: &RobotPose, push: &Push, scene_path: &Path) -> Result<ResolvedPush, SceneError> {
-    let link = robot.link_id(&push.link).map_err(|source| SceneError::Model {
+    let link = robot.link_id(&push.link).map_err(|cause| SceneError::Model {
         path: scene_path.to_owned(),
         field: "push.link".to_owned(),
-        source,
+        cause,
     })?;
     let world_from_link = pose.world_from_link[link];
     let point_world = match (push.point_in_link, push.point_world) {

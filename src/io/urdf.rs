@@ -39,12 +39,12 @@ pub struct UrdfOptions {
 #[derive(Debug, thiserror::Error)]
 pub enum UrdfError {
     /// The file could not be read.
-    #[error("{path}: cannot read the URDF: {source}")]
+    #[error("{path}: cannot read the URDF: {cause}")]
     Read {
         /// The file.
         path: PathBuf,
         /// The system's reason.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The XML is not a URDF.
     #[error("{path}: not a valid URDF: {message}")]
@@ -77,14 +77,14 @@ pub enum UrdfError {
         tried: String,
     },
     /// A mesh file could not be read.
-    #[error("{path}: link '{link}' <visual>: {source}")]
+    #[error("{path}: link '{link}' <visual>: {cause}")]
     Mesh {
         /// The URDF.
         path: PathBuf,
         /// The link.
         link: String,
         /// The mesh error (names the mesh file).
-        source: MeshError,
+        cause: MeshError,
     },
     /// A value that is not finite or not positive where it must be.
     #[error("{path}: link '{link}' <visual> {what} is invalid: {value}")]
@@ -99,12 +99,12 @@ pub enum UrdfError {
         value: String,
     },
     /// The tree is not a valid robot.
-    #[error("{path}: {source}")]
+    #[error("{path}: {cause}")]
     Robot {
         /// The URDF.
         path: PathBuf,
         /// What is wrong (names the joint or link).
-        source: RobotError,
+        cause: RobotError,
     },
 }
 
@@ -118,9 +118,9 @@ pub fn origin_transform(xyz: [f64; 3], rpy: [f64; 3]) -> DAffine3 {
 
 /// Reads a URDF file into a [`Robot`].
 pub fn load_urdf(path: &Path, options: &UrdfOptions) -> Result<Robot, UrdfError> {
-    let text = std::fs::read_to_string(path).map_err(|source| UrdfError::Read {
+    let text = std::fs::read_to_string(path).map_err(|cause| UrdfError::Read {
         path: path.to_owned(),
-        source,
+        cause,
     })?;
     let urdf = urdf_rs::read_from_string(&text).map_err(|e| UrdfError::Parse {
         path: path.to_owned(),
@@ -187,10 +187,10 @@ pub fn load_urdf(path: &Path, options: &UrdfOptions) -> Result<Robot, UrdfError>
                                 tried: tried.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "),
                             }
                         })?;
-                        let m = load_mesh(&file).map_err(|source| UrdfError::Mesh {
+                        let m = load_mesh(&file).map_err(|cause| UrdfError::Mesh {
                             path: path.to_owned(),
                             link: link.name.clone(),
-                            source,
+                            cause,
                         })?;
                         let s = scale.map_or(DVec3::ONE, |s| DVec3::from_array(*s));
                         if !s.is_finite() || s.x * s.y * s.z == 0.0 {
@@ -245,9 +245,9 @@ pub fn load_urdf(path: &Path, options: &UrdfOptions) -> Result<Robot, UrdfError>
                 .map(|m| (m.joint.clone(), m.multiplier.unwrap_or(1.0), m.offset.unwrap_or(0.0))),
         });
     }
-    Robot::new(&urdf.name, links, joints).map_err(|source| UrdfError::Robot {
+    Robot::new(&urdf.name, links, joints).map_err(|cause| UrdfError::Robot {
         path: path.to_owned(),
-        source,
+        cause,
     })
 }
 
