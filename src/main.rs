@@ -15,7 +15,11 @@ use proprioscope::io::scene::Scene;
 use proprioscope::io::urdf::{MeshSelection, UrdfOptions};
 
 #[derive(Parser)]
-#[command(name = "proprioscope", version, about = "Where is a robot arm touched, and how hard, from its joint torques alone")]
+#[command(
+    name = "proprioscope",
+    version,
+    about = "Where is a robot arm touched, and how hard, from its joint torques alone"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
@@ -116,7 +120,10 @@ fn torques(args: &TorquesArgs) -> Result<()> {
     let case = if let Some(path) = &args.scene {
         let loaded = Scene::read(path)?.load(path)?;
         let Some(push) = loaded.push else {
-            bail!("{}: the scene has no push, so there are no torques to print", path.display());
+            bail!(
+                "{}: the scene has no push, so there are no torques to print",
+                path.display()
+            );
         };
         let measured = (loaded.scene.noise.sigma_newton_metres > 0.0).then(|| loaded.measured_torques());
         PushCase {
@@ -139,7 +146,11 @@ fn torques(args: &TorquesArgs) -> Result<()> {
             meshes: MeshSelection::None,
         };
         let robot = load_robot(spec, Path::new("."), &options)?;
-        let q = if args.q.is_empty() { vec![0.0; robot.sensed().len()] } else { args.q.clone() };
+        let q = if args.q.is_empty() {
+            vec![0.0; robot.sensed().len()]
+        } else {
+            args.q.clone()
+        };
         let positions = robot.joint_positions(&q, &[]).context("--q")?;
         let pose = RobotPose::new(&robot, &positions);
         let link = robot.link_id(link).context("--link")?;
@@ -172,7 +183,12 @@ fn torques(args: &TorquesArgs) -> Result<()> {
     );
     let width = names.iter().map(|n| n.len()).max().unwrap_or(5).max(5);
     match &case.measured {
-        Some(_) => println!("{:width$}  {:>12}  {:>12}", "joint", format!("torque [{unit}]"), "measured"),
+        Some(_) => println!(
+            "{:width$}  {:>12}  {:>12}",
+            "joint",
+            format!("torque [{unit}]"),
+            "measured"
+        ),
         None => println!("{:width$}  {:>12}", "joint", format!("torque [{unit}]")),
     }
     for (i, (name, t)) in names.iter().zip(&tau).enumerate() {
@@ -203,7 +219,10 @@ fn torques(args: &TorquesArgs) -> Result<()> {
         println!("Sense nothing (they do not move {link_name}): {}", distal.join(", "));
     }
     if !zero.is_empty() {
-        println!("Read zero here (the force line meets or parallels their axis): {}", zero.join(", "));
+        println!(
+            "Read zero here (the force line meets or parallels their axis): {}",
+            zero.join(", ")
+        );
     }
     Ok(())
 }
@@ -214,14 +233,22 @@ fn robot_info(spec: &str, package_paths: Vec<PathBuf>) -> Result<()> {
         meshes: MeshSelection::All,
     };
     let robot = load_robot(spec, Path::new("."), &options)?;
-    println!("robot {}: {} links, {} joints", robot.name, robot.links.len(), robot.joints.len());
-    println!("sensed joints (order of q and tau): {}", robot.sensed_names().join(", "));
+    println!(
+        "robot {}: {} links, {} joints",
+        robot.name,
+        robot.links.len(),
+        robot.joints.len()
+    );
+    println!(
+        "sensed joints (order of q and tau): {}",
+        robot.sensed_names().join(", ")
+    );
     let candidates = robot.default_candidate_links();
     for (i, link) in robot.links.iter().enumerate() {
-        let joint = link
-            .parent_joint
-            .map(|j| format!("{} ({:?})", robot.joints[j].name, robot.joints[j].kind))
-            .unwrap_or_else(|| "root".to_owned());
+        let joint = link.parent_joint.map_or_else(
+            || "root".to_owned(),
+            |j| format!("{} ({:?})", robot.joints[j].name, robot.joints[j].kind),
+        );
         println!(
             "  link {:<24} {:>7} triangles  area {:>8.4} m²  moved by {joint}{}",
             link.name,

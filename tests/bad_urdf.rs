@@ -1,5 +1,8 @@
 //! Broken robot descriptions: each error names the file and the element.
 
+// Test helpers may unwrap: a panic is a failed test with its message.
+#![allow(clippy::unwrap_used)]
+
 use std::path::PathBuf;
 
 use proprioscope::io::urdf::{UrdfOptions, load_urdf};
@@ -31,7 +34,10 @@ fn missing_mesh_file_is_named_with_its_link() {
         joint("j1", "base", "arm", "0 0 1")
     );
     let e = error_of("missing_mesh.urdf", &text);
-    assert!(e.contains("missing_mesh.urdf") && e.contains("'arm'") && e.contains("meshes/arm.stl"), "{e}");
+    assert!(
+        e.contains("missing_mesh.urdf") && e.contains("'arm'") && e.contains("meshes/arm.stl"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -41,7 +47,10 @@ fn missing_package_mesh_says_where_it_looked() {
         joint("j1", "base", "arm", "0 0 1")
     );
     let e = error_of("missing_package.urdf", &text);
-    assert!(e.contains("package://nowhere/meshes/arm.dae") && e.contains("looked for"), "{e}");
+    assert!(
+        e.contains("package://nowhere/meshes/arm.dae") && e.contains("looked for"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -53,7 +62,10 @@ fn cyclic_tree_is_named() {
         joint("j2", "b", "a", "0 0 1")
     );
     let e = error_of("cyclic.urdf", &text);
-    assert!(e.contains("cyclic.urdf") && (e.contains("cycle") || e.contains("two joints")), "{e}");
+    assert!(
+        e.contains("cyclic.urdf") && (e.contains("cycle") || e.contains("two joints")),
+        "{e}"
+    );
 }
 
 #[test]
@@ -79,9 +91,15 @@ fn disconnected_tree_is_named() {
 
 #[test]
 fn zero_axis_is_named() {
-    let text = format!(r#"<robot name="r"><link name="base"/><link name="arm"/>{}</robot>"#, joint("elbow", "base", "arm", "0 0 0"));
+    let text = format!(
+        r#"<robot name="r"><link name="base"/><link name="arm"/>{}</robot>"#,
+        joint("elbow", "base", "arm", "0 0 0")
+    );
     let e = error_of("zero_axis.urdf", &text);
-    assert!(e.contains("zero_axis.urdf") && e.contains("elbow") && e.contains("axis"), "{e}");
+    assert!(
+        e.contains("zero_axis.urdf") && e.contains("elbow") && e.contains("axis"),
+        "{e}"
+    );
 }
 
 #[test]

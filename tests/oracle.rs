@@ -2,6 +2,9 @@
 //! descriptions in `../shared/robots/`), reproduced through our URDF import,
 //! forward kinematics and torques.
 
+// Test helpers may unwrap: a panic is a failed test with its message.
+#![allow(clippy::unwrap_used)]
+
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
@@ -46,7 +49,11 @@ fn check(robot_name: &str) {
     let oracle: Oracle = serde_json::from_str(&text).unwrap();
     let urdf = shared().join(&oracle.meta.urdf);
     let robot = load_urdf(&urdf, &UrdfOptions::default()).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(robot.sensed_names(), oracle.meta.joint_names, "{robot_name}: sensed joints");
+    assert_eq!(
+        robot.sensed_names(),
+        oracle.meta.joint_names,
+        "{robot_name}: sensed joints"
+    );
     let mut kinds = std::collections::BTreeSet::new();
     let mut bvhs = std::collections::HashMap::new();
     for (i, row) in oracle.rows.iter().enumerate() {
@@ -64,7 +71,10 @@ fn check(robot_name: &str) {
         // into a few 1e-9 N·m).
         let tau = joint_torques(&robot, &pose, link, point_world, DVec3::from_array(row.force_world));
         for (k, (ours, theirs)) in tau.iter().zip(&row.tau).enumerate() {
-            assert!((ours - theirs).abs() <= 1e-8, "{robot_name} row {i} joint {k}: {ours} vs {theirs}");
+            assert!(
+                (ours - theirs).abs() <= 1e-8,
+                "{robot_name} row {i} joint {k}: {ours} vs {theirs}"
+            );
         }
         // The oracle's points lie on the exposed surface of the link's
         // visual mesh with inward normals: our mesh import (units, DAE node
@@ -76,12 +86,23 @@ fn check(robot_name: &str) {
         });
         let p = DVec3::from_array(row.point_link);
         let n = DVec3::from_array(row.normal_link);
-        assert!(bvh.winding_number(p + n * 1e-3) > 0.5, "{robot_name} row {i}: 1 mm inward is not inside our mesh of {}", row.link);
+        assert!(
+            bvh.winding_number(p + n * 1e-3) > 0.5,
+            "{robot_name} row {i}: 1 mm inward is not inside our mesh of {}",
+            row.link
+        );
         // Outside probe as close as the oracle's own sampler looked (0.5 mm):
         // some real features are thinner than 2 mm.
-        assert!(bvh.winding_number(p - n * 5e-4) < 0.5, "{robot_name} row {i}: 0.5 mm outward is inside our mesh of {}", row.link);
+        assert!(
+            bvh.winding_number(p - n * 5e-4) < 0.5,
+            "{robot_name} row {i}: 0.5 mm outward is inside our mesh of {}",
+            row.link
+        );
     }
-    assert!(kinds.contains("push") && kinds.contains("friction"), "{robot_name}: {kinds:?}");
+    assert!(
+        kinds.contains("push") && kinds.contains("friction"),
+        "{robot_name}: {kinds:?}"
+    );
 }
 
 #[test]

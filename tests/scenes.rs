@@ -1,6 +1,9 @@
 //! The shipped scenes: they load, and their pushes give the thesis' tables
 //! and the hard cases' defining properties.
 
+// Test helpers may unwrap: a panic is a failed test with its message.
+#![allow(clippy::unwrap_used)]
+
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
@@ -8,12 +11,17 @@ use proprioscope::core::surface::{Surface, SurfaceRequest};
 use proprioscope::io::scene::{LoadedScene, Scene};
 
 fn scene_path(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.json"))
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(format!("{name}.json"))
 }
 
 fn load(name: &str) -> LoadedScene {
     let path = scene_path(name);
-    Scene::read(&path).unwrap().load(&path).unwrap_or_else(|e| panic!("{e}"))
+    Scene::read(&path)
+        .unwrap()
+        .load(&path)
+        .unwrap_or_else(|e| panic!("{e}"))
 }
 
 #[test]
@@ -22,7 +30,10 @@ fn every_shipped_scene_loads_with_a_push() {
     let mut count = 0;
     for entry in std::fs::read_dir(folder).unwrap() {
         let path = entry.unwrap().path();
-        let loaded = Scene::read(&path).unwrap().load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let loaded = Scene::read(&path)
+            .unwrap()
+            .load(&path)
+            .unwrap_or_else(|e| panic!("{e}"));
         assert!(loaded.push.is_some(), "{}", path.display());
         assert!(loaded.push_torques().iter().all(|t| t.is_finite()));
         count += 1;
@@ -81,7 +92,11 @@ fn thesis_contact_points_lie_on_their_links() {
         let nearest = (0..surface.len())
             .map(|i| surface.point_world(&loaded.pose, i).unwrap().distance(push.point_world))
             .fold(f64::INFINITY, f64::min);
-        assert!(nearest < 0.025, "collision {k}: {nearest} m from {}", loaded.robot.links[push.link].name);
+        assert!(
+            nearest < 0.025,
+            "collision {k}: {nearest} m from {}",
+            loaded.robot.links[push.link].name
+        );
     }
 }
 
@@ -96,7 +111,11 @@ fn hard_cases_have_their_defining_property() {
 
     let loaded = load("lwr-hard-parallel-axis");
     let push = loaded.push.unwrap();
-    assert!((push.force_world.normalize() - DVec3::NEG_Z).length() < 1e-6, "{}", push.force_world);
+    assert!(
+        (push.force_world.normalize() - DVec3::NEG_Z).length() < 1e-6,
+        "{}",
+        push.force_world
+    );
     let tau = loaded.push_torques();
     for (i, t) in tau.iter().enumerate() {
         if i % 2 == 0 {

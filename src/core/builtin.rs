@@ -70,7 +70,11 @@ pub fn simple6() -> Result<Robot, RobotError> {
             .mesh(16),
             segment: Some([DVec3::ZERO, end]),
         });
-        let parent = if k == 0 { "base".to_owned() } else { format!("link_{}", k - 1) };
+        let parent = if k == 0 {
+            "base".to_owned()
+        } else {
+            format!("link_{}", k - 1)
+        };
         joints.push(revolute(
             &format!("joint_{}", k + 1),
             &parent,
@@ -80,12 +84,12 @@ pub fn simple6() -> Result<Robot, RobotError> {
             None,
         ));
     }
-    Robot::new("simple6", links, joints)
+    Robot::new("simple6", &links, &joints)
 }
 
 /// Joint origins of the LWR 4+ (relative to the parent, m) and the thesis'
 /// axis convention +z, +y, +z, +y, +z, -y, +z (the public URDF has -y on
-/// joint 2, which flips the sign of tau_2).
+/// joint 2, which flips the sign of `tau_2`).
 const LWR_JOINTS: [(f64, DVec3, f64); 7] = [
     (LWR_JOINT1_HEIGHT_M, DVec3::Z, 170.0),
     (0.2005, DVec3::Y, 120.0),
@@ -111,7 +115,7 @@ pub const LWR_LINKS: [&str; 8] = [
 /// The LWR 4+ kinematics with the given link meshes (by link name; links
 /// not named get none).
 pub fn lwr4plus_with_meshes(meshes: &[(String, TriMesh)]) -> Result<Robot, RobotError> {
-    let links = LWR_LINKS
+    let links: Vec<LinkSpec> = LWR_LINKS
         .iter()
         .map(|name| LinkSpec {
             name: (*name).to_owned(),
@@ -123,7 +127,7 @@ pub fn lwr4plus_with_meshes(meshes: &[(String, TriMesh)]) -> Result<Robot, Robot
             segment: None,
         })
         .collect();
-    let joints = LWR_JOINTS
+    let joints: Vec<JointSpec> = LWR_JOINTS
         .iter()
         .enumerate()
         .map(|(k, &(height, axis, limit_deg))| {
@@ -137,7 +141,7 @@ pub fn lwr4plus_with_meshes(meshes: &[(String, TriMesh)]) -> Result<Robot, Robot
             )
         })
         .collect();
-    Robot::new("lwr4plus", links, joints)
+    Robot::new("lwr4plus", &links, &joints)
 }
 
 /// The LWR 4+ kinematics without meshes (for torque-only work and tests).
@@ -162,24 +166,52 @@ pub fn lwr4plus_primitives() -> Vec<(&'static str, Vec<Primitive>)> {
     // above, whose housing bulges to side `s`.
     let to_y_joint = |h: f64, s: f64| {
         vec![
-            Primitive::Cylinder { from: v(0.0, 0.0, -0.008), to: v(0.0, 0.0, 0.06), radius: R },
-            Primitive::Capsule { from: v(0.0, 0.0, 0.06), to: v(0.0, s * 0.035, h - 0.045), radius: R },
-            Primitive::Cylinder { from: v(0.0, s * 0.004, h), to: v(0.0, s * 0.094, h), radius: R },
+            Primitive::Cylinder {
+                from: v(0.0, 0.0, -0.008),
+                to: v(0.0, 0.0, 0.06),
+                radius: R,
+            },
+            Primitive::Capsule {
+                from: v(0.0, 0.0, 0.06),
+                to: v(0.0, s * 0.035, h - 0.045),
+                radius: R,
+            },
+            Primitive::Cylinder {
+                from: v(0.0, s * 0.004, h),
+                to: v(0.0, s * 0.094, h),
+                radius: R,
+            },
         ]
     };
     // A link that starts at a y-axis joint (housing on side `s`) and ends
     // at a z-axis joint 0.2 m above.
     let from_y_joint = |s: f64| {
         vec![
-            Primitive::Cylinder { from: v(0.0, -s * 0.006, 0.0), to: v(0.0, s * 0.094, 0.0), radius: R },
-            Primitive::Capsule { from: v(0.0, s * 0.035, 0.045), to: v(0.0, 0.0, 0.14), radius: R },
-            Primitive::Cylinder { from: v(0.0, 0.0, 0.14), to: v(0.0, 0.0, 0.1915), radius: R },
+            Primitive::Cylinder {
+                from: v(0.0, -s * 0.006, 0.0),
+                to: v(0.0, s * 0.094, 0.0),
+                radius: R,
+            },
+            Primitive::Capsule {
+                from: v(0.0, s * 0.035, 0.045),
+                to: v(0.0, 0.0, 0.14),
+                radius: R,
+            },
+            Primitive::Cylinder {
+                from: v(0.0, 0.0, 0.14),
+                to: v(0.0, 0.0, 0.1915),
+                radius: R,
+            },
         ]
     };
     vec![
         (
             LWR_LINKS[0],
-            vec![Primitive::Cylinder { from: v(0.0, 0.0, 0.0), to: v(0.0, 0.0, 0.102), radius: 0.08 }],
+            vec![Primitive::Cylinder {
+                from: v(0.0, 0.0, 0.0),
+                to: v(0.0, 0.0, 0.102),
+                radius: 0.08,
+            }],
         ),
         (LWR_LINKS[1], to_y_joint(0.2005, 1.0)),
         (LWR_LINKS[2], from_y_joint(-1.0)),
@@ -188,11 +220,18 @@ pub fn lwr4plus_primitives() -> Vec<(&'static str, Vec<Primitive>)> {
         (LWR_LINKS[5], to_y_joint(0.19, 1.0)),
         (
             LWR_LINKS[6],
-            vec![Primitive::Sphere { center: v(0.0, -0.012, 0.0), radius: 0.07 }],
+            vec![Primitive::Sphere {
+                center: v(0.0, -0.012, 0.0),
+                radius: 0.07,
+            }],
         ),
         (
             LWR_LINKS[7],
-            vec![Primitive::Cylinder { from: v(0.0, 0.0, -0.031), to: v(0.0, 0.0, 0.0), radius: 0.04 }],
+            vec![Primitive::Cylinder {
+                from: v(0.0, 0.0, -0.031),
+                to: v(0.0, 0.0, 0.0),
+                radius: 0.04,
+            }],
         ),
     ]
 }

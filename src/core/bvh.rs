@@ -64,11 +64,7 @@ impl Bvh {
         if !corners.is_empty() {
             build(&mut nodes, &mut order, &corners, &centroids, 0, corners.len());
         }
-        Self {
-            nodes,
-            order,
-            corners,
-        }
+        Self { nodes, order, corners }
     }
 
     /// Number of triangles in the tree.
@@ -322,8 +318,14 @@ mod tests {
     #[test]
     fn misses_and_t_max_are_respected() {
         let bvh = Bvh::new(&primitives::cuboid(DVec3::splat(2.0)));
-        assert!(bvh.ray_cast(DVec3::new(3.0, 0.0, 5.0), DVec3::NEG_Z, f64::INFINITY).is_none());
-        assert!(bvh.ray_cast(DVec3::new(0.0, 0.0, 5.0), DVec3::Z, f64::INFINITY).is_none());
+        assert!(
+            bvh.ray_cast(DVec3::new(3.0, 0.0, 5.0), DVec3::NEG_Z, f64::INFINITY)
+                .is_none()
+        );
+        assert!(
+            bvh.ray_cast(DVec3::new(0.0, 0.0, 5.0), DVec3::Z, f64::INFINITY)
+                .is_none()
+        );
         assert!(bvh.ray_cast(DVec3::new(0.0, 0.0, 5.0), DVec3::NEG_Z, 3.9).is_none());
     }
 
@@ -349,8 +351,7 @@ mod tests {
         }
         .mesh(32);
         mesh.append(
-            &primitives::cuboid(DVec3::splat(1.0))
-                .transformed(&DAffine3::from_translation(DVec3::new(0.8, 0.0, 0.0))),
+            &primitives::cuboid(DVec3::splat(1.0)).transformed(&DAffine3::from_translation(DVec3::new(0.8, 0.0, 0.0))),
         );
         let bvh = Bvh::new(&mesh);
         let w = |x: f64| bvh.winding_number(DVec3::new(x, 0.0, 0.0));
@@ -367,7 +368,8 @@ mod tests {
         // far outside, about 1/2 at the centre of the missing face.
         let mut cup = primitives::cuboid(DVec3::splat(2.0));
         cup.triangles.truncate(2);
-        cup.triangles.extend(primitives::cuboid(DVec3::splat(2.0)).triangles[4..].iter().copied());
+        cup.triangles
+            .extend(primitives::cuboid(DVec3::splat(2.0)).triangles[4..].iter().copied());
         let bvh = Bvh::new(&cup);
         assert!((bvh.winding_number(DVec3::new(0.0, 0.0, -0.9)) - 0.9).abs() < 0.1);
         assert!((bvh.winding_number(DVec3::new(0.0, 0.0, 1.0)) - 0.5).abs() < 1e-9);

@@ -32,10 +32,7 @@ impl TriMesh {
     /// A mesh from positions and triangles (indices are checked by [`TriMesh::validate`]).
     #[must_use]
     pub fn new(positions: Vec<DVec3>, triangles: Vec<[u32; 3]>) -> Self {
-        Self {
-            positions,
-            triangles,
-        }
+        Self { positions, triangles }
     }
 
     /// True when there are no triangles.
@@ -48,9 +45,7 @@ impl TriMesh {
     #[must_use]
     pub fn first_bad_index(&self) -> Option<usize> {
         let n = self.positions.len();
-        self.triangles
-            .iter()
-            .position(|t| t.iter().any(|&i| i as usize >= n))
+        self.triangles.iter().position(|t| t.iter().any(|&i| i as usize >= n))
     }
 
     /// Corners of triangle `i`; `None` if `i` or one of its indices is out of range.
@@ -78,9 +73,7 @@ impl TriMesh {
     /// Signed enclosed volume, m³ (positive for a closed, outward-wound mesh).
     #[must_use]
     pub fn signed_volume(&self) -> f64 {
-        self.triangle_corners()
-            .map(|[a, b, c]| a.dot(b.cross(c)) / 6.0)
-            .sum()
+        self.triangle_corners().map(|[a, b, c]| a.dot(b.cross(c)) / 6.0).sum()
     }
 
     /// The mesh with every vertex mapped by `transform`; a transform that
@@ -88,20 +81,13 @@ impl TriMesh {
     /// outward stays outward.
     #[must_use]
     pub fn transformed(&self, transform: &DAffine3) -> Self {
-        let positions = self
-            .positions
-            .iter()
-            .map(|p| transform.transform_point3(*p))
-            .collect();
+        let positions = self.positions.iter().map(|p| transform.transform_point3(*p)).collect();
         let triangles = if transform.matrix3.determinant() < 0.0 {
             self.triangles.iter().map(|t| [t[0], t[2], t[1]]).collect()
         } else {
             self.triangles.clone()
         };
-        Self {
-            positions,
-            triangles,
-        }
+        Self { positions, triangles }
     }
 
     /// Appends `other`'s triangles to this mesh.
@@ -318,8 +304,8 @@ mod tests {
             t.swap(1, 2);
         }
         assert!(cube.signed_volume() < 0.0);
-        let mut other = primitives::cuboid(DVec3::ONE)
-            .transformed(&DAffine3::from_translation(DVec3::new(5.0, 0.0, 0.0)));
+        let mut other =
+            primitives::cuboid(DVec3::ONE).transformed(&DAffine3::from_translation(DVec3::new(5.0, 0.0, 0.0)));
         // A sliver and a triangle with a repeated vertex.
         other.positions.push(DVec3::new(9.0, 0.0, 0.0));
         other.positions.push(DVec3::new(9.0, 1e-9, 1e-9));
@@ -344,14 +330,10 @@ mod tests {
     #[test]
     fn closest_point_on_a_cube_face_and_corner() {
         let cube = primitives::cuboid(DVec3::splat(2.0));
-        let (q, n) = cube
-            .closest_point(DVec3::new(0.2, 0.3, 5.0))
-            .unwrap_or_default();
+        let (q, n) = cube.closest_point(DVec3::new(0.2, 0.3, 5.0)).unwrap_or_default();
         assert!((q - DVec3::new(0.2, 0.3, 1.0)).length() < 1e-12);
         assert!((n - DVec3::Z).length() < 1e-12);
-        let (q, _) = cube
-            .closest_point(DVec3::new(3.0, 3.0, 3.0))
-            .unwrap_or_default();
+        let (q, _) = cube.closest_point(DVec3::new(3.0, 3.0, 3.0)).unwrap_or_default();
         assert!((q - DVec3::ONE).length() < 1e-12);
     }
 }

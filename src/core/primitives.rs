@@ -51,8 +51,9 @@ impl Primitive {
     pub fn mesh(&self, segments: usize) -> TriMesh {
         let segments = segments.max(3);
         match *self {
-            Self::Sphere { center, radius } => sphere(radius, segments)
-                .transformed(&DAffine3::from_translation(center)),
+            Self::Sphere { center, radius } => {
+                sphere(radius, segments).transformed(&DAffine3::from_translation(center))
+            }
             Self::Cylinder { from, to, radius } => {
                 let length = from.distance(to);
                 let profile = vec![(0.0, 0.0), (radius, 0.0), (radius, length), (0.0, length)];
@@ -63,8 +64,7 @@ impl Primitive {
                 let rings = segments / 2;
                 let mut profile = Vec::with_capacity(2 * rings + 2);
                 for k in 0..=rings {
-                    let phi = -std::f64::consts::FRAC_PI_2
-                        + std::f64::consts::FRAC_PI_2 * k as f64 / rings as f64;
+                    let phi = -std::f64::consts::FRAC_PI_2 + std::f64::consts::FRAC_PI_2 * k as f64 / rings as f64;
                     profile.push((radius * phi.cos(), radius * phi.sin()));
                 }
                 for k in 0..=rings {
@@ -259,9 +259,7 @@ mod tests {
             let mesh = p.mesh(64);
             let exact = match p {
                 Primitive::Sphere { radius, .. } => 4.0 / 3.0 * std::f64::consts::PI * radius.powi(3),
-                Primitive::Cylinder { from, to, radius } => {
-                    std::f64::consts::PI * radius * radius * from.distance(to)
-                }
+                Primitive::Cylinder { from, to, radius } => std::f64::consts::PI * radius * radius * from.distance(to),
                 Primitive::Capsule { from, to, radius } => {
                     std::f64::consts::PI * radius * radius * from.distance(to)
                         + 4.0 / 3.0 * std::f64::consts::PI * radius.powi(3)

@@ -1,4 +1,4 @@
-//! A small seeded random number generator (xoshiro256** seeded by SplitMix64).
+//! A small seeded random number generator (`xoshiro256**` seeded by `SplitMix64`).
 //!
 //! Our own generator rather than a crate's so that a seed gives the same
 //! surface samples, noise and scenes on every platform and every dependency
@@ -54,7 +54,7 @@ impl Rng {
     /// Uniform integer in `0..n` (`n > 0`), without modulo bias worth noting
     /// for the sizes used here (`n` far below 2^32).
     pub fn below(&mut self, n: usize) -> usize {
-        ((self.next_u64() >> 32) * n as u64 >> 32) as usize
+        (((self.next_u64() >> 32) * n as u64) >> 32) as usize
     }
 
     /// Standard normal sample (Box–Muller, the cosine branch).

@@ -274,7 +274,8 @@ impl Robot {
     /// Builds and checks a robot: names unique, one root, no cycle, unit
     /// axes, sane limits. Sensed joints default to every revolute and
     /// continuous joint without mimic, depth-first from the root.
-    pub fn new(name: &str, links: Vec<LinkSpec>, joints: Vec<JointSpec>) -> Result<Self, RobotError> {
+    #[allow(clippy::too_many_lines)] // One validation pass, best read top to bottom.
+    pub fn new(name: &str, links: &[LinkSpec], joints: &[JointSpec]) -> Result<Self, RobotError> {
         if links.is_empty() {
             return Err(RobotError::NoLinks);
         }
@@ -323,12 +324,10 @@ impl Robot {
                 return Err(RobotError::BadOrigin { joint: j.name.clone() });
             }
             let axis = if j.kind.is_movable() {
-                j.axis
-                    .try_normalize()
-                    .ok_or_else(|| RobotError::BadAxis {
-                        joint: j.name.clone(),
-                        axis: j.axis.to_array(),
-                    })?
+                j.axis.try_normalize().ok_or_else(|| RobotError::BadAxis {
+                    joint: j.name.clone(),
+                    axis: j.axis.to_array(),
+                })?
             } else {
                 j.axis.try_normalize().unwrap_or(DVec3::Z)
             };
@@ -337,7 +336,7 @@ impl Robot {
                 JointKind::Continuous | JointKind::Fixed => None,
             };
             if let Some(l) = limits
-                && (!(l.lower <= l.upper) || l.lower.is_nan() || l.upper.is_nan())
+                && (l.lower > l.upper || l.lower.is_nan() || l.upper.is_nan())
             {
                 return Err(RobotError::BadLimits {
                     joint: j.name.clone(),
@@ -473,7 +472,12 @@ impl Robot {
             .position(|l| l.name == name)
             .ok_or_else(|| RobotError::NoSuchLink {
                 name: name.to_owned(),
-                known: self.links.iter().map(|l| l.name.as_str()).collect::<Vec<_>>().join(", "),
+                known: self
+                    .links
+                    .iter()
+                    .map(|l| l.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
             })
     }
 
@@ -581,8 +585,8 @@ mod tests {
         }
     }
 
-    fn err(links: &[&str], joints: Vec<JointSpec>) -> String {
-        Robot::new("r", links.iter().map(|n| link(n)).collect(), joints)
+    fn err(links: &[&str], joints: &[JointSpec]) -> String {
+        Robot::new("r", &links.iter().map(|n| link(n)).collect::<Vec<_>>(), joints)
             .err()
             .map(|e| e.to_string())
             .unwrap_or_default()
@@ -594,8 +598,11 @@ mod tests {
         finger.mimic = Some(("f1".to_owned(), 1.0, 0.0));
         let robot = Robot::new(
             "r",
-            ["base", "l1", "hand", "finger1", "finger2"].iter().map(|n| link(n)).collect(),
-            vec![
+            &["base", "l1", "hand", "finger1", "finger2"]
+                .iter()
+                .map(|n| link(n))
+                .collect::<Vec<_>>(),
+            &[
                 joint("j1", JointKind::Revolute, "base", "l1"),
                 joint("fix", JointKind::Fixed, "l1", "hand"),
                 joint("f1", JointKind::Prismatic, "hand", "finger1"),
@@ -615,7 +622,7 @@ mod tests {
     fn cycle_is_named() {
         let e = err(
             &["base", "a", "b"],
-            vec![
+            &[
                 joint("j1", JointKind::Revolute, "a", "b"),
                 joint("j2", JointKind::Revolute, "b", "a"),
             ],
@@ -625,15 +632,21 @@ mod tests {
 
     #[test]
     fn disconnected_tree_names_its_roots() {
-        let e = err(&["base", "a", "island"], vec![joint("j1", JointKind::Revolute, "base", "a")]);
-        assert!(e.contains("disconnected") && e.contains("island") && e.contains("base"), "{e}");
+        let e = err(
+            &["base", "a", "island"],
+            &[joint("j1", JointKind::Revolute, "base", "a")],
+        );
+        assert!(
+            e.contains("disconnected") && e.contains("island") && e.contains("base"),
+            "{e}"
+        );
     }
 
     #[test]
     fn zero_axis_is_named() {
         let mut j = joint("elbow", JointKind::Revolute, "base", "a");
         j.axis = DVec3::ZERO;
-        let e = err(&["base", "a"], vec![j]);
+        let e = err(&["base", "a"], &[j]);
         assert!(e.contains("elbow") && e.contains("zero"), "{e}");
     }
 
@@ -641,17 +654,20 @@ mod tests {
     fn two_parents_unknown_link_and_bad_limits_are_named() {
         let e = err(
             &["base", "a"],
-            vec![
+            &[
                 joint("j1", JointKind::Revolute, "base", "a"),
                 joint("j2", JointKind::Revolute, "base", "a"),
             ],
         );
         assert!(e.contains("'a'") && e.contains("j1") && e.contains("j2"), "{e}");
-        let e = err(&["base"], vec![joint("j1", JointKind::Revolute, "base", "ghost")]);
+        let e = err(&["base"], &[joint("j1", JointKind::Revolute, "base", "ghost")]);
         assert!(e.contains("ghost") && e.contains("j1"), "{e}");
         let mut j = joint("j1", JointKind::Revolute, "base", "a");
-        j.limits = Some(JointLimits { lower: 1.0, upper: -1.0 });
-        let e = err(&["base", "a"], vec![j]);
+        j.limits = Some(JointLimits {
+            lower: 1.0,
+            upper: -1.0,
+        });
+        let e = err(&["base", "a"], &[j]);
         assert!(e.contains("j1") && e.contains("limits"), "{e}");
     }
 
@@ -659,13 +675,24 @@ mod tests {
     fn wrong_joint_count_and_nan_are_named() {
         let robot = Robot::new(
             "r",
-            vec![link("base"), link("a")],
-            vec![joint("shoulder", JointKind::Revolute, "base", "a")],
+            &[link("base"), link("a")],
+            &[joint("shoulder", JointKind::Revolute, "base", "a")],
         );
         let robot = robot.unwrap_or_else(|e| panic!("{e}"));
-        let e = robot.joint_positions(&[0.0, 1.0], &[]).err().map(|e| e.to_string()).unwrap_or_default();
-        assert!(e.contains("expected 1") && e.contains("got 2") && e.contains("shoulder"), "{e}");
-        let e = robot.joint_positions(&[f64::NAN], &[]).err().map(|e| e.to_string()).unwrap_or_default();
+        let e = robot
+            .joint_positions(&[0.0, 1.0], &[])
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(
+            e.contains("expected 1") && e.contains("got 2") && e.contains("shoulder"),
+            "{e}"
+        );
+        let e = robot
+            .joint_positions(&[f64::NAN], &[])
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
         assert!(e.contains("shoulder") && e.contains("NaN"), "{e}");
     }
 }

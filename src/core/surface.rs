@@ -143,8 +143,10 @@ impl Surface {
             } else {
                 Prepared::mesh(l, &link.mesh)
             };
-            if !(p.area() > 0.0) {
-                return Err(SurfaceError::NoSurface { link: link.name.clone() });
+            if p.area().is_nan() || p.area() <= 0.0 {
+                return Err(SurfaceError::NoSurface {
+                    link: link.name.clone(),
+                });
             }
             prepared.push(p);
         }
@@ -169,7 +171,11 @@ impl Surface {
                 Prepared::Mesh { .. } => eliminate(&cands.points, keep, cands.exposed_area_m2),
                 Prepared::Segment { .. } => (0..cands.points.len()).collect(),
             };
-            let weight = if kept.is_empty() { 0.0 } else { cands.exposed_area_m2 / kept.len() as f64 };
+            let weight = if kept.is_empty() {
+                0.0
+            } else {
+                cands.exposed_area_m2 / kept.len() as f64
+            };
             for &i in &kept {
                 surface.link.push(p.link());
                 surface.point_in_link.push(cands.points[i]);
@@ -468,7 +474,7 @@ mod tests {
     fn one_link_robot(mesh: TriMesh) -> Robot {
         Robot::new(
             "one",
-            vec![
+            &[
                 LinkSpec {
                     name: "base".to_owned(),
                     ..LinkSpec::default()
@@ -479,7 +485,7 @@ mod tests {
                     segment: None,
                 },
             ],
-            vec![JointSpec {
+            &[JointSpec {
                 name: "j".to_owned(),
                 kind: JointKind::Continuous,
                 parent: "base".to_owned(),
@@ -497,7 +503,15 @@ mod tests {
     fn area_weights_sum_to_the_closed_form_area_of_a_box() {
         let size = DVec3::new(0.1, 0.2, 0.3);
         let robot = one_link_robot(primitives::cuboid(size));
-        let s = Surface::sample(&robot, &SurfaceRequest { links: vec![1], total_points: 500, seed: 3 }).unwrap();
+        let s = Surface::sample(
+            &robot,
+            &SurfaceRequest {
+                links: vec![1],
+                total_points: 500,
+                seed: 3,
+            },
+        )
+        .unwrap();
         let exact = 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x);
         let sum: f64 = s.area_m2.iter().sum();
         assert_eq!(s.len(), 500);
@@ -508,7 +522,15 @@ mod tests {
     fn inward_normals_of_a_box_point_inside_it() {
         let half = DVec3::new(0.05, 0.1, 0.15);
         let robot = one_link_robot(primitives::cuboid(2.0 * half));
-        let s = Surface::sample(&robot, &SurfaceRequest { links: vec![1], total_points: 300, seed: 1 }).unwrap();
+        let s = Surface::sample(
+            &robot,
+            &SurfaceRequest {
+                links: vec![1],
+                total_points: 300,
+                seed: 1,
+            },
+        )
+        .unwrap();
         for (p, n) in s.point_in_link.iter().zip(&s.inward_normal_in_link) {
             let q = *p + *n * 1e-3;
             assert!(q.abs().cmple(half).all(), "{p} + 1 mm {n} is outside");
@@ -522,8 +544,24 @@ mod tests {
         for t in &mut flipped.triangles {
             t.swap(1, 2);
         }
-        let a = Surface::sample(&one_link_robot(primitives::cuboid(DVec3::ONE)), &SurfaceRequest { links: vec![1], total_points: 50, seed: 9 }).unwrap();
-        let b = Surface::sample(&one_link_robot(flipped), &SurfaceRequest { links: vec![1], total_points: 50, seed: 9 }).unwrap();
+        let a = Surface::sample(
+            &one_link_robot(primitives::cuboid(DVec3::ONE)),
+            &SurfaceRequest {
+                links: vec![1],
+                total_points: 50,
+                seed: 9,
+            },
+        )
+        .unwrap();
+        let b = Surface::sample(
+            &one_link_robot(flipped),
+            &SurfaceRequest {
+                links: vec![1],
+                total_points: 50,
+                seed: 9,
+            },
+        )
+        .unwrap();
         for (na, nb) in a.inward_normal_in_link.iter().zip(&b.inward_normal_in_link) {
             assert!((*na - *nb).length() < 1e-12);
         }
@@ -533,7 +571,11 @@ mod tests {
     fn sampling_is_deterministic_per_seed() {
         let robot = builtin::lwr4plus_generated().unwrap();
         let links = robot.default_candidate_links();
-        let req = SurfaceRequest { links, total_points: 700, seed: 42 };
+        let req = SurfaceRequest {
+            links,
+            total_points: 700,
+            seed: 42,
+        };
         let a = Surface::sample(&robot, &req).unwrap();
         let b = Surface::sample(&robot, &req).unwrap();
         assert_eq!(a, b);
@@ -550,7 +592,15 @@ mod tests {
         let robot = builtin::lwr4plus_generated().unwrap();
         let links = robot.default_candidate_links();
         assert_eq!(links.len(), 7);
-        let s = Surface::sample(&robot, &SurfaceRequest { links, total_points: 2000, seed: 5 }).unwrap();
+        let s = Surface::sample(
+            &robot,
+            &SurfaceRequest {
+                links,
+                total_points: 2000,
+                seed: 5,
+            },
+        )
+        .unwrap();
         let shapes = builtin::lwr4plus_primitives();
         let mut buried_total = 0;
         for st in &s.stats {
@@ -574,8 +624,22 @@ mod tests {
     fn samples_are_evenly_spread() {
         // On a unit sphere, nearest-neighbour distances of an even spread
         // vary little; pure random sampling has many near-coincident pairs.
-        let robot = one_link_robot(Primitive::Sphere { center: DVec3::ZERO, radius: 1.0 }.mesh(64));
-        let s = Surface::sample(&robot, &SurfaceRequest { links: vec![1], total_points: 400, seed: 2 }).unwrap();
+        let robot = one_link_robot(
+            Primitive::Sphere {
+                center: DVec3::ZERO,
+                radius: 1.0,
+            }
+            .mesh(64),
+        );
+        let s = Surface::sample(
+            &robot,
+            &SurfaceRequest {
+                links: vec![1],
+                total_points: 400,
+                seed: 2,
+            },
+        )
+        .unwrap();
         let nn: Vec<f64> = s
             .point_in_link
             .iter()
@@ -597,7 +661,15 @@ mod tests {
         let robot = builtin::simple6().unwrap();
         let links = robot.default_candidate_links();
         assert_eq!(links.len(), 6);
-        let s = Surface::sample(&robot, &SurfaceRequest { links, total_points: 480, seed: 0 }).unwrap();
+        let s = Surface::sample(
+            &robot,
+            &SurfaceRequest {
+                links,
+                total_points: 480,
+                seed: 0,
+            },
+        )
+        .unwrap();
         let total_length: f64 = s.area_m2.iter().sum();
         assert!((total_length - (5.0 + 2f64.sqrt())).abs() < 1e-9);
         for i in 0..s.len() {
@@ -612,12 +684,36 @@ mod tests {
     #[test]
     fn bad_requests_are_named() {
         let robot = builtin::lwr4plus_generated().unwrap();
-        let e = Surface::sample(&robot, &SurfaceRequest { links: vec![], total_points: 10, seed: 0 }).unwrap_err();
+        let e = Surface::sample(
+            &robot,
+            &SurfaceRequest {
+                links: vec![],
+                total_points: 10,
+                seed: 0,
+            },
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("no candidate links"));
-        let e = Surface::sample(&robot, &SurfaceRequest { links: vec![1, 2], total_points: 1, seed: 0 }).unwrap_err();
+        let e = Surface::sample(
+            &robot,
+            &SurfaceRequest {
+                links: vec![1, 2],
+                total_points: 1,
+                seed: 0,
+            },
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("resolution"));
         let kin = builtin::lwr4plus_kinematics().unwrap();
-        let e = Surface::sample(&kin, &SurfaceRequest { links: vec![1], total_points: 10, seed: 0 }).unwrap_err();
+        let e = Surface::sample(
+            &kin,
+            &SurfaceRequest {
+                links: vec![1],
+                total_points: 10,
+                seed: 0,
+            },
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("lwr_1_link"));
     }
 }

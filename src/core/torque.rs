@@ -157,8 +157,18 @@ mod tests {
         let robot = builtin::simple6().unwrap();
         let pose = RobotPose::new(&robot, &[0.0; 7]);
         let rows = [
-            ("link_3", [1.0, 1.0, 1.5], [0.0, 1.0, 0.0], [1.0, -0.5, 0.0, 0.0, 0.0, 0.0]),
-            ("link_5", [2.5, 2.0, 2.0], [0.0, 0.0, 1.0], [0.0, 2.0, -1.5, 0.0, 1.0, -0.5]),
+            (
+                "link_3",
+                [1.0, 1.0, 1.5],
+                [0.0, 1.0, 0.0],
+                [1.0, -0.5, 0.0, 0.0, 0.0, 0.0],
+            ),
+            (
+                "link_5",
+                [2.5, 2.0, 2.0],
+                [0.0, 0.0, 1.0],
+                [0.0, 2.0, -1.5, 0.0, 1.0, -0.5],
+            ),
         ];
         for (link, r, f, expected) in rows {
             let link = robot.link_id(link).unwrap_or(usize::MAX);
@@ -177,9 +187,24 @@ mod tests {
         let pose = RobotPose::new(&robot, &[0.0; 7]);
         let joint1_height = builtin::LWR_JOINT1_HEIGHT_M;
         let rows = [
-            ("lwr_1_link", [-2.11, -0.09, -0.58], [6.0, 4.8, 21.3], [9.6, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
-            ("lwr_2_link", [1.50, 0.00, 0.00], [-6.0, 0.0, 39.2], [0.0, 28.7, 0.0, 0.0, 0.0, 0.0, 0.0]),
-            ("lwr_4_link", [-1.37, -0.85, 0.33], [4.6, 9.8, 58.2], [9.5, -53.6, 9.5, 1.0, 0.0, 0.0, 0.0]),
+            (
+                "lwr_1_link",
+                [-2.11, -0.09, -0.58],
+                [6.0, 4.8, 21.3],
+                [9.6, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            ),
+            (
+                "lwr_2_link",
+                [1.50, 0.00, 0.00],
+                [-6.0, 0.0, 39.2],
+                [0.0, 28.7, 0.0, 0.0, 0.0, 0.0, 0.0],
+            ),
+            (
+                "lwr_4_link",
+                [-1.37, -0.85, 0.33],
+                [4.6, 9.8, 58.2],
+                [9.5, -53.6, 9.5, 1.0, 0.0, 0.0, 0.0],
+            ),
         ];
         for (link, f, r_cm, expected_ncm) in rows {
             let link = robot.link_id(link).unwrap_or(usize::MAX);
@@ -212,10 +237,16 @@ mod tests {
     /// movable non-mimic joint sensed.
     fn chain() -> impl Strategy<Value = Robot> {
         prop::collection::vec((any::<u8>(), vec3(), vec3(), vec3(), any::<u8>()), 1..7).prop_map(|specs| {
-            let mut links = vec![LinkSpec { name: "l0".to_owned(), ..LinkSpec::default() }];
+            let mut links = vec![LinkSpec {
+                name: "l0".to_owned(),
+                ..LinkSpec::default()
+            }];
             let mut joints: Vec<JointSpec> = Vec::new();
             for (i, (kind, t, r, axis, mimic)) in specs.into_iter().enumerate() {
-                links.push(LinkSpec { name: format!("l{}", i + 1), ..LinkSpec::default() });
+                links.push(LinkSpec {
+                    name: format!("l{}", i + 1),
+                    ..LinkSpec::default()
+                });
                 let leader = joints
                     .iter()
                     .filter(|j| j.kind.is_movable() && j.mimic.is_none())
@@ -227,16 +258,15 @@ mod tests {
                     kind,
                     parent: format!("l{i}"),
                     child: format!("l{}", i + 1),
-                    parent_from_joint: DAffine3::from_rotation_translation(
-                        DQuat::from_scaled_axis(r * 2.0),
-                        t * 0.5,
-                    ),
+                    parent_from_joint: DAffine3::from_rotation_translation(DQuat::from_scaled_axis(r * 2.0), t * 0.5),
                     axis: axis + DVec3::new(0.0, 0.0, 1.5),
                     limits: None,
-                    mimic: leader.filter(|_| mimic % 3 == 0 && kind.is_movable()).map(|l| (l, -1.5, 0.2)),
+                    mimic: leader
+                        .filter(|_| mimic % 3 == 0 && kind.is_movable())
+                        .map(|l| (l, -1.5, 0.2)),
                 });
             }
-            let mut robot = Robot::new("chain", links, joints).unwrap();
+            let mut robot = Robot::new("chain", &links, &joints).unwrap();
             let sensed: Vec<String> = robot
                 .joints
                 .iter()

@@ -70,13 +70,12 @@ pub fn load_robot(spec: &str, base_dir: &Path, options: &UrdfOptions) -> Result<
     match spec {
         "simple6" => builtin::simple6().map_err(builtin_error),
         "lwr4plus" => {
-            let meshes = read_gltf_nodes(LWR4PLUS_GLB, Path::new(LWR4PLUS_GLB_PATH)).map_err(|cause| {
-                LoadRobotError::Asset {
+            let meshes =
+                read_gltf_nodes(LWR4PLUS_GLB, Path::new(LWR4PLUS_GLB_PATH)).map_err(|cause| LoadRobotError::Asset {
                     name: spec.to_owned(),
                     asset: LWR4PLUS_GLB_PATH.to_owned(),
                     cause,
-                }
-            })?;
+                })?;
             builtin::lwr4plus_with_meshes(&meshes).map_err(builtin_error)
         }
         _ => {
@@ -121,7 +120,9 @@ mod tests {
 
     #[test]
     fn unknown_robot_is_named() {
-        let e = load_robot("ur5", Path::new("scenes"), &UrdfOptions::default()).unwrap_err().to_string();
+        let e = load_robot("ur5", Path::new("scenes"), &UrdfOptions::default())
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("ur5") && e.contains("lwr4plus"), "{e}");
     }
 }

@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use base64::Engine as _;
 use glam::{DAffine3, DMat3, DMat4, DVec3};
 
 use crate::core::mesh::TriMesh;
@@ -39,6 +40,7 @@ pub enum MeshError {
     },
 }
 
+#[allow(clippy::needless_pass_by_value)] // Callers pass temporaries (errors, format!s).
 fn parse_error(path: &Path, element: impl Into<String>, message: impl ToString) -> MeshError {
     MeshError::Parse {
         path: path.to_owned(),
@@ -120,7 +122,11 @@ pub fn load_obj(path: &Path) -> Result<TriMesh, MeshError> {
             .map(|p| DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
             .collect();
         let triangles = model.mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-        let part = checked(TriMesh::new(positions, triangles), path, &format!("object '{}'", model.name))?;
+        let part = checked(
+            TriMesh::new(positions, triangles),
+            path,
+            &format!("object '{}'", model.name),
+        )?;
         mesh.append(&part);
     }
     Ok(mesh)
@@ -157,7 +163,6 @@ pub fn read_gltf_nodes(bytes: &[u8], path: &Path) -> Result<Vec<(String, TriMesh
                     let encoded = rest.split_once(";base64,").map(|(_, d)| d).ok_or_else(|| {
                         parse_error(path, format!("buffer {}", buffer.index()), "data URI without base64")
                     })?;
-                    use base64::Engine as _;
                     base64::engine::general_purpose::STANDARD
                         .decode(encoded)
                         .map_err(|e| parse_error(path, format!("buffer {}", buffer.index()), e))?
@@ -274,10 +279,10 @@ pub fn encode_glb(meshes: &[(String, TriMesh)]) -> Vec<u8> {
         "accessors": accessors,
     });
     let mut json = document.to_string().into_bytes();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();
@@ -396,16 +401,17 @@ fn node_transform(node: roxmltree::Node, path: &Path) -> Result<DMat4, MeshError
             _ => 3,
         };
         if v.len() != need {
-            return Err(parse_error(path, element, format!("expected {need} numbers, got {}", v.len())));
+            return Err(parse_error(
+                path,
+                element,
+                format!("expected {need} numbers, got {}", v.len()),
+            ));
         }
         m *= match name {
             // COLLADA writes matrices row by row.
             "matrix" => DMat4::from_cols_slice(&v).transpose(),
             "translate" => DMat4::from_translation(DVec3::new(v[0], v[1], v[2])),
-            "rotate" => DMat4::from_axis_angle(
-                DVec3::new(v[0], v[1], v[2]).normalize_or(DVec3::Z),
-                v[3].to_radians(),
-            ),
+            "rotate" => DMat4::from_axis_angle(DVec3::new(v[0], v[1], v[2]).normalize_or(DVec3::Z), v[3].to_radians()),
             _ => DMat4::from_scale(DVec3::new(v[0], v[1], v[2])),
         };
     }
@@ -418,7 +424,10 @@ fn dae_geometry(geometry: roxmltree::Node, doc: &roxmltree::Document, path: &Pat
     let Some(mesh) = geometry.children().find(|c| c.has_tag_name("mesh")) else {
         return Ok(out);
     };
-    let by_id = |id: &str| doc.descendants().find(|n| n.attribute("id") == Some(id.trim_start_matches('#')));
+    let by_id = |id: &str| {
+        doc.descendants()
+            .find(|n| n.attribute("id") == Some(id.trim_start_matches('#')))
+    };
     // POSITION source of the <vertices> element.
     let vertices = mesh
         .children()
@@ -462,10 +471,16 @@ fn dae_geometry(geometry: roxmltree::Node, doc: &roxmltree::Document, path: &Pat
             .ok_or_else(|| parse_error(path, &element, "no VERTEX input"))?;
         let counts: Option<Vec<usize>> = match kind {
             "polylist" => Some(
-                floats(prim.children().find(|c| c.has_tag_name("vcount")).and_then(|v| v.text()), path, &element)?
-                    .iter()
-                    .map(|v| *v as usize)
-                    .collect(),
+                floats(
+                    prim.children()
+                        .find(|c| c.has_tag_name("vcount"))
+                        .and_then(|v| v.text()),
+                    path,
+                    &element,
+                )?
+                .iter()
+                .map(|v| *v as usize)
+                .collect(),
             ),
             _ => None,
         };
@@ -473,7 +488,12 @@ fn dae_geometry(geometry: roxmltree::Node, doc: &roxmltree::Document, path: &Pat
             let mut polys = Vec::new();
             for p in prim.children().filter(|c| c.has_tag_name("p")) {
                 let idx = floats(p.text(), path, &element)?;
-                let corners: Vec<u32> = idx.iter().skip(vertex_offset).step_by(step).map(|v| *v as u32).collect();
+                let corners: Vec<u32> = idx
+                    .iter()
+                    .skip(vertex_offset)
+                    .step_by(step)
+                    .map(|v| *v as u32)
+                    .collect();
                 match (kind, &counts) {
                     ("triangles", _) => polys.extend(corners.chunks_exact(3).map(<[u32]>::to_vec)),
                     ("polylist", Some(counts)) => {
@@ -531,7 +551,11 @@ mod tests {
         assert_eq!(mesh.triangles.len(), 2);
         // Vertex (1, 0, 0) cm, turned 90° about z, then moved 100 cm along x.
         let expected = DVec3::new(1.0, 0.01, 0.0);
-        assert!(mesh.positions.iter().any(|p| (*p - expected).length() < 1e-12), "{:?}", mesh.positions);
+        assert!(
+            mesh.positions.iter().any(|p| (*p - expected).length() < 1e-12),
+            "{:?}",
+            mesh.positions
+        );
         assert!((mesh.area() - 1e-4).abs() < 1e-15);
     }
 
@@ -540,15 +564,23 @@ mod tests {
         let text = DAE.replace("Z_UP", "Y_UP").replace("<rotate>0 0 1 90</rotate>", "");
         let mesh = read_dae(&text, Path::new("t.dae")).unwrap();
         // (0, 1, 0) cm in a y-up file is up: (1 m offset, 0, 0.01) once z is up.
-        let expected = DVec3::new(0.0, 0.0, 0.01) + DMat3::from_rotation_x(std::f64::consts::FRAC_PI_2) * DVec3::new(1.0, 0.0, 0.0);
-        assert!(mesh.positions.iter().any(|p| (*p - expected).length() < 1e-12), "{:?}", mesh.positions);
+        let expected = DVec3::new(0.0, 0.0, 0.01)
+            + DMat3::from_rotation_x(std::f64::consts::FRAC_PI_2) * DVec3::new(1.0, 0.0, 0.0);
+        assert!(
+            mesh.positions.iter().any(|p| (*p - expected).length() < 1e-12),
+            "{:?}",
+            mesh.positions
+        );
     }
 
     #[test]
     fn dae_errors_name_the_element() {
         let text = DAE.replace("0 0 0 1 0 0", "0 0 zero 1 0 0");
         let e = read_dae(&text, Path::new("t.dae")).unwrap_err().to_string();
-        assert!(e.contains("t.dae") && e.contains("tri-mesh") && e.contains("zero"), "{e}");
+        assert!(
+            e.contains("t.dae") && e.contains("tri-mesh") && e.contains("zero"),
+            "{e}"
+        );
         let text = DAE.replace("<p>0 0 1 0 3 0 2 0</p>", "<p>0 0 1 0 9 0 2 0</p>");
         let e = read_dae(&text, Path::new("t.dae")).unwrap_err().to_string();
         assert!(e.contains("tri-mesh") && e.contains("past"), "{e}");
@@ -557,7 +589,10 @@ mod tests {
     #[test]
     fn glb_round_trips_names_and_geometry() {
         let cube = crate::core::primitives::cuboid(DVec3::new(0.5, 0.25, 1.0));
-        let meshes = vec![("b".to_owned(), cube.clone()), ("a".to_owned(), cube.transformed(&DAffine3::from_translation(DVec3::X)))];
+        let meshes = vec![
+            ("b".to_owned(), cube.clone()),
+            ("a".to_owned(), cube.transformed(&DAffine3::from_translation(DVec3::X))),
+        ];
         let bytes = encode_glb(&meshes);
         assert_eq!(bytes, encode_glb(&meshes));
         let back = read_gltf_nodes(&bytes, Path::new("x.glb")).unwrap();

@@ -155,7 +155,7 @@ pub struct Phases {
     /// Sizes of phases A and B (C is every point). Default: [200, 1000].
     #[serde(default = "default_phase_sizes")]
     pub sizes: [usize; 2],
-    /// Keep clusters with P ≥ α·P_max. Default: 0.5.
+    /// Keep clusters with P ≥ α·`P_max`. Default: 0.5.
     #[serde(default = "default_alpha")]
     pub alpha: f64,
 }
@@ -275,7 +275,7 @@ pub enum SceneError {
         /// The scene file.
         path: PathBuf,
         /// What went wrong.
-        cause: LoadRobotError,
+        cause: Box<LoadRobotError>,
     },
     /// The scene does not fit its robot.
     #[error("{path}: field '{field}': {cause}")]
@@ -285,7 +285,7 @@ pub enum SceneError {
         /// The field.
         field: String,
         /// What is wrong.
-        cause: RobotError,
+        cause: Box<RobotError>,
     },
 }
 
@@ -330,7 +330,11 @@ impl LoadedScene {
     /// What the sensors read: the push's torques plus the scene's noise.
     #[must_use]
     pub fn measured_torques(&self) -> Vec<f64> {
-        with_sensor_noise(&self.push_torques(), self.scene.noise.sigma_newton_metres, self.scene.noise.seed)
+        with_sensor_noise(
+            &self.push_torques(),
+            self.scene.noise.sigma_newton_metres,
+            self.scene.noise.seed,
+        )
     }
 }
 
@@ -385,7 +389,13 @@ impl Scene {
             }
         };
         if self.version != SCENE_VERSION {
-            return Err(invalid("version", format!("{} is not supported (this program reads version {SCENE_VERSION})", self.version)));
+            return Err(invalid(
+                "version",
+                format!(
+                    "{} is not supported (this program reads version {SCENE_VERSION})",
+                    self.version
+                ),
+            ));
         }
         if let Some(i) = self.q.iter().position(|v| !v.is_finite()) {
             return Err(invalid(&format!("q[{i}]"), format!("{} is not finite", self.q[i])));
@@ -402,18 +412,31 @@ impl Scene {
             match (&push.point_in_link, &push.point_world) {
                 (Some(p), None) => finite3("push.point_in_link", p)?,
                 (None, Some(p)) => finite3("push.point_world", p)?,
-                _ => return Err(invalid("push", "give exactly one of point_in_link and point_world".to_owned())),
+                _ => {
+                    return Err(invalid(
+                        "push",
+                        "give exactly one of point_in_link and point_world".to_owned(),
+                    ));
+                }
             }
             match (&push.force_world, push.force_newtons) {
                 (Some(f), None) => finite3("push.force_world", f)?,
                 (None, Some(f)) if f.is_finite() && f > 0.0 => {}
                 (None, Some(f)) => return Err(invalid("push.force_newtons", format!("{f} is not a positive number"))),
-                _ => return Err(invalid("push", "give exactly one of force_world and force_newtons".to_owned())),
+                _ => {
+                    return Err(invalid(
+                        "push",
+                        "give exactly one of force_world and force_newtons".to_owned(),
+                    ));
+                }
             }
         }
         let n = &self.noise;
         if !(n.sigma_newton_metres.is_finite() && n.sigma_newton_metres >= 0.0) {
-            return Err(invalid("noise.sigma_newton_metres", format!("{} is not a number ≥ 0", n.sigma_newton_metres)));
+            return Err(invalid(
+                "noise.sigma_newton_metres",
+                format!("{} is not a number ≥ 0", n.sigma_newton_metres),
+            ));
         }
         let e = &self.estimator;
         let sigmas: Vec<f64> = match &e.sigma_newton_metres {
@@ -421,22 +444,37 @@ impl Scene {
             Sigma::PerJoint(v) => v.clone(),
         };
         if let Some(s) = sigmas.iter().find(|s| !(s.is_finite() && **s > 0.0)) {
-            return Err(invalid("estimator.sigma_newton_metres", format!("{s} is not a positive number")));
+            return Err(invalid(
+                "estimator.sigma_newton_metres",
+                format!("{s} is not a positive number"),
+            ));
         }
         if !(e.force_min_newtons.is_finite() && e.force_max_newtons.is_finite() && e.force_min_newtons >= 0.0) {
-            return Err(invalid("estimator.force_min_newtons", "the force range must be finite and ≥ 0".to_owned()));
+            return Err(invalid(
+                "estimator.force_min_newtons",
+                "the force range must be finite and ≥ 0".to_owned(),
+            ));
         }
         if e.force_min_newtons > e.force_max_newtons {
             return Err(invalid(
                 "estimator.force_min_newtons",
-                format!("{} is above force_max_newtons {}", e.force_min_newtons, e.force_max_newtons),
+                format!(
+                    "{} is above force_max_newtons {}",
+                    e.force_min_newtons, e.force_max_newtons
+                ),
             ));
         }
         if !(e.phases.alpha > 0.0 && e.phases.alpha < 1.0) {
-            return Err(invalid("estimator.phases.alpha", format!("{} is not in (0, 1)", e.phases.alpha)));
+            return Err(invalid(
+                "estimator.phases.alpha",
+                format!("{} is not in (0, 1)", e.phases.alpha),
+            ));
         }
         if e.particles == 0 || e.magnitudes_per_point == 0 {
-            return Err(invalid("estimator.particles", "particles and magnitudes_per_point must be at least 1".to_owned()));
+            return Err(invalid(
+                "estimator.particles",
+                "particles and magnitudes_per_point must be at least 1".to_owned(),
+            ));
         }
         Ok(())
     }
@@ -451,12 +489,16 @@ impl Scene {
         };
         let mut robot = load_robot(&self.robot, &folder, &options).map_err(|cause| SceneError::Robot {
             path: scene_path.to_owned(),
-            cause,
+            cause: Box::new(cause),
         })?;
         let model = |field: &str| {
             let field = field.to_owned();
             let path = scene_path.to_owned();
-            move |cause| SceneError::Model { path, field, cause }
+            move |cause| SceneError::Model {
+                path,
+                field,
+                cause: Box::new(cause),
+            }
         };
         if let Some(names) = &self.sensed_joints {
             robot.set_sensed(names).map_err(model("sensed_joints"))?;
@@ -491,7 +533,7 @@ fn resolve_push(robot: &Robot, pose: &RobotPose, push: &Push, scene_path: &Path)
     let link = robot.link_id(&push.link).map_err(|cause| SceneError::Model {
         path: scene_path.to_owned(),
         field: "push.link".to_owned(),
-        cause,
+        cause: Box::new(cause),
     })?;
     let world_from_link = pose.world_from_link[link];
     let point_world = match (push.point_in_link, push.point_world) {
@@ -503,14 +545,18 @@ fn resolve_push(robot: &Robot, pose: &RobotPose, push: &Push, scene_path: &Path)
         (Some(f), _) => DVec3::from_array(f),
         (None, Some(magnitude)) => {
             let point_in_link = world_from_link.inverse().transform_point3(point_world);
-            let (_, outward) = robot.links[link].mesh.closest_point(point_in_link).ok_or_else(|| SceneError::Invalid {
-                path: scene_path.to_owned(),
-                field: "push.force_newtons".to_owned(),
-                message: format!(
-                    "link '{}' has no mesh to take the surface normal from: give push.force_world",
-                    push.link
-                ),
-            })?;
+            let (_, outward) =
+                robot.links[link]
+                    .mesh
+                    .closest_point(point_in_link)
+                    .ok_or_else(|| SceneError::Invalid {
+                        path: scene_path.to_owned(),
+                        field: "push.force_newtons".to_owned(),
+                        message: format!(
+                            "link '{}' has no mesh to take the surface normal from: give push.force_world",
+                            push.link
+                        ),
+                    })?;
             -world_from_link.transform_vector3(outward) * magnitude
         }
         (None, None) => DVec3::ZERO,
@@ -554,20 +600,39 @@ mod tests {
     #[test]
     fn wrong_joint_count_names_the_field_and_the_joints() {
         let text = MINIMAL.replace("[0, 0, 0, 0, 0, 0, 0]", "[0, 0, 0]");
-        let e = Scene::parse(&text, Path::new("short.json")).unwrap().load(Path::new("short.json")).unwrap_err().to_string();
-        assert!(e.contains("short.json") && e.contains("'q'") && e.contains("expected 7") && e.contains("got 3"), "{e}");
+        let e = Scene::parse(&text, Path::new("short.json"))
+            .unwrap()
+            .load(Path::new("short.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("short.json") && e.contains("'q'") && e.contains("expected 7") && e.contains("got 3"),
+            "{e}"
+        );
     }
 
     #[test]
     fn invalid_values_name_their_field() {
         let cases = [
-            (r#""push": {"link": "lwr_2_link", "point_world": [0, 0, 0.4]}, "q""#, "push"),
-            (r#""estimator": {"force_min_newtons": 5, "force_max_newtons": 2}, "q""#, "force_min_newtons"),
-            (r#""estimator": {"sigma_newton_metres": [0.1, -1]}, "q""#, "sigma_newton_metres"),
+            (
+                r#""push": {"link": "lwr_2_link", "point_world": [0, 0, 0.4]}, "q""#,
+                "push",
+            ),
+            (
+                r#""estimator": {"force_min_newtons": 5, "force_max_newtons": 2}, "q""#,
+                "force_min_newtons",
+            ),
+            (
+                r#""estimator": {"sigma_newton_metres": [0.1, -1]}, "q""#,
+                "sigma_newton_metres",
+            ),
             (r#""version": 2, "q""#, "version"),
         ];
         for (insert, field) in cases {
-            let text = MINIMAL.replace("\"q\"", insert).replace(r#"{"version": 1, "robot": "lwr4plus", "version": 2"#, r#"{"robot": "lwr4plus", "version": 2"#);
+            let text = MINIMAL.replace("\"q\"", insert).replace(
+                r#"{"version": 1, "robot": "lwr4plus", "version": 2"#,
+                r#"{"robot": "lwr4plus", "version": 2"#,
+            );
             let e = Scene::parse(&text, Path::new("bad.json")).unwrap_err().to_string();
             assert!(e.contains(field), "{insert}: {e}");
         }
@@ -579,10 +644,17 @@ mod tests {
             "\"q\"",
             r#""push": {"link": "lwr_7_link", "point_in_link": [0.0, 0.0, 0.0], "force_newtons": 4}, "q""#,
         );
-        let loaded = Scene::parse(&text, Path::new("x.json")).unwrap().load(Path::new("x.json")).unwrap();
+        let loaded = Scene::parse(&text, Path::new("x.json"))
+            .unwrap()
+            .load(Path::new("x.json"))
+            .unwrap();
         let push = loaded.push.unwrap();
         // The flange's top face: the inward normal points down.
-        assert!((push.force_world - DVec3::new(0.0, 0.0, -4.0)).length() < 1e-6, "{}", push.force_world);
+        assert!(
+            (push.force_world - DVec3::new(0.0, 0.0, -4.0)).length() < 1e-6,
+            "{}",
+            push.force_world
+        );
     }
 
     #[test]

@@ -55,7 +55,9 @@ pub enum UrdfError {
         message: String,
     },
     /// A joint type we do not model.
-    #[error("{path}: joint '{joint}' is of type {kind}, which is not supported (revolute, continuous, prismatic and fixed are)")]
+    #[error(
+        "{path}: joint '{joint}' is of type {kind}, which is not supported (revolute, continuous, prismatic and fixed are)"
+    )]
     UnsupportedJoint {
         /// The file.
         path: PathBuf,
@@ -126,80 +128,17 @@ pub fn load_urdf(path: &Path, options: &UrdfOptions) -> Result<Robot, UrdfError>
         path: path.to_owned(),
         message: e.to_string(),
     })?;
-    let folder = path.parent().unwrap_or(Path::new(".")).to_owned();
-
     let mut links = Vec::with_capacity(urdf.links.len());
     for link in &urdf.links {
         let wanted = match &options.meshes {
             MeshSelection::All => true,
             MeshSelection::None => false,
-            MeshSelection::Links(names) => names.iter().any(|n| *n == link.name),
+            MeshSelection::Links(names) => names.contains(&link.name),
         };
         let mut mesh = TriMesh::default();
         if wanted {
             for visual in &link.visual {
-                let origin = origin_transform(*visual.origin.xyz, *visual.origin.rpy);
-                let bad = |what: &str, value: String| UrdfError::BadGeometry {
-                    path: path.to_owned(),
-                    link: link.name.clone(),
-                    what: what.to_owned(),
-                    value,
-                };
-                let positive = |what: &str, v: f64| if v.is_finite() && v > 0.0 { Ok(v) } else { Err(bad(what, v.to_string())) };
-                if !origin.is_finite() {
-                    return Err(bad("<origin>", format!("{:?} {:?}", *visual.origin.xyz, *visual.origin.rpy)));
-                }
-                let part = match &visual.geometry {
-                    urdf_rs::Geometry::Box { size } => {
-                        let size = DVec3::from_array(**size);
-                        if !(size.is_finite() && size.min_element() > 0.0) {
-                            return Err(bad("<box size>", format!("{size}")));
-                        }
-                        primitives::cuboid(size)
-                    }
-                    urdf_rs::Geometry::Cylinder { radius, length } => {
-                        let half = 0.5 * positive("<cylinder length>", *length)?;
-                        Primitive::Cylinder {
-                            from: DVec3::new(0.0, 0.0, -half),
-                            to: DVec3::new(0.0, 0.0, half),
-                            radius: positive("<cylinder radius>", *radius)?,
-                        }
-                        .mesh(PRIMITIVE_SEGMENTS)
-                    }
-                    urdf_rs::Geometry::Capsule { radius, length } => {
-                        let half = 0.5 * positive("<capsule length>", *length)?;
-                        Primitive::Capsule {
-                            from: DVec3::new(0.0, 0.0, -half),
-                            to: DVec3::new(0.0, 0.0, half),
-                            radius: positive("<capsule radius>", *radius)?,
-                        }
-                        .mesh(PRIMITIVE_SEGMENTS)
-                    }
-                    urdf_rs::Geometry::Sphere { radius } => {
-                        primitives::sphere(positive("<sphere radius>", *radius)?, PRIMITIVE_SEGMENTS)
-                    }
-                    urdf_rs::Geometry::Mesh { filename, scale } => {
-                        let file = resolve_mesh_path(filename, &folder, &options.package_paths).map_err(|tried| {
-                            UrdfError::MissingMesh {
-                                path: path.to_owned(),
-                                link: link.name.clone(),
-                                filename: filename.clone(),
-                                tried: tried.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "),
-                            }
-                        })?;
-                        let m = load_mesh(&file).map_err(|cause| UrdfError::Mesh {
-                            path: path.to_owned(),
-                            link: link.name.clone(),
-                            cause,
-                        })?;
-                        let s = scale.map_or(DVec3::ONE, |s| DVec3::from_array(*s));
-                        if !s.is_finite() || s.x * s.y * s.z == 0.0 {
-                            return Err(bad("<mesh scale>", format!("{s}")));
-                        }
-                        m.transformed(&DAffine3::from_scale(s))
-                    }
-                };
-                mesh.append(&part.transformed(&origin));
+                mesh.append(&visual_mesh(visual, &link.name, path, options)?);
             }
         }
         links.push(LinkSpec {
@@ -208,46 +147,124 @@ pub fn load_urdf(path: &Path, options: &UrdfOptions) -> Result<Robot, UrdfError>
             segment: None,
         });
     }
-
-    let mut joints = Vec::with_capacity(urdf.joints.len());
-    for j in &urdf.joints {
-        let kind = match j.joint_type {
-            urdf_rs::JointType::Revolute => JointKind::Revolute,
-            urdf_rs::JointType::Continuous => JointKind::Continuous,
-            urdf_rs::JointType::Prismatic => JointKind::Prismatic,
-            urdf_rs::JointType::Fixed => JointKind::Fixed,
-            ref other => {
-                return Err(UrdfError::UnsupportedJoint {
-                    path: path.to_owned(),
-                    joint: j.name.clone(),
-                    kind: format!("{other:?}").to_lowercase(),
-                });
-            }
-        };
-        let limits = match kind {
-            JointKind::Revolute | JointKind::Prismatic => Some(JointLimits {
-                lower: j.limit.lower,
-                upper: j.limit.upper,
-            }),
-            JointKind::Continuous | JointKind::Fixed => None,
-        };
-        joints.push(JointSpec {
-            name: j.name.clone(),
-            kind,
-            parent: j.parent.link.clone(),
-            child: j.child.link.clone(),
-            parent_from_joint: origin_transform(*j.origin.xyz, *j.origin.rpy),
-            axis: DVec3::from_array(*j.axis.xyz),
-            limits,
-            mimic: j
-                .mimic
-                .as_ref()
-                .map(|m| (m.joint.clone(), m.multiplier.unwrap_or(1.0), m.offset.unwrap_or(0.0))),
-        });
-    }
-    Robot::new(&urdf.name, links, joints).map_err(|cause| UrdfError::Robot {
+    let joints = urdf
+        .joints
+        .iter()
+        .map(|j| joint_spec(j, path))
+        .collect::<Result<Vec<_>, _>>()?;
+    Robot::new(&urdf.name, &links, &joints).map_err(|cause| UrdfError::Robot {
         path: path.to_owned(),
         cause,
+    })
+}
+
+/// One `<visual>` element's surface in its link's frame.
+fn visual_mesh(visual: &urdf_rs::Visual, link: &str, path: &Path, options: &UrdfOptions) -> Result<TriMesh, UrdfError> {
+    let bad = |what: &str, value: String| UrdfError::BadGeometry {
+        path: path.to_owned(),
+        link: link.to_owned(),
+        what: what.to_owned(),
+        value,
+    };
+    let positive = |what: &str, v: f64| {
+        if v.is_finite() && v > 0.0 {
+            Ok(v)
+        } else {
+            Err(bad(what, v.to_string()))
+        }
+    };
+    let origin = origin_transform(*visual.origin.xyz, *visual.origin.rpy);
+    if !origin.is_finite() {
+        return Err(bad(
+            "<origin>",
+            format!("{:?} {:?}", *visual.origin.xyz, *visual.origin.rpy),
+        ));
+    }
+    let along_z = |half: f64| (DVec3::new(0.0, 0.0, -half), DVec3::new(0.0, 0.0, half));
+    let part = match &visual.geometry {
+        urdf_rs::Geometry::Box { size } => {
+            let size = DVec3::from_array(**size);
+            if !(size.is_finite() && size.min_element() > 0.0) {
+                return Err(bad("<box size>", format!("{size}")));
+            }
+            primitives::cuboid(size)
+        }
+        urdf_rs::Geometry::Cylinder { radius, length } => {
+            let (from, to) = along_z(0.5 * positive("<cylinder length>", *length)?);
+            let radius = positive("<cylinder radius>", *radius)?;
+            Primitive::Cylinder { from, to, radius }.mesh(PRIMITIVE_SEGMENTS)
+        }
+        urdf_rs::Geometry::Capsule { radius, length } => {
+            let (from, to) = along_z(0.5 * positive("<capsule length>", *length)?);
+            let radius = positive("<capsule radius>", *radius)?;
+            Primitive::Capsule { from, to, radius }.mesh(PRIMITIVE_SEGMENTS)
+        }
+        urdf_rs::Geometry::Sphere { radius } => {
+            primitives::sphere(positive("<sphere radius>", *radius)?, PRIMITIVE_SEGMENTS)
+        }
+        urdf_rs::Geometry::Mesh { filename, scale } => {
+            let folder = path.parent().unwrap_or(Path::new("."));
+            let file = resolve_mesh_path(filename, folder, &options.package_paths).map_err(|tried| {
+                UrdfError::MissingMesh {
+                    path: path.to_owned(),
+                    link: link.to_owned(),
+                    filename: filename.clone(),
+                    tried: tried
+                        .iter()
+                        .map(|p| p.display().to_string())
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                }
+            })?;
+            let mesh = load_mesh(&file).map_err(|cause| UrdfError::Mesh {
+                path: path.to_owned(),
+                link: link.to_owned(),
+                cause,
+            })?;
+            let s = scale.map_or(DVec3::ONE, |s| DVec3::from_array(*s));
+            if !s.is_finite() || s.x * s.y * s.z == 0.0 {
+                return Err(bad("<mesh scale>", format!("{s}")));
+            }
+            mesh.transformed(&DAffine3::from_scale(s))
+        }
+    };
+    Ok(part.transformed(&origin))
+}
+
+/// A URDF joint as a [`JointSpec`].
+fn joint_spec(j: &urdf_rs::Joint, path: &Path) -> Result<JointSpec, UrdfError> {
+    let kind = match j.joint_type {
+        urdf_rs::JointType::Revolute => JointKind::Revolute,
+        urdf_rs::JointType::Continuous => JointKind::Continuous,
+        urdf_rs::JointType::Prismatic => JointKind::Prismatic,
+        urdf_rs::JointType::Fixed => JointKind::Fixed,
+        ref other => {
+            return Err(UrdfError::UnsupportedJoint {
+                path: path.to_owned(),
+                joint: j.name.clone(),
+                kind: format!("{other:?}").to_lowercase(),
+            });
+        }
+    };
+    let limits = match kind {
+        JointKind::Revolute | JointKind::Prismatic => Some(JointLimits {
+            lower: j.limit.lower,
+            upper: j.limit.upper,
+        }),
+        JointKind::Continuous | JointKind::Fixed => None,
+    };
+    Ok(JointSpec {
+        name: j.name.clone(),
+        kind,
+        parent: j.parent.link.clone(),
+        child: j.child.link.clone(),
+        parent_from_joint: origin_transform(*j.origin.xyz, *j.origin.rpy),
+        axis: DVec3::from_array(*j.axis.xyz),
+        limits,
+        mimic: j
+            .mimic
+            .as_ref()
+            .map(|m| (m.joint.clone(), m.multiplier.unwrap_or(1.0), m.offset.unwrap_or(0.0))),
     })
 }
 
@@ -255,7 +272,11 @@ pub fn load_urdf(path: &Path, options: &UrdfOptions) -> Result<Robot, UrdfError>
 /// that exists under the URDF's folder or one of its ancestors (or under a
 /// package path), `file://` and plain paths relative to the URDF's folder.
 /// On failure, the places looked at.
-pub fn resolve_mesh_path(filename: &str, urdf_folder: &Path, package_paths: &[PathBuf]) -> Result<PathBuf, Vec<PathBuf>> {
+pub fn resolve_mesh_path(
+    filename: &str,
+    urdf_folder: &Path,
+    package_paths: &[PathBuf],
+) -> Result<PathBuf, Vec<PathBuf>> {
     let mut tried = Vec::new();
     if let Some(rest) = filename.strip_prefix("package://") {
         let parts: Vec<&str> = rest.split('/').filter(|p| !p.is_empty()).collect();
@@ -305,7 +326,10 @@ mod tests {
 
     #[test]
     fn rpy_is_roll_then_pitch_then_yaw_about_fixed_axes() {
-        let t = origin_transform([0.0; 3], [std::f64::consts::FRAC_PI_2, 0.0, std::f64::consts::FRAC_PI_2]);
+        let t = origin_transform(
+            [0.0; 3],
+            [std::f64::consts::FRAC_PI_2, 0.0, std::f64::consts::FRAC_PI_2],
+        );
         // Roll maps y to z; yaw then leaves z alone.
         assert!((t.transform_vector3(DVec3::Y) - DVec3::Z).length() < 1e-12);
         // Roll leaves x alone; yaw maps x to y.
