@@ -117,7 +117,26 @@ struct PushCase {
 }
 
 fn torques(args: &TorquesArgs) -> Result<()> {
-    let case = if let Some(path) = &args.scene {
+    let case = push_case(args)?;
+    let tau = joint_torques(&case.robot, &case.pose, case.link, case.point_world, case.force_world);
+    if args.json {
+        let joints: Vec<serde_json::Value> = case
+            .robot
+            .sensed_names()
+            .iter()
+            .zip(&tau)
+            .map(|(n, t)| serde_json::json!({ "name": n, "torque": t }))
+            .collect();
+        println!("{}", serde_json::json!({ "joints": joints }));
+    } else {
+        print_torques(&case, &tau, args.ncm);
+    }
+    Ok(())
+}
+
+/// The push a `torques` command asks about, from a scene or the arguments.
+fn push_case(args: &TorquesArgs) -> Result<PushCase> {
+    Ok(if let Some(path) = &args.scene {
         let loaded = Scene::read(path)?.load(path)?;
         let Some(push) = loaded.push else {
             bail!(
@@ -162,19 +181,13 @@ fn torques(args: &TorquesArgs) -> Result<()> {
             force_world,
             measured: None,
         }
-    };
-    let tau = joint_torques(&case.robot, &case.pose, case.link, case.point_world, case.force_world);
+    })
+}
+
+/// The torque table, then which joints sense nothing and which read zero.
+fn print_torques(case: &PushCase, tau: &[f64], ncm: bool) {
     let names = case.robot.sensed_names();
-    if args.json {
-        let joints: Vec<serde_json::Value> = names
-            .iter()
-            .zip(&tau)
-            .map(|(n, t)| serde_json::json!({ "name": n, "torque": t }))
-            .collect();
-        println!("{}", serde_json::json!({ "joints": joints }));
-        return Ok(());
-    }
-    let (unit, scale) = if args.ncm { ("N·cm", 100.0) } else { ("N·m", 1.0) };
+    let (unit, scale) = if ncm { ("N·cm", 100.0) } else { ("N·m", 1.0) };
     let link_name = &case.robot.links[case.link].name;
     let (p, f) = (case.point_world, case.force_world);
     println!(
@@ -191,7 +204,7 @@ fn torques(args: &TorquesArgs) -> Result<()> {
         ),
         None => println!("{:width$}  {:>12}", "joint", format!("torque [{unit}]")),
     }
-    for (i, (name, t)) in names.iter().zip(&tau).enumerate() {
+    for (i, (name, t)) in names.iter().zip(tau).enumerate() {
         match case.measured.as_ref().and_then(|m| m.get(i)) {
             Some(m) => println!("{name:width$}  {:>12.4}  {:>12.4}", t * scale, m * scale),
             None => println!("{name:width$}  {:>12.4}", t * scale),
@@ -211,7 +224,7 @@ fn torques(args: &TorquesArgs) -> Result<()> {
         .robot
         .sensed()
         .iter()
-        .zip(names.iter().zip(&tau))
+        .zip(names.iter().zip(tau))
         .filter(|(j, (_, t))| path.contains(j) && t.abs() <= scale_nm)
         .map(|(_, (n, _))| *n)
         .collect();
@@ -224,7 +237,6 @@ fn torques(args: &TorquesArgs) -> Result<()> {
             zero.join(", ")
         );
     }
-    Ok(())
 }
 
 fn robot_info(spec: &str, package_paths: Vec<PathBuf>) -> Result<()> {

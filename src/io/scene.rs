@@ -376,18 +376,7 @@ impl Scene {
     }
 
     fn validate(&self, path: &Path) -> Result<(), SceneError> {
-        let invalid = |field: &str, message: String| SceneError::Invalid {
-            path: path.to_owned(),
-            field: field.to_owned(),
-            message,
-        };
-        let finite3 = |field: &str, v: &[f64; 3]| {
-            if v.iter().all(|x| x.is_finite()) {
-                Ok(())
-            } else {
-                Err(invalid(field, format!("{v:?} is not finite")))
-            }
-        };
+        let invalid = |field: &str, message: String| invalid(path, field, message);
         if self.version != SCENE_VERSION {
             return Err(invalid(
                 "version",
@@ -409,27 +398,7 @@ impl Scene {
             return Err(invalid("surface_points", "must be at least 1".to_owned()));
         }
         if let Some(push) = &self.push {
-            match (&push.point_in_link, &push.point_world) {
-                (Some(p), None) => finite3("push.point_in_link", p)?,
-                (None, Some(p)) => finite3("push.point_world", p)?,
-                _ => {
-                    return Err(invalid(
-                        "push",
-                        "give exactly one of point_in_link and point_world".to_owned(),
-                    ));
-                }
-            }
-            match (&push.force_world, push.force_newtons) {
-                (Some(f), None) => finite3("push.force_world", f)?,
-                (None, Some(f)) if f.is_finite() && f > 0.0 => {}
-                (None, Some(f)) => return Err(invalid("push.force_newtons", format!("{f} is not a positive number"))),
-                _ => {
-                    return Err(invalid(
-                        "push",
-                        "give exactly one of force_world and force_newtons".to_owned(),
-                    ));
-                }
-            }
+            push.validate(path)?;
         }
         let n = &self.noise;
         if !(n.sigma_newton_metres.is_finite() && n.sigma_newton_metres >= 0.0) {
@@ -438,45 +407,7 @@ impl Scene {
                 format!("{} is not a number ≥ 0", n.sigma_newton_metres),
             ));
         }
-        let e = &self.estimator;
-        let sigmas: Vec<f64> = match &e.sigma_newton_metres {
-            Sigma::All(s) => vec![*s],
-            Sigma::PerJoint(v) => v.clone(),
-        };
-        if let Some(s) = sigmas.iter().find(|s| !(s.is_finite() && **s > 0.0)) {
-            return Err(invalid(
-                "estimator.sigma_newton_metres",
-                format!("{s} is not a positive number"),
-            ));
-        }
-        if !(e.force_min_newtons.is_finite() && e.force_max_newtons.is_finite() && e.force_min_newtons >= 0.0) {
-            return Err(invalid(
-                "estimator.force_min_newtons",
-                "the force range must be finite and ≥ 0".to_owned(),
-            ));
-        }
-        if e.force_min_newtons > e.force_max_newtons {
-            return Err(invalid(
-                "estimator.force_min_newtons",
-                format!(
-                    "{} is above force_max_newtons {}",
-                    e.force_min_newtons, e.force_max_newtons
-                ),
-            ));
-        }
-        if !(e.phases.alpha > 0.0 && e.phases.alpha < 1.0) {
-            return Err(invalid(
-                "estimator.phases.alpha",
-                format!("{} is not in (0, 1)", e.phases.alpha),
-            ));
-        }
-        if e.particles == 0 || e.magnitudes_per_point == 0 {
-            return Err(invalid(
-                "estimator.particles",
-                "particles and magnitudes_per_point must be at least 1".to_owned(),
-            ));
-        }
-        Ok(())
+        self.estimator.validate(path)
     }
 
     /// Loads the robot (relative to `scene_path`'s folder), poses it and
@@ -526,6 +457,97 @@ impl Scene {
             candidate_links,
             push,
         })
+    }
+}
+
+fn invalid(path: &Path, field: &str, message: String) -> SceneError {
+    SceneError::Invalid {
+        path: path.to_owned(),
+        field: field.to_owned(),
+        message,
+    }
+}
+
+impl Push {
+    fn validate(&self, path: &Path) -> Result<(), SceneError> {
+        let finite3 = |field: &str, v: &[f64; 3]| {
+            if v.iter().all(|x| x.is_finite()) {
+                Ok(())
+            } else {
+                Err(invalid(path, field, format!("{v:?} is not finite")))
+            }
+        };
+        match (&self.point_in_link, &self.point_world) {
+            (Some(p), None) => finite3("push.point_in_link", p)?,
+            (None, Some(p)) => finite3("push.point_world", p)?,
+            _ => {
+                return Err(invalid(
+                    path,
+                    "push",
+                    "give exactly one of point_in_link and point_world".to_owned(),
+                ));
+            }
+        }
+        match (&self.force_world, self.force_newtons) {
+            (Some(f), None) => finite3("push.force_world", f),
+            (None, Some(f)) if f.is_finite() && f > 0.0 => Ok(()),
+            (None, Some(f)) => Err(invalid(
+                path,
+                "push.force_newtons",
+                format!("{f} is not a positive number"),
+            )),
+            _ => Err(invalid(
+                path,
+                "push",
+                "give exactly one of force_world and force_newtons".to_owned(),
+            )),
+        }
+    }
+}
+
+impl EstimatorSettings {
+    fn validate(&self, path: &Path) -> Result<(), SceneError> {
+        let sigmas: Vec<f64> = match &self.sigma_newton_metres {
+            Sigma::All(s) => vec![*s],
+            Sigma::PerJoint(v) => v.clone(),
+        };
+        if let Some(s) = sigmas.iter().find(|s| !(s.is_finite() && **s > 0.0)) {
+            return Err(invalid(
+                path,
+                "estimator.sigma_newton_metres",
+                format!("{s} is not a positive number"),
+            ));
+        }
+        let (lo, hi) = (self.force_min_newtons, self.force_max_newtons);
+        if !(lo.is_finite() && hi.is_finite() && lo >= 0.0) {
+            return Err(invalid(
+                path,
+                "estimator.force_min_newtons",
+                "the force range must be finite and ≥ 0".to_owned(),
+            ));
+        }
+        if lo > hi {
+            return Err(invalid(
+                path,
+                "estimator.force_min_newtons",
+                format!("{lo} is above force_max_newtons {hi}"),
+            ));
+        }
+        if !(self.phases.alpha > 0.0 && self.phases.alpha < 1.0) {
+            return Err(invalid(
+                path,
+                "estimator.phases.alpha",
+                format!("{} is not in (0, 1)", self.phases.alpha),
+            ));
+        }
+        if self.particles == 0 || self.magnitudes_per_point == 0 {
+            return Err(invalid(
+                path,
+                "estimator.particles",
+                "particles and magnitudes_per_point must be at least 1".to_owned(),
+            ));
+        }
+        Ok(())
     }
 }
 
