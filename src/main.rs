@@ -206,8 +206,8 @@ fn print_torques(case: &PushCase, tau: &[f64], ncm: bool) {
     }
     for (i, (name, t)) in names.iter().zip(tau).enumerate() {
         match case.measured.as_ref().and_then(|m| m.get(i)) {
-            Some(m) => println!("{name:width$}  {:>12.4}  {:>12.4}", t * scale, m * scale),
-            None => println!("{name:width$}  {:>12.4}", t * scale),
+            Some(m) => println!("{name:width$}  {:>12}  {:>12}", shown(t * scale), shown(m * scale)),
+            None => println!("{name:width$}  {:>12}", shown(t * scale)),
         }
     }
     let path = case.robot.path_joints(case.link);
@@ -236,6 +236,16 @@ fn print_torques(case: &PushCase, tau: &[f64], ncm: bool) {
             "Read zero here (the force line meets or parallels their axis): {}",
             zero.join(", ")
         );
+    }
+}
+
+/// Four decimals, without the "-0.0000" of a value that rounds to zero.
+fn shown(value: f64) -> String {
+    let text = format!("{value:.4}");
+    if text.trim_start_matches('-').chars().all(|c| c == '0' || c == '.') {
+        "0.0000".to_owned()
+    } else {
+        text
     }
 }
 
