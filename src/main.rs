@@ -9,6 +9,7 @@ use glam::DVec3;
 
 use proprioscope::core::kinematics::RobotPose;
 use proprioscope::core::robot::Robot;
+use proprioscope::core::surface::{Surface, SurfaceRequest};
 use proprioscope::core::torque::joint_torques;
 use proprioscope::io::builtin::{LWR4PLUS_GLB_PATH, load_robot, lwr4plus_glb_generated};
 use proprioscope::io::scene::Scene;
@@ -37,6 +38,15 @@ enum Command {
         /// Extra folder for `package://` URIs (repeatable).
         #[arg(long = "package-path")]
         package_paths: Vec<PathBuf>,
+    },
+    /// Samples a scene's candidate links and reports, per link, the
+    /// candidates drawn, buried and kept, and the exposed area.
+    Surface {
+        /// A scene file (JSON).
+        scene: PathBuf,
+        /// Override the scene's surface resolution.
+        #[arg(long)]
+        points: Option<usize>,
     },
     /// Regenerates the shipped assets (`assets/lwr4plus.glb`) from the
     /// built-in robot's primitives.
@@ -96,6 +106,7 @@ fn main() -> Result<()> {
     match cli.command {
         Some(Command::Torques(args)) => torques(&args),
         Some(Command::RobotInfo { robot, package_paths }) => robot_info(&robot, package_paths),
+        Some(Command::Surface { scene, points }) => surface(&scene, points),
         Some(Command::ExportAssets { root }) => export_assets(&root),
         None => {
             println!(
@@ -277,6 +288,42 @@ fn robot_info(spec: &str, package_paths: Vec<PathBuf>) -> Result<()> {
             link.mesh.triangles.len(),
             link.mesh.area() + 0.0, // an empty sum is -0.0
             if candidates.contains(&i) { "  [candidate]" } else { "" }
+        );
+    }
+    Ok(())
+}
+
+fn surface(path: &Path, points: Option<usize>) -> Result<()> {
+    let loaded = Scene::read(path)?.load(path)?;
+    let request = SurfaceRequest {
+        links: loaded.candidate_links.clone(),
+        total_points: points.unwrap_or(loaded.scene.surface_points),
+        seed: loaded.scene.surface_seed,
+    };
+    let start = std::time::Instant::now();
+    let surface = Surface::sample(&loaded.robot, &request).with_context(|| format!("{}", path.display()))?;
+    let elapsed = start.elapsed();
+    println!(
+        "{} surface points on {} links in {:.1} ms",
+        surface.len(),
+        surface.stats.len(),
+        elapsed.as_secs_f64() * 1e3
+    );
+    println!(
+        "{:<20} {:>9} {:>9} {:>7} {:>7} {:>6} {:>6} {:>7}",
+        "link", "area m²", "exposed", "drawn", "buried", "open", "kept", "shells"
+    );
+    for st in &surface.stats {
+        println!(
+            "{:<20} {:>9.4} {:>9.4} {:>7} {:>7} {:>6} {:>6} {:>7}",
+            loaded.robot.links[st.link].name,
+            st.mesh_area_m2,
+            st.exposed_area_m2,
+            st.drawn,
+            st.buried,
+            st.open_or_thin,
+            st.kept,
+            st.shells
         );
     }
     Ok(())

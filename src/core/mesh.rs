@@ -26,6 +26,8 @@ pub struct OrientReport {
     pub flipped: usize,
     /// Triangles dropped as degenerate (zero area, repeated or non-finite vertices).
     pub degenerate: usize,
+    /// Edges used by one triangle only: 0 for closed meshes.
+    pub boundary_edges: usize,
 }
 
 impl TriMesh {
@@ -186,6 +188,15 @@ impl TriMesh {
                 t.swap(1, 2);
             }
         }
+        let mut edge_use: HashMap<(u32, u32), u32> = HashMap::with_capacity(3 * self.triangles.len() / 2);
+        for t in &self.triangles {
+            let w = t.map(|i| weld[i as usize]);
+            for k in 0..3 {
+                let (a, b) = (w[k], w[(k + 1) % 3]);
+                *edge_use.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+            }
+        }
+        report.boundary_edges = edge_use.values().filter(|n| **n == 1).count();
         report
     }
 

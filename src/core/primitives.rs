@@ -274,6 +274,7 @@ mod tests {
             assert_eq!(report.shells, 1, "{p:?}");
             assert_eq!(report.flipped, 0, "{p:?}");
             assert_eq!(report.degenerate, 0, "{p:?}");
+            assert_eq!(report.boundary_edges, 0, "{p:?}");
         }
     }
 

@@ -3,8 +3,10 @@
 
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
+use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use crate::core::bvh::Bvh;
 use crate::core::kinematics::RobotPose;
@@ -18,6 +20,10 @@ pub const BURIED_PROBE_M: f64 = 5e-4;
 /// Candidates drawn per kept sample before thinning (more gives a more even
 /// spread and costs time linearly).
 pub const OVERSAMPLE: usize = 4;
+
+/// Candidates per kept sample that are tested for burial: the draw is first
+/// thinned to this many, since the inside tests cost more than thinning.
+pub const TESTED_PER_SAMPLE: usize = 2;
 
 /// Force directions per point on a one-dimensional link (the simple robot).
 pub const SEGMENT_DIRECTIONS: usize = 8;
@@ -42,7 +48,7 @@ pub struct LinkSurfaceStats {
     pub mesh_area_m2: f64,
     /// Estimated area not buried inside its own other shells, m².
     pub exposed_area_m2: f64,
-    /// Candidates drawn.
+    /// Candidates tested for burial (after a first thinning of the draw).
     pub drawn: usize,
     /// Candidates whose outside lies inside the link's mesh.
     pub buried: usize,
@@ -196,6 +202,8 @@ enum Prepared {
         bvh: Bvh,
         cdf: Vec<f64>,
         stats: LinkSurfaceStats,
+        /// No boundary edges: no point can lie on an open sheet.
+        closed: bool,
     },
     Segment {
         link: LinkId,
@@ -226,6 +234,7 @@ impl Prepared {
             mesh,
             bvh,
             cdf,
+            closed: report.boundary_edges == 0,
             stats: LinkSurfaceStats {
                 link,
                 mesh_area_m2: total,
@@ -262,42 +271,53 @@ impl Prepared {
     fn draw(&self, target: usize, rng: &mut Rng) -> Candidates {
         match self {
             Self::Mesh {
-                link,
                 mesh,
                 bvh,
                 cdf,
                 stats,
+                closed,
+                ..
             } => {
                 let mut stats = stats.clone();
                 let total = self.area();
                 let n = (OVERSAMPLE * target).max(16);
-                let mut points = Vec::with_capacity(n);
-                let mut inward_normals = Vec::with_capacity(n);
+                let mut drawn = Vec::with_capacity(n);
+                let mut outward = Vec::with_capacity(n);
                 for _ in 0..n {
                     let x = rng.uniform() * total;
                     let tri = cdf.partition_point(|&c| c <= x).min(cdf.len().saturating_sub(1));
                     let (u1, u2) = (rng.uniform(), rng.uniform());
                     let Some(c) = mesh.corners(tri) else { continue };
                     let s = u1.sqrt();
-                    let p = c[0] * (1.0 - s) + c[1] * (s * (1.0 - u2)) + c[2] * (s * u2);
-                    let outward = (c[1] - c[0]).cross(c[2] - c[0]).normalize_or_zero();
-                    stats.drawn += 1;
-                    if bvh.winding_number(p + outward * BURIED_PROBE_M) > 0.5 {
-                        stats.buried += 1;
-                    } else if bvh.winding_number(p - outward * BURIED_PROBE_M) < 0.5 {
-                        stats.open_or_thin += 1;
-                    } else {
-                        points.push(p);
-                        inward_normals.push(-outward);
+                    drawn.push(c[0] * (1.0 - s) + c[1] * (s * (1.0 - u2)) + c[2] * (s * u2));
+                    outward.push((c[1] - c[0]).cross(c[2] - c[0]).normalize_or_zero());
+                }
+                // Thinning spreads the survivors evenly, so the buried share
+                // among them estimates the buried share of the area.
+                let tested = eliminate(&drawn, (TESTED_PER_SAMPLE * target).max(16), total);
+                let verdicts: Vec<Verdict> = tested
+                    .par_iter()
+                    .map(|&i| classify(bvh, drawn[i], outward[i], *closed))
+                    .collect();
+                let mut points = Vec::with_capacity(tested.len());
+                let mut inward_normals = Vec::with_capacity(tested.len());
+                for (&i, verdict) in tested.iter().zip(&verdicts) {
+                    match verdict {
+                        Verdict::Buried => stats.buried += 1,
+                        Verdict::Open => stats.open_or_thin += 1,
+                        Verdict::Exposed => {
+                            points.push(drawn[i]);
+                            inward_normals.push(-outward[i]);
+                        }
                     }
                 }
+                stats.drawn = tested.len();
                 let exposed = if stats.drawn > 0 {
                     total * points.len() as f64 / stats.drawn as f64
                 } else {
                     0.0
                 };
                 stats.exposed_area_m2 = exposed;
-                let _ = link;
                 Candidates {
                     points,
                     inward_normals,
@@ -341,6 +361,26 @@ impl Prepared {
                 }
             }
         }
+    }
+}
+
+/// Where a candidate point stands.
+enum Verdict {
+    /// On the outer surface: a contact can happen here.
+    Exposed,
+    /// Its outside is inside the link (an internal wall, an overlapped shell).
+    Buried,
+    /// Its inside is not inside (an open sheet, a wall thinner than the probe).
+    Open,
+}
+
+fn classify(bvh: &Bvh, p: DVec3, outward: DVec3, closed: bool) -> Verdict {
+    if bvh.winding_number(p + outward * BURIED_PROBE_M) > 0.5 {
+        Verdict::Buried
+    } else if !closed && bvh.winding_number(p - outward * BURIED_PROBE_M) < 0.5 {
+        Verdict::Open
+    } else {
+        Verdict::Exposed
     }
 }
 
@@ -388,6 +428,33 @@ fn apportion(total: usize, weights: &[f64], caps: &[usize]) -> Vec<usize> {
     out
 }
 
+/// A cheap hasher for grid cells (multiply-rotate); the standard `SipHash`
+/// costs more than the distance tests it guards.
+#[derive(Default)]
+struct CellHasher(u64);
+
+impl Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        // Fold the well-mixed high bits into the low ones the table indexes by.
+        let x = self.0;
+        (x ^ (x >> 29)).wrapping_mul(0xbf58_476d_1ce4_e5b9) ^ (x >> 32)
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.write_u64(u64::from(*b));
+        }
+    }
+
+    fn write_u64(&mut self, i: u64) {
+        self.0 = (self.0.rotate_left(5) ^ i).wrapping_mul(0x517c_c1b7_2722_0a95);
+    }
+
+    fn write_i64(&mut self, i: i64) {
+        self.write_u64(i as u64);
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Weight(f64, usize);
 impl Eq for Weight {}
@@ -419,12 +486,15 @@ fn eliminate(points: &[DVec3], keep: usize, area: f64) -> Vec<usize> {
         let c = (p / d_max).floor();
         (c.x as i64, c.y as i64, c.z as i64)
     };
-    let mut grid: HashMap<(i64, i64, i64), Vec<usize>> = HashMap::new();
+    let mut grid: HashMap<(i64, i64, i64), Vec<usize>, BuildHasherDefault<CellHasher>> = HashMap::default();
     for (i, p) in points.iter().enumerate() {
         grid.entry(cell(*p)).or_default().push(i);
     }
-    let mut neighbours: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+    // Neighbour lists in one flat array: `start[i]..start[i + 1]`.
+    let mut start = Vec::with_capacity(n + 1);
+    let mut neighbours: Vec<(usize, f64)> = Vec::with_capacity(16 * n);
     for (i, p) in points.iter().enumerate() {
+        start.push(neighbours.len());
         let (cx, cy, cz) = cell(*p);
         for dx in -1..=1 {
             for dy in -1..=1 {
@@ -435,14 +505,16 @@ fn eliminate(points: &[DVec3], keep: usize, area: f64) -> Vec<usize> {
                     for &j in bucket {
                         let d = p.distance(points[j]);
                         if j != i && d < d_max {
-                            neighbours[i].push((j, (1.0 - d / d_max).powi(8)));
+                            neighbours.push((j, (1.0 - d / d_max).powi(8)));
                         }
                     }
                 }
             }
         }
     }
-    let mut weight: Vec<f64> = neighbours.iter().map(|ns| ns.iter().map(|(_, w)| w).sum()).collect();
+    start.push(neighbours.len());
+    let around = |i: usize| &neighbours[start[i]..start[i + 1]];
+    let mut weight: Vec<f64> = (0..n).map(|i| around(i).iter().map(|(_, w)| w).sum()).collect();
     let mut heap: BinaryHeap<Weight> = weight.iter().enumerate().map(|(i, &w)| Weight(w, i)).collect();
     let mut removed = vec![false; n];
     let mut left = n;
@@ -453,7 +525,7 @@ fn eliminate(points: &[DVec3], keep: usize, area: f64) -> Vec<usize> {
         }
         removed[i] = true;
         left -= 1;
-        for &(j, wj) in &neighbours[i] {
+        for &(j, wj) in around(i) {
             if !removed[j] {
                 weight[j] -= wj;
                 heap.push(Weight(weight[j], j));
