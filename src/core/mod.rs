@@ -4,10 +4,15 @@
 
 pub mod builtin;
 pub mod bvh;
+pub mod contact;
+pub mod estimator;
 pub mod kinematics;
 pub mod mesh;
+pub mod phases;
 pub mod primitives;
 pub mod rng;
 pub mod robot;
+pub mod special;
+pub mod summary;
 pub mod surface;
 pub mod torque;

@@ -120,6 +120,24 @@ impl Surface {
         self.link.is_empty()
     }
 
+    /// Typical distance between neighbouring samples, m: the resolution of
+    /// the surface (the largest over links).
+    #[must_use]
+    pub fn spacing_m(&self) -> f64 {
+        self.stats
+            .iter()
+            .filter(|s| s.kept > 0)
+            .map(|s| {
+                if s.shells == 0 {
+                    // A segment: positions carry SEGMENT_DIRECTIONS samples each.
+                    s.exposed_area_m2 * SEGMENT_DIRECTIONS as f64 / s.kept as f64
+                } else {
+                    (s.exposed_area_m2 / s.kept as f64).sqrt()
+                }
+            })
+            .fold(0.0, f64::max)
+    }
+
     /// Sample `i`'s position in the world for a pose.
     #[must_use]
     pub fn point_world(&self, pose: &RobotPose, i: usize) -> Option<DVec3> {

@@ -533,11 +533,11 @@ impl EstimatorSettings {
                 format!("{lo} is above force_max_newtons {hi}"),
             ));
         }
-        if !(self.phases.alpha > 0.0 && self.phases.alpha < 1.0) {
+        if !(0.0..1.0).contains(&self.phases.alpha) {
             return Err(invalid(
                 path,
                 "estimator.phases.alpha",
-                format!("{} is not in (0, 1)", self.phases.alpha),
+                format!("{} is not in [0, 1)", self.phases.alpha),
             ));
         }
         if self.particles == 0 || self.magnitudes_per_point == 0 {
