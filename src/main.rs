@@ -1,6 +1,8 @@
 //! The `proprioscope` command line: headless commands over the same core
 //! the desktop app uses.
 
+mod cli;
+
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, Result, bail};
@@ -31,6 +33,8 @@ enum Command {
     /// Joint torques of a push: from a scene file, or from --robot, --q,
     /// --link, --point and --force (world frame, SI).
     Torques(TorquesArgs),
+    /// Estimates the contact in every frame of a recorded session.
+    Estimate(cli::estimate::EstimateArgs),
     /// Links and joints of a robot (built-in name or URDF path).
     RobotInfo {
         /// `simple6`, `lwr4plus` or a URDF file.
@@ -105,6 +109,7 @@ fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Some(Command::Torques(args)) => torques(&args),
+        Some(Command::Estimate(args)) => cli::estimate::run(&args),
         Some(Command::RobotInfo { robot, package_paths }) => robot_info(&robot, package_paths),
         Some(Command::Surface { scene, points }) => surface(&scene, points),
         Some(Command::ExportAssets { root }) => export_assets(&root),

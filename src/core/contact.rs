@@ -1,7 +1,13 @@
 //! Per configuration, the torque per newton of a push at every surface
 //! point, in structure-of-arrays form for fast likelihoods.
 
+use rayon::prelude::*;
+
 use crate::core::surface::Surface;
+
+/// From this many points on, the per-point work is shared among threads
+/// (below, thread hand-off costs more than it saves).
+pub const PARALLEL_MIN_POINTS: usize = 16_384;
 use crate::core::torque::TorqueModel;
 
 /// Unit torques of every surface point for one configuration: pushing
@@ -11,7 +17,8 @@ use crate::core::torque::TorqueModel;
 pub struct ContactModel {
     joints: usize,
     points: usize,
-    /// Joint-major: `unit_torque[j * points + k]`.
+    /// Point-major: `unit_torque[k * joints + j]`, so that one point's
+    /// torques are contiguous and its likelihood terms accumulate in registers.
     unit_torque: Vec<f64>,
 }
 
@@ -23,19 +30,23 @@ impl ContactModel {
         let joints = torque_model.sensed_count();
         let points = surface.len();
         let mut unit_torque = vec![0.0; joints * points];
-        let mut start = 0;
-        while start < points {
-            let link = surface.link[start];
-            let end = start + surface.link[start..].iter().take_while(|l| **l == link).count();
+        let fill = |(k, row): (usize, &mut [f64])| {
+            let link = surface.link[k];
+            let p = surface.point_in_link[k];
+            let n = surface.inward_normal_in_link[k];
+            let moment = p.cross(n);
             for twist in torque_model.twists(link) {
-                let row = &mut unit_torque[twist.sensed_index * points..(twist.sensed_index + 1) * points];
-                let points = surface.point_in_link[start..end].iter();
-                let normals = surface.inward_normal_in_link[start..end].iter();
-                for ((slot, p), n) in row[start..end].iter_mut().zip(points).zip(normals) {
-                    *slot = twist.w.dot(p.cross(*n)) + twist.v.dot(*n);
+                if let Some(slot) = row.get_mut(twist.sensed_index) {
+                    *slot = twist.w.dot(moment) + twist.v.dot(n);
                 }
             }
-            start = end;
+        };
+        if joints > 0 {
+            if points >= PARALLEL_MIN_POINTS {
+                unit_torque.par_chunks_exact_mut(joints).enumerate().for_each(fill);
+            } else {
+                unit_torque.chunks_exact_mut(joints).enumerate().for_each(fill);
+            }
         }
         Self {
             joints,
@@ -59,16 +70,15 @@ impl ContactModel {
     /// Point k's unit torque on joint j.
     #[must_use]
     pub fn unit_torque(&self, joint: usize, point: usize) -> f64 {
-        self.unit_torque
-            .get(joint * self.points + point)
-            .copied()
-            .unwrap_or(0.0)
+        self.unit_torques(point).get(joint).copied().unwrap_or(0.0)
     }
 
-    /// Point k's unit torques on every joint.
+    /// Point k's unit torques on every joint (empty past the last point).
     #[must_use]
-    pub fn unit_torques(&self, point: usize) -> Vec<f64> {
-        (0..self.joints).map(|j| self.unit_torque(j, point)).collect()
+    pub fn unit_torques(&self, point: usize) -> &[f64] {
+        self.unit_torque
+            .get(point * self.joints..(point + 1) * self.joints)
+            .unwrap_or(&[])
     }
 
     /// For the measured `tau` and per-joint weights `1/σ²`, the quadratic
@@ -76,16 +86,52 @@ impl ContactModel {
     /// `-½ (c - 2 b_k f + a_k f²)` with `a_k = Σ w u²`, `b_k = Σ w u τ`.
     /// Fills `a` and `b` (resized to the number of points).
     pub fn quadratic_forms(&self, weights: &[f64], tau: &[f64], a: &mut Vec<f64>, b: &mut Vec<f64>) {
+        let wt: Vec<f64> = weights.iter().zip(tau).map(|(w, t)| w * t).collect();
         a.clear();
-        a.resize(self.points, 0.0);
         b.clear();
-        b.resize(self.points, 0.0);
-        for (j, (w, t)) in weights.iter().zip(tau).enumerate().take(self.joints) {
-            let row = &self.unit_torque[j * self.points..(j + 1) * self.points];
-            let wt = w * t;
-            for ((ak, bk), u) in a.iter_mut().zip(b.iter_mut()).zip(row) {
-                *ak += w * u * u;
-                *bk += wt * u;
+        a.reserve(self.points);
+        b.reserve(self.points);
+        // Fixed joint counts unroll into straight-line code.
+        match self.joints {
+            6 => self.quadratic_fixed::<6>(weights, &wt, a, b),
+            7 => self.quadratic_fixed::<7>(weights, &wt, a, b),
+            _ => {
+                for row in self.unit_torque.chunks_exact(self.joints.max(1)) {
+                    let (mut ak, mut bk) = (0.0, 0.0);
+                    for ((u, w), wt) in row.iter().zip(weights).zip(&wt) {
+                        ak += w * u * u;
+                        bk += wt * u;
+                    }
+                    a.push(ak);
+                    b.push(bk);
+                }
+                a.resize(self.points, 0.0);
+                b.resize(self.points, 0.0);
+            }
+        }
+    }
+
+    fn quadratic_fixed<const J: usize>(&self, weights: &[f64], wt: &[f64], a: &mut Vec<f64>, b: &mut Vec<f64>) {
+        let (Ok(w), Ok(wt)) = (<[f64; J]>::try_from(weights), <[f64; J]>::try_from(wt)) else {
+            return;
+        };
+        let form = |row: &[f64]| {
+            let (mut ak, mut bk) = (0.0, 0.0);
+            for j in 0..J {
+                ak += w[j] * row[j] * row[j];
+                bk += wt[j] * row[j];
+            }
+            (ak, bk)
+        };
+        if self.points >= PARALLEL_MIN_POINTS {
+            let (pa, pb): (Vec<f64>, Vec<f64>) = self.unit_torque.par_chunks_exact(J).map(form).unzip();
+            *a = pa;
+            *b = pb;
+        } else {
+            for row in self.unit_torque.chunks_exact(J) {
+                let (ak, bk) = form(row);
+                a.push(ak);
+                b.push(bk);
             }
         }
     }
@@ -125,7 +171,11 @@ mod tests {
                 pose.world_from_link[link].transform_vector3(surface.inward_normal_in_link[k]),
             );
             for (j, d) in direct.iter().enumerate() {
-                assert!((model.unit_torque(j, k) - d).abs() < 1e-12);
+                assert!(
+                    (model.unit_torque(j, k) - d).abs() < 1e-12,
+                    "point {k} joint {j}: {} vs {d}",
+                    model.unit_torque(j, k)
+                );
             }
         }
     }

@@ -2,7 +2,9 @@
 //! joint torques (thesis eq. 2.3–2.6), in exact mode (ours) or with the
 //! thesis' particles, optionally coarse-to-fine in phases A/B/C.
 
-use crate::core::contact::ContactModel;
+use rayon::prelude::*;
+
+use crate::core::contact::{ContactModel, PARALLEL_MIN_POINTS};
 use crate::core::phases::PhaseHierarchy;
 use crate::core::rng::Rng;
 use crate::core::special::ln_erf_difference;
@@ -57,6 +59,12 @@ pub struct EstimatorSettings {
     /// Phases A/B/C with this α (keep clusters with P ≥ α `P_max`; 0 keeps
     /// every cluster, the limit α → 0); `None` searches every point.
     pub phase_alpha: Option<f64>,
+    /// RMS distance, m, between a candidate point and a true contact in
+    /// the patch it stands for (ours; 0 is the thesis' model). A push of f
+    /// newtons then adds torque noise of about `f · resolution_m` per
+    /// joint, so that a σ below the surface's resolution does not make the
+    /// posterior collapse onto single wrong points (thesis Fig. 3.17).
+    pub resolution_m: f64,
 }
 
 /// Why an estimate cannot be made.
@@ -114,6 +122,12 @@ pub enum EstimateError {
     /// A surface without points.
     #[error("there are no candidate points")]
     NoCandidates,
+    /// A resolution that is negative or not finite.
+    #[error("the surface resolution is {value} m; it must be a finite number ≥ 0")]
+    BadResolution {
+        /// The value.
+        value: f64,
+    },
     /// Particle mode with zero particles.
     #[error("particle mode needs at least one particle")]
     NoParticles,
@@ -141,7 +155,8 @@ pub mod phase_flag {
 /// A posterior over the surface points.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Posterior {
-    /// Posterior mass of each point (sums to 1; 0 where not evaluated).
+    /// Posterior mass of each point (sums to 1; 0 where not evaluated or
+    /// below 1e-26 of the total).
     pub probability: Vec<f64>,
     /// What a heatmap shows: in particle mode the probability of the
     /// point's best particle (§3.1.3), in exact mode the point's mass.
@@ -164,16 +179,20 @@ pub struct Posterior {
     pub no_contact_chi2: f64,
 }
 
-/// Points whose profile log-likelihood is this far below the best get a
-/// Laplace approximation instead of the erf form: their posterior mass is
-/// below e^-50 of the best either way.
+/// Points whose profile log-likelihood is this far below the best get the
+/// profile value instead of the erf form: their posterior mass is below
+/// e^-50 of the best either way.
 const FAR_BELOW: f64 = 60.0;
 
-/// The per-measurement quantities of a point: `a = Σ u²/σ²`, `b = Σ u τ/σ²`.
+/// The per-measurement quantities of a point: `a = Σ w u²`, `b = Σ w u τ`,
+/// `c = Σ w τ²` with `w = 1/σ²` (per point once the resolution noise is
+/// added), and `norm`, the point's share of the Gaussian normaliser
+/// relative to the bare noise model.
 struct Quadratic<'a> {
     a: &'a [f64],
     b: &'a [f64],
-    c: f64,
+    c: &'a [f64],
+    norm: &'a [f64],
     f_min: f64,
     f_max: f64,
 }
@@ -191,15 +210,20 @@ impl Quadratic<'_> {
 
     /// Log-likelihood of magnitude f at point k: `-½ (c - 2 b f + a f²)`.
     fn log_likelihood(&self, k: usize, f: f64) -> f64 {
-        -0.5 * (self.c - 2.0 * self.b[k] * f + self.a[k] * f * f)
+        self.norm[k] - 0.5 * self.residual(k, f)
     }
 
-    /// ln of the likelihood averaged over a uniform f in `[F_min, F_max]`.
-    fn log_evidence(&self, k: usize, profile_best: f64) -> f64 {
+    /// `Σ w (τ - f u)²` at point k.
+    fn residual(&self, k: usize, f: f64) -> f64 {
+        (self.c[k] - 2.0 * self.b[k] * f + self.a[k] * f * f).max(0.0)
+    }
+
+    /// ln of the likelihood averaged over a uniform f in `[F_min, F_max]`,
+    /// given the likelihood at the point's best magnitude (`profile`) and
+    /// the best such value over the points (`profile_best`).
+    fn log_evidence(&self, k: usize, profile: f64, profile_best: f64) -> f64 {
         let (a, b) = (self.a[k], self.b[k]);
         let range = self.f_max - self.f_min;
-        let f_star = self.best_force(k);
-        let profile = self.log_likelihood(k, f_star);
         if range <= 1e-12 * self.f_max.max(1.0) {
             return profile;
         }
@@ -210,12 +234,13 @@ impl Quadratic<'_> {
             return self.log_likelihood(k, mid);
         }
         if profile < profile_best - FAR_BELOW {
-            // Laplace: the peak's width, capped by the range.
-            let width = (2.0 * std::f64::consts::PI / a).sqrt().min(range);
-            return profile + (width / range).ln();
+            // Far below the best: the profile likelihood, a tight upper
+            // bound (the average over f never exceeds the peak), saves a
+            // logarithm per point where the mass is below e^-50 anyway.
+            return profile;
         }
         let mu = b / a;
-        -0.5 * (self.c - b * mu)
+        self.norm[k] - 0.5 * (self.c[k] - b * mu).max(0.0)
             + 0.5 * (std::f64::consts::PI / (2.0 * a)).ln()
             + ln_erf_difference(s * (self.f_min - mu), s * (self.f_max - mu))
             - range.ln()
@@ -241,12 +266,19 @@ pub fn estimate(
     validate(model, tau, settings)?;
     let n = model.points();
     let weights: Vec<f64> = settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
+    let no_contact_chi2: f64 = weights.iter().zip(tau).map(|(w, t)| w * t * t).sum();
     let (mut a, mut b) = (Vec::new(), Vec::new());
     model.quadratic_forms(&weights, tau, &mut a, &mut b);
+    let mut c = vec![no_contact_chi2; n];
+    let mut norm = vec![0.0; n];
+    if settings.resolution_m > 0.0 {
+        add_resolution_noise(model, tau, settings, &mut a, &mut b, &mut c, &mut norm);
+    }
     let q = Quadratic {
         a: &a,
         b: &b,
-        c: weights.iter().zip(tau).map(|(w, t)| w * t * t).sum(),
+        c: &c,
+        norm: &norm,
         f_min: settings.force_min_newtons,
         f_max: settings.force_max_newtons,
     };
@@ -309,26 +341,62 @@ pub fn estimate(
         phase_flags: flags,
         map_point: 0,
         best_residual_chi2: f64::INFINITY,
-        no_contact_chi2: q.c,
+        no_contact_chi2,
     };
     let total = log_sum_exp(scored.iter().map(|s| s.mass));
     let mut best = (f64::NEG_INFINITY, 0);
     for (&p, s) in last.iter().zip(&scored) {
         posterior.phase_flags[p] |= phase_flag::C;
         posterior.log_likelihood[p] = s.mass;
-        posterior.probability[p] = (s.mass - total).exp();
-        posterior.display[p] = (s.best - total).exp();
+        posterior.probability[p] = exp_or_zero(s.mass - total);
+        posterior.display[p] = exp_or_zero(s.best - total);
         posterior.force_newtons[p] = s.force;
         if s.mass > best.0 {
             best = (s.mass, p);
         }
         if s.mass.is_finite() {
-            let chi2 = -2.0 * q.log_likelihood(p, s.force);
-            posterior.best_residual_chi2 = posterior.best_residual_chi2.min(chi2.max(0.0));
+            posterior.best_residual_chi2 = posterior.best_residual_chi2.min(q.residual(p, s.force));
         }
     }
     posterior.map_point = best.1;
     Ok(posterior)
+}
+
+/// Replaces each point's weights `1/σ²` by `1/(σ² + (f* ρ)²)`, with f*
+/// the point's best magnitude under the bare noise, and adds the matching
+/// normaliser `-½ Σ ln(1 + (f* ρ)²/σ²)`.
+fn add_resolution_noise(
+    model: &ContactModel,
+    tau: &[f64],
+    settings: &EstimatorSettings,
+    a: &mut [f64],
+    b: &mut [f64],
+    c: &mut [f64],
+    norm: &mut [f64],
+) {
+    let (f_min, f_max) = (settings.force_min_newtons, settings.force_max_newtons);
+    let variance: Vec<f64> = settings.sigma.iter().map(|s| s * s).collect();
+    for k in 0..model.points() {
+        let f_star = if a[k] > 0.0 {
+            (b[k] / a[k]).clamp(f_min, f_max)
+        } else {
+            f_min
+        };
+        let extra = (f_star * settings.resolution_m).powi(2);
+        let (mut ak, mut bk, mut ck, mut nk) = (0.0, 0.0, 0.0, 0.0);
+        for (j, (v, t)) in variance.iter().zip(tau).enumerate() {
+            let w = 1.0 / (v + extra);
+            let u = model.unit_torque(j, k);
+            ak += w * u * u;
+            bk += w * u * t;
+            ck += w * t * t;
+            nk -= 0.5 * (extra / v).ln_1p();
+        }
+        a[k] = ak;
+        b[k] = bk;
+        c[k] = ck;
+        norm[k] = nk;
+    }
 }
 
 fn validate(model: &ContactModel, tau: &[f64], settings: &EstimatorSettings) -> Result<(), EstimateError> {
@@ -368,6 +436,11 @@ fn validate(model: &ContactModel, tau: &[f64], settings: &EstimatorSettings) -> 
     if model.points() == 0 {
         return Err(EstimateError::NoCandidates);
     }
+    if !(settings.resolution_m.is_finite() && settings.resolution_m >= 0.0) {
+        return Err(EstimateError::BadResolution {
+            value: settings.resolution_m,
+        });
+    }
     match settings.mode {
         Mode::Particles(ParticleSettings {
             sampling:
@@ -391,21 +464,30 @@ fn evaluate(
     let range = q.f_max - q.f_min;
     match settings.mode {
         Mode::Exact => {
-            let profile_best = points
-                .iter()
-                .map(|&k| q.log_likelihood(k, q.best_force(k)))
-                .fold(f64::NEG_INFINITY, f64::max);
-            let scored = points
-                .iter()
-                .map(|&k| {
-                    let l = q.log_evidence(k, profile_best);
-                    Scored {
-                        mass: l,
-                        best: l,
-                        force: q.best_force(k),
-                    }
-                })
-                .collect();
+            // One pass for the best magnitudes and their likelihoods, one
+            // for the evidence (exact near the best, the profile far below).
+            let score = |&k: &usize| {
+                let force = q.best_force(k);
+                let profile = q.log_likelihood(k, force);
+                Scored {
+                    mass: profile,
+                    best: profile,
+                    force,
+                }
+            };
+            let mut scored: Vec<Scored> = if points.len() >= PARALLEL_MIN_POINTS {
+                points.par_iter().map(score).collect()
+            } else {
+                points.iter().map(score).collect()
+            };
+            let profile_best = scored.iter().map(|s| s.mass).fold(f64::NEG_INFINITY, f64::max);
+            for (&k, s) in points.iter().zip(&mut scored) {
+                if s.mass >= profile_best - FAR_BELOW {
+                    let l = q.log_evidence(k, s.mass, profile_best);
+                    s.mass = l;
+                    s.best = l;
+                }
+            }
             let report = PhaseReport {
                 points: points.len(),
                 particles: points.len(),
@@ -485,13 +567,28 @@ fn log_add(x: f64, y: f64) -> f64 {
     }
 }
 
+/// Posterior masses below e^-60 (1e-26) of the total are stored as 0:
+/// they change no sum, and the log-likelihood keeps their exact value for
+/// log-scale displays. Skipping their `exp` is most of an update's time.
+const NEGLIGIBLE_LOG_MASS: f64 = -60.0;
+
+/// `e^x`, or 0 where that is negligible.
+fn exp_or_zero(x: f64) -> f64 {
+    if x < NEGLIGIBLE_LOG_MASS { 0.0 } else { x.exp() }
+}
+
 /// `ln Σ e^xᵢ` without overflow; `-inf` for no terms.
 fn log_sum_exp(values: impl Iterator<Item = f64> + Clone) -> f64 {
     let hi = values.clone().fold(f64::NEG_INFINITY, f64::max);
     if hi == f64::NEG_INFINITY {
         return hi;
     }
-    hi + values.map(|v| (v - hi).exp()).sum::<f64>().ln()
+    // Terms 40 below the largest change the sum by less than 1e-17.
+    hi + values
+        .filter(|v| *v > hi - 40.0)
+        .map(|v| (v - hi).exp())
+        .sum::<f64>()
+        .ln()
 }
 
 #[cfg(test)]
@@ -541,11 +638,13 @@ mod tests {
             let q = Quadratic {
                 a: &av,
                 b: &bv,
-                c,
+                c: &[c],
+                norm: &[0.0],
                 f_min,
                 f_max,
             };
-            let exact = q.log_evidence(0, q.log_likelihood(0, q.best_force(0)));
+            let f = q.best_force(0);
+            let exact = q.log_evidence(0, q.log_likelihood(0, f), q.log_likelihood(0, f));
             let numeric = numeric_log_evidence(a, b, c, f_min, f_max);
             assert!(
                 (exact - numeric).abs() < 1e-6 * numeric.abs().max(1.0),
@@ -557,11 +656,13 @@ mod tests {
         let q = Quadratic {
             a: &av,
             b: &bv,
-            c: 10.0,
+            c: &[10.0],
+            norm: &[0.0],
             f_min: 2.0,
             f_max: 2.0,
         };
-        assert!((q.log_evidence(0, 0.0) - (-0.5 * (10.0 - 12.0 + 8.0))).abs() < 1e-15);
+        let f = q.best_force(0);
+        assert!((q.log_evidence(0, q.log_likelihood(0, f), 0.0) - (-0.5 * (10.0 - 12.0 + 8.0))).abs() < 1e-15);
     }
 
     struct Setup {
@@ -600,6 +701,7 @@ mod tests {
             force_max_newtons: 30.0,
             mode: Mode::Exact,
             phase_alpha: None,
+            resolution_m: 0.0,
         }
     }
 

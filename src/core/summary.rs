@@ -178,24 +178,26 @@ pub fn summarize(posterior: &Posterior, surface: &Surface, pose: &RobotPose, joi
         }
     }
     per_link.sort_by_key(|s| s.link);
-    let world: Vec<DVec3> = (0..surface.len())
-        .map(|k| pose.point_to_world(surface.link[k], surface.point_in_link[k]))
-        .collect();
+    let world = |k: usize| pose.point_to_world(surface.link[k], surface.point_in_link[k]);
     Summary {
         verdict,
         map: contact_at(posterior, surface, pose, posterior.map_point),
         per_link,
-        credible90: credible_set(posterior, &world, 0.9),
-        clusters: clusters(posterior, surface, pose, &world),
+        credible90: credible_set(posterior, world, 0.9),
+        clusters: clusters(posterior, surface, pose, world),
         fit,
     }
 }
 
-/// The smallest set of points holding `level` of the mass.
+/// The smallest set of points holding `level` of the mass; `world` gives
+/// a point's position.
 #[must_use]
-pub fn credible_set(posterior: &Posterior, world: &[DVec3], level: f64) -> CredibleSet {
+pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level: f64) -> CredibleSet {
+    // Points below 1e-18 of the largest hold less than 1e-12 together for
+    // any surface we sample: they never enter a 90 % set, so skip sorting them.
+    let top = posterior.probability.iter().copied().fold(0.0, f64::max);
     let mut order: Vec<usize> = (0..posterior.probability.len())
-        .filter(|&k| posterior.probability[k] > 0.0)
+        .filter(|&k| posterior.probability[k] > top * 1e-18)
         .collect();
     order.sort_by(|&x, &y| {
         posterior.probability[y]
@@ -211,18 +213,25 @@ pub fn credible_set(posterior: &Posterior, world: &[DVec3], level: f64) -> Credi
             break;
         }
     }
+    let positions: Vec<DVec3> = points.iter().map(|&k| world(k)).collect();
     let mean = points
         .iter()
-        .map(|&k| world[k] * posterior.probability[k])
+        .zip(&positions)
+        .map(|(&k, p)| *p * posterior.probability[k])
         .sum::<DVec3>()
         / mass.max(f64::MIN_POSITIVE);
-    let radius_m = points.iter().map(|&k| world[k].distance(mean)).fold(0.0, f64::max);
+    let radius_m = positions.iter().map(|p| p.distance(mean)).fold(0.0, f64::max);
     CredibleSet { points, mass, radius_m }
 }
 
 /// Probable points grouped: connected groups (neighbours closer than three
 /// surface spacings) seed a weighted K-means, which settles the boundaries.
-fn clusters(posterior: &Posterior, surface: &Surface, pose: &RobotPose, world: &[DVec3]) -> Vec<Cluster> {
+fn clusters(
+    posterior: &Posterior,
+    surface: &Surface,
+    pose: &RobotPose,
+    world: impl Fn(usize) -> DVec3,
+) -> Vec<Cluster> {
     let top = posterior.display.iter().copied().fold(0.0, f64::max);
     let mut probable: Vec<usize> = (0..surface.len())
         .filter(|&k| top > 0.0 && posterior.display[k] >= PROBABLE_FRACTION * top)
@@ -233,15 +242,21 @@ fn clusters(posterior: &Posterior, surface: &Surface, pose: &RobotPose, world: &
     if probable.is_empty() {
         return Vec::new();
     }
+    // Positions of the probable points only, indexed like the surface.
+    let mut world_of: HashMap<usize, DVec3> = HashMap::with_capacity(probable.len());
+    for &k in &probable {
+        world_of.insert(k, world(k));
+    }
+    let world = |k: usize| world_of.get(&k).copied().unwrap_or_default();
     let link_distance = 3.0 * surface.spacing_m().max(1e-6);
-    let component = connected_components(&probable, world, link_distance);
+    let component = connected_components(&probable, &world, link_distance);
     let groups = component.iter().copied().max().map_or(0, |m| m + 1);
     // Weighted K-means from the components' means.
     let weight = |k: usize| posterior.display[k];
     let mut centres = vec![DVec3::ZERO; groups];
     let mut totals = vec![0.0; groups];
     for (i, &k) in probable.iter().enumerate() {
-        centres[component[i]] += world[k] * weight(k);
+        centres[component[i]] += world(k) * weight(k);
         totals[component[i]] += weight(k);
     }
     for (c, t) in centres.iter_mut().zip(&totals) {
@@ -253,9 +268,9 @@ fn clusters(posterior: &Posterior, surface: &Surface, pose: &RobotPose, world: &
         for (i, &k) in probable.iter().enumerate() {
             let nearest = (0..groups)
                 .min_by(|&x, &y| {
-                    world[k]
+                    world(k)
                         .distance_squared(centres[x])
-                        .total_cmp(&world[k].distance_squared(centres[y]))
+                        .total_cmp(&world(k).distance_squared(centres[y]))
                 })
                 .unwrap_or(0);
             changed |= nearest != label[i];
@@ -263,7 +278,7 @@ fn clusters(posterior: &Posterior, surface: &Surface, pose: &RobotPose, world: &
         }
         let mut sums = vec![(DVec3::ZERO, 0.0); groups];
         for (i, &k) in probable.iter().enumerate() {
-            sums[label[i]].0 += world[k] * weight(k);
+            sums[label[i]].0 += world(k) * weight(k);
             sums[label[i]].1 += weight(k);
         }
         for (c, (s, t)) in centres.iter_mut().zip(&sums) {
@@ -283,56 +298,69 @@ fn clusters(posterior: &Posterior, surface: &Surface, pose: &RobotPose, world: &
                 .filter(|(_, l)| **l == g)
                 .map(|(k, _)| *k)
                 .collect();
-            if members.is_empty() {
-                return None;
-            }
-            let w: f64 = members.iter().map(|&k| weight(k)).sum();
-            let mean_r = members.iter().map(|&k| world[k] * weight(k)).sum::<DVec3>() / w;
-            let forces: Vec<DVec3> = members
-                .iter()
-                .map(|&k| contact_at(posterior, surface, pose, k).force_world)
-                .collect();
-            let mean_f = members.iter().zip(&forces).map(|(&k, f)| *f * weight(k)).sum::<DVec3>() / w;
-            let sigma_r = (members
-                .iter()
-                .map(|&k| weight(k) * world[k].distance_squared(mean_r))
-                .sum::<f64>()
-                / w)
-                .sqrt();
-            let sigma_f = (members
-                .iter()
-                .zip(&forces)
-                .map(|(&k, f)| weight(k) * f.distance_squared(mean_f))
-                .sum::<f64>()
-                / w)
-                .sqrt();
-            let mut links: Vec<LinkId> = members.iter().map(|&k| surface.link[k]).collect();
-            links.sort_unstable();
-            links.dedup();
-            Some(Cluster {
-                mass: members.iter().map(|&k| posterior.probability[k]).sum(),
-                points: members,
-                links,
-                mean_point_world: mean_r,
-                sigma_r_m: sigma_r,
-                sigma_f_newtons: sigma_f,
-            })
+            cluster_of(&members, posterior, surface, pose, &world)
         })
         .collect();
     out.sort_by(|x, y| y.mass.total_cmp(&x.mass).then(x.points.cmp(&y.points)));
     out
 }
 
+/// A cluster's statistics (eq. 3.1, 3.2), weighted by the display values;
+/// `None` for no members.
+fn cluster_of(
+    members: &[usize],
+    posterior: &Posterior,
+    surface: &Surface,
+    pose: &RobotPose,
+    world: &impl Fn(usize) -> DVec3,
+) -> Option<Cluster> {
+    if members.is_empty() {
+        return None;
+    }
+    let weight = |k: usize| posterior.display[k];
+    let w: f64 = members.iter().map(|&k| weight(k)).sum::<f64>().max(f64::MIN_POSITIVE);
+    let mean_r = members.iter().map(|&k| world(k) * weight(k)).sum::<DVec3>() / w;
+    let forces: Vec<DVec3> = members
+        .iter()
+        .map(|&k| contact_at(posterior, surface, pose, k).force_world)
+        .collect();
+    let mean_f = members.iter().zip(&forces).map(|(&k, f)| *f * weight(k)).sum::<DVec3>() / w;
+    let sigma_r = (members
+        .iter()
+        .map(|&k| weight(k) * world(k).distance_squared(mean_r))
+        .sum::<f64>()
+        / w)
+        .sqrt();
+    let sigma_f = (members
+        .iter()
+        .zip(&forces)
+        .map(|(&k, f)| weight(k) * f.distance_squared(mean_f))
+        .sum::<f64>()
+        / w)
+        .sqrt();
+    let mut links: Vec<LinkId> = members.iter().map(|&k| surface.link[k]).collect();
+    links.sort_unstable();
+    links.dedup();
+    Some(Cluster {
+        mass: members.iter().map(|&k| posterior.probability[k]).sum(),
+        points: members.to_vec(),
+        links,
+        mean_point_world: mean_r,
+        sigma_r_m: sigma_r,
+        sigma_f_newtons: sigma_f,
+    })
+}
+
 /// Single-linkage components of `points` (indices into `world`) for
 /// distance `d`; returns a component index per point.
-fn connected_components(points: &[usize], world: &[DVec3], d: f64) -> Vec<usize> {
+fn connected_components(points: &[usize], world: &impl Fn(usize) -> DVec3, d: f64) -> Vec<usize> {
     let cell = |p: DVec3| {
         let c = (p / d).floor();
         (c.x as i64, c.y as i64, c.z as i64)
     };
     let mut grid: HashMap<(i64, i64, i64), Vec<usize>> = HashMap::new();
     for (i, &k) in points.iter().enumerate() {
-        grid.entry(cell(world[k])).or_default().push(i);
+        grid.entry(cell(world(k))).or_default().push(i);
     }
     let mut label = vec![usize::MAX; points.len()];
     let mut next = 0;
@@ -343,13 +371,13 @@ fn connected_components(points: &[usize], world: &[DVec3], d: f64) -> Vec<usize>
         label[start] = next;
         let mut stack = vec![start];
         while let Some(i) = stack.pop() {
-            let p = world[points[i]];
+            let p = world(points[i]);
             let (cx, cy, cz) = cell(p);
             for dx in -1..=1 {
                 for dy in -1..=1 {
                     for dz in -1..=1 {
                         for &j in grid.get(&(cx + dx, cy + dy, cz + dz)).map_or(&[][..], Vec::as_slice) {
-                            if label[j] == usize::MAX && world[points[j]].distance(p) <= d {
+                            if label[j] == usize::MAX && world(points[j]).distance(p) <= d {
                                 label[j] = next;
                                 stack.push(j);
                             }

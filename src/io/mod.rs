@@ -4,4 +4,5 @@
 pub mod builtin;
 pub mod mesh;
 pub mod scene;
+pub mod session;
 pub mod urdf;

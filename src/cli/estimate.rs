@@ -1,0 +1,257 @@
+//! `proprioscope estimate SESSION`: estimates every frame of a recorded session.
+
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context as _, Result, bail};
+use glam::DVec3;
+use indicatif::{ProgressBar, ProgressStyle};
+use proprioscope::core::metrics::{FrameOutcome, Metrics, metrics, metrics_by_sensing_joints, percentile};
+use proprioscope::core::pipeline::{Estimator, Update};
+use proprioscope::core::robot::Robot;
+use proprioscope::core::summary::Verdict;
+use proprioscope::core::surface::SurfaceRequest;
+use proprioscope::io::builtin::load_robot;
+use proprioscope::io::session::{Session, Truth};
+use proprioscope::io::urdf::{MeshSelection, UrdfOptions};
+
+use super::EstimatorArgs;
+
+/// Options of `estimate`.
+#[derive(Debug, clap::Args)]
+pub struct EstimateArgs {
+    /// A session file (`.json`, or `.csv` with --robot).
+    pub session: PathBuf,
+    /// The robot (built-in name or URDF), overriding the session's.
+    #[arg(long)]
+    pub robot: Option<String>,
+    /// Extra folder for `package://` URIs (repeatable).
+    #[arg(long = "package-path")]
+    pub package_paths: Vec<PathBuf>,
+    /// Write one JSON line per frame here.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Estimator options.
+    #[command(flatten)]
+    pub estimator: EstimatorArgs,
+}
+
+/// Loads the session's robot with its sensed joints set.
+pub fn session_robot(
+    session: &Session,
+    robot: Option<&str>,
+    package_paths: &[PathBuf],
+    links: &[String],
+) -> Result<Robot> {
+    let (spec, base) = match (robot, &session.robot) {
+        (Some(r), _) => (r.to_owned(), PathBuf::from(".")),
+        (None, Some(r)) => (r.clone(), session.path.parent().unwrap_or(Path::new(".")).to_owned()),
+        (None, None) => bail!("{}: the session names no robot: give --robot", session.path.display()),
+    };
+    let meshes = if links.is_empty() {
+        MeshSelection::All
+    } else {
+        MeshSelection::Links(links.to_vec())
+    };
+    let options = UrdfOptions {
+        package_paths: package_paths.to_vec(),
+        meshes,
+    };
+    let mut robot = load_robot(&spec, &base, &options)?;
+    if let Some(joints) = &session.joints {
+        robot
+            .set_sensed(joints)
+            .with_context(|| format!("{}: field 'joints'", session.path.display()))?;
+    }
+    Ok(robot)
+}
+
+/// Runs the command.
+pub fn run(args: &EstimateArgs) -> Result<()> {
+    let session = Session::read(&args.session)?;
+    let robot = session_robot(
+        &session,
+        args.robot.as_deref(),
+        &args.package_paths,
+        &args.estimator.links,
+    )?;
+    let resolved = args.estimator.resolve(&robot)?;
+    let started = Instant::now();
+    let request = SurfaceRequest {
+        links: resolved.links.clone(),
+        total_points: resolved.surface_points,
+        seed: args.estimator.seed,
+    };
+    let estimator = Estimator::new(
+        &robot,
+        &request,
+        resolved.settings,
+        resolved.phase_sizes,
+        args.estimator.resolution(),
+    )?;
+    eprintln!(
+        "{}: {} frames; {} surface points on {} links, sampled in {:.0} ms",
+        args.session.display(),
+        session.frames.len(),
+        estimator.surface.len(),
+        estimator.links.len(),
+        started.elapsed().as_secs_f64() * 1e3
+    );
+    let mut out = match &args.out {
+        Some(path) => Some(std::io::BufWriter::new(
+            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
+        )),
+        None => None,
+    };
+    let bar = ProgressBar::new(session.frames.len() as u64);
+    bar.set_style(ProgressStyle::with_template(
+        "{bar:40} {pos}/{len} frames, {per_sec}, eta {eta}",
+    )?);
+    let mut outcomes = Vec::new();
+    let mut times_ms = Vec::new();
+    let mut verdicts = [0usize; 3];
+    args.estimator.with_threads(|| -> Result<()> {
+        for (i, frame) in session.frames.iter().enumerate() {
+            let frame_error = || format!("{}: frame {i} (t = {})", session.path.display(), frame.t);
+            let positions = robot.joint_positions(&frame.q, &[]).with_context(frame_error)?;
+            let t0 = Instant::now();
+            let update = estimator
+                .update(&robot, &positions, &frame.tau)
+                .with_context(frame_error)?;
+            let ms = t0.elapsed().as_secs_f64() * 1e3;
+            times_ms.push(ms);
+            verdicts[match update.summary.verdict {
+                Verdict::Contact => 0,
+                Verdict::NoContact => 1,
+                Verdict::PoorFit => 2,
+            }] += 1;
+            let outcome = outcome(&robot, &update, &frame.truth);
+            if let Some(o) = outcome {
+                outcomes.push(o);
+            }
+            if let Some(w) = out.as_mut() {
+                writeln!(
+                    w,
+                    "{}",
+                    frame_json(&robot, i, frame.t, &update, ms, &frame.truth, outcome.as_ref())
+                )?;
+            }
+            bar.inc(1);
+        }
+        Ok(())
+    })??;
+    bar.finish_and_clear();
+    if let Some(mut w) = out {
+        w.flush()?;
+    }
+    println!(
+        "{} frames: {} contact, {} no contact, {} poorly explained",
+        session.frames.len(),
+        verdicts[0],
+        verdicts[1],
+        verdicts[2]
+    );
+    let mean = times_ms.iter().sum::<f64>() / times_ms.len().max(1) as f64;
+    println!(
+        "update time: mean {mean:.3} ms, median {:.3} ms",
+        percentile(&times_ms, 0.5)
+    );
+    if !outcomes.is_empty() {
+        print_metrics(&outcomes);
+    }
+    Ok(())
+}
+
+/// The estimate beside the truth, for frames with a known contact.
+pub fn outcome(robot: &Robot, update: &Update, truth: &Truth) -> Option<FrameOutcome> {
+    let Truth::Contact { link, point, force } = truth else {
+        return None;
+    };
+    let map = &update.summary.map;
+    let sensing_joints = robot.link_id(link).map_or(0, |l| {
+        let path = robot.path_joints(l);
+        robot.sensed().iter().filter(|j| path.contains(j)).count()
+    });
+    Some(FrameOutcome {
+        sensing_joints,
+        p_max: update.posterior.display[map.point],
+        estimated_point: map.point_world,
+        estimated_force: map.force_world,
+        true_point: DVec3::from_array(*point),
+        true_force: DVec3::from_array(*force),
+        link_correct: robot.links[map.link].name == *link,
+    })
+}
+
+fn frame_json(
+    robot: &Robot,
+    frame: usize,
+    t: f64,
+    update: &Update,
+    ms: f64,
+    truth: &Truth,
+    outcome: Option<&FrameOutcome>,
+) -> serde_json::Value {
+    let s = &update.summary;
+    let verdict = match s.verdict {
+        Verdict::Contact => "contact",
+        Verdict::NoContact => "no_contact",
+        Verdict::PoorFit => "poor_fit",
+    };
+    let contact = s.verdict != Verdict::NoContact;
+    let mut v = serde_json::json!({
+        "frame": frame,
+        "t": t,
+        "verdict": verdict,
+        "link": contact.then(|| robot.links[s.map.link].name.clone()),
+        "point": contact.then(|| s.map.point_world.to_array()),
+        "force": contact.then(|| s.map.force_world.to_array()),
+        "probability": s.map.probability,
+        "credible90_points": s.credible90.points.len(),
+        "credible90_radius_m": s.credible90.radius_m,
+        "clusters": s.clusters.len(),
+        "fit_p": s.fit.p_value,
+        "no_contact_p": s.fit.no_contact_p,
+        "evaluated": update.posterior.phases.iter().map(|p| [p.points, p.particles]).collect::<Vec<_>>(),
+        "update_ms": ms,
+    });
+    if let (Some(o), Truth::Contact { link, .. }) = (outcome, truth) {
+        v["truth"] = serde_json::json!({
+            "link": link,
+            "position_error_m": o.true_point.distance(o.estimated_point),
+            "force_error_n": o.true_force.distance(o.estimated_force),
+            "link_correct": o.link_correct,
+        });
+    } else if *truth == Truth::NoContact {
+        v["truth"] = serde_json::Value::Null;
+    }
+    v
+}
+
+/// The errors table: all frames, then by number of sensing joints.
+pub fn print_metrics(outcomes: &[FrameOutcome]) {
+    println!();
+    println!(
+        "| frames | sensing joints | median pos. error [mm] | p90 [mm] | median force error [N] | p90 [N] | link right | ε_r [mm] | ε_F [N] | σ_r [mm] |"
+    );
+    println!("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let row = |label: &str, m: &Metrics| {
+        println!(
+            "| {} | {label} | {:.1} | {:.1} | {:.2} | {:.2} | {:.0} % | {:.1} | {:.2} | {:.1} |",
+            m.frames,
+            m.position_median_m * 1e3,
+            m.position_p90_m * 1e3,
+            m.force_median_newtons,
+            m.force_p90_newtons,
+            m.link_accuracy * 100.0,
+            m.eps_r_m * 1e3,
+            m.eps_f_newtons,
+            m.sigma_r_m * 1e3
+        );
+    };
+    row("all", &metrics(outcomes));
+    for (k, m) in metrics_by_sensing_joints(outcomes) {
+        row(&k.to_string(), &m);
+    }
+}

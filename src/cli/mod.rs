@@ -1,0 +1,168 @@
+//! Headless commands that run the estimator.
+
+pub mod estimate;
+
+use anyhow::{Result, bail};
+use proprioscope::core::estimator::{EstimatorSettings, Mode, ParticleSettings, Sampling};
+use proprioscope::core::robot::{LinkId, Robot};
+
+/// Estimator mode on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ModeArg {
+    /// Closed-form likelihood per surface point (N = surface points).
+    Exact,
+    /// The thesis' particles.
+    Particles,
+}
+
+/// Particle sampling on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SamplingArg {
+    /// `m` magnitudes per point (eq. 2.10).
+    Deterministic,
+    /// Uniform random points and magnitudes.
+    Random,
+}
+
+/// Estimator options shared by `estimate` and `bench`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct EstimatorArgs {
+    /// `exact` or `particles`.
+    #[arg(long, value_enum, default_value = "exact")]
+    pub mode: ModeArg,
+    /// Particle sampling: `deterministic` or `random`.
+    #[arg(long, value_enum, default_value = "deterministic")]
+    pub sampling: SamplingArg,
+    /// N: surface points in exact mode, particles in particle mode.
+    #[arg(long)]
+    pub n: Option<usize>,
+    /// Magnitudes per point m (deterministic particles).
+    #[arg(long, default_value_t = 5)]
+    pub m: usize,
+    /// Surface points when N counts particles (random sampling).
+    #[arg(long, default_value_t = 5000)]
+    pub points: usize,
+    /// Likelihood σ, N·m: one value, or one per sensed joint (comma separated).
+    #[arg(long, value_delimiter = ',', default_value = "0.05")]
+    pub sigma: Vec<f64>,
+    /// Smallest push magnitude considered, N.
+    #[arg(long, default_value_t = 1.0)]
+    pub fmin: f64,
+    /// Largest push magnitude considered, N.
+    #[arg(long, default_value_t = 30.0)]
+    pub fmax: f64,
+    /// Search coarse-to-fine in phases A/B/C.
+    #[arg(long)]
+    pub phases: bool,
+    /// Sizes of phases A and B.
+    #[arg(long, value_delimiter = ',', default_value = "200,1000")]
+    pub phase_sizes: Vec<usize>,
+    /// Keep clusters with P ≥ α `P_max` between phases.
+    #[arg(long, default_value_t = 0.5)]
+    pub alpha: f64,
+    /// Candidate links (comma separated); default: every link a revolute joint moves.
+    #[arg(long, value_delimiter = ',')]
+    pub links: Vec<String>,
+    /// Seed of the surface sampling, the phase clustering and random particles.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Count the surface's resolution as torque noise (ours; off: the
+    /// thesis' model). Calibrates the posterior when σ is below what the
+    /// surface spacing can resolve.
+    #[arg(long)]
+    pub resolution_noise: bool,
+    /// RMS offset within a candidate's patch, as a fraction of the surface
+    /// spacing, for --resolution-noise.
+    #[arg(long, default_value_t = 0.4)]
+    pub resolution_factor: f64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// What the options ask for, resolved against a robot.
+pub struct Resolved {
+    /// Candidate links.
+    pub links: Vec<LinkId>,
+    /// Surface points.
+    pub surface_points: usize,
+    /// Estimator settings.
+    pub settings: EstimatorSettings,
+    /// Phase sizes when phases are on.
+    pub phase_sizes: Option<[usize; 2]>,
+}
+
+impl EstimatorArgs {
+    /// Resolves links, σ per joint and the mode for `robot`.
+    pub fn resolve(&self, robot: &Robot) -> Result<Resolved> {
+        let links = if self.links.is_empty() {
+            robot.default_candidate_links()
+        } else {
+            self.links
+                .iter()
+                .map(|n| robot.link_id(n))
+                .collect::<Result<Vec<_>, _>>()?
+        };
+        let joints = robot.sensed().len();
+        let sigma = match self.sigma.as_slice() {
+            [s] => vec![*s; joints],
+            v if v.len() == joints => v.to_vec(),
+            v => bail!(
+                "--sigma has {} values; give one, or one per sensed joint ({joints})",
+                v.len()
+            ),
+        };
+        let (mode, surface_points) = match (self.mode, self.sampling) {
+            (ModeArg::Exact, _) => (Mode::Exact, self.n.unwrap_or(self.points)),
+            (ModeArg::Particles, SamplingArg::Deterministic) => (
+                Mode::Particles(ParticleSettings {
+                    sampling: Sampling::Deterministic {
+                        magnitudes_per_point: self.m.max(1),
+                    },
+                }),
+                self.n.map_or(self.points, |n| n.div_ceil(self.m.max(1))),
+            ),
+            (ModeArg::Particles, SamplingArg::Random) => (
+                Mode::Particles(ParticleSettings {
+                    sampling: Sampling::Random {
+                        count: self.n.unwrap_or(20_000),
+                        seed: self.seed,
+                    },
+                }),
+                self.points,
+            ),
+        };
+        let phase_sizes = match (self.phases, self.phase_sizes.as_slice()) {
+            (false, _) => None,
+            (true, [a, b]) => Some([*a, *b]),
+            (true, v) => bail!("--phase-sizes needs two numbers (A,B), got {}", v.len()),
+        };
+        Ok(Resolved {
+            links,
+            surface_points,
+            settings: EstimatorSettings {
+                sigma,
+                force_min_newtons: self.fmin,
+                force_max_newtons: self.fmax,
+                mode,
+                phase_alpha: self.phases.then_some(self.alpha),
+                resolution_m: 0.0,
+            },
+            phase_sizes,
+        })
+    }
+
+    /// The resolution factor to hand to the pipeline, when enabled.
+    pub fn resolution(&self) -> Option<f64> {
+        self.resolution_noise.then_some(self.resolution_factor)
+    }
+
+    /// Runs `f` on a thread pool of `--threads` workers.
+    pub fn with_threads<T: Send>(&self, f: impl FnOnce() -> T + Send) -> Result<T> {
+        let mut builder = rayon::ThreadPoolBuilder::new();
+        if let Some(t) = self.threads {
+            builder = builder.num_threads(t.max(1));
+        }
+        Ok(builder.build()?.install(f))
+    }
+}

@@ -1,0 +1,160 @@
+//! Errors of estimates against the truth over a session: the thesis'
+//! weighted errors (eq. 3.7–3.9) and plain medians and 90th percentiles.
+
+use glam::DVec3;
+
+/// One frame's estimate beside its truth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameOutcome {
+    /// Sensed joints that move the touched link.
+    pub sensing_joints: usize,
+    /// Probability of the most probable point (`P_max^i`).
+    pub p_max: f64,
+    /// Estimated contact point, m.
+    pub estimated_point: DVec3,
+    /// Estimated force, N.
+    pub estimated_force: DVec3,
+    /// True contact point, m.
+    pub true_point: DVec3,
+    /// True force, N.
+    pub true_force: DVec3,
+    /// The estimate is on the true link.
+    pub link_correct: bool,
+}
+
+/// Errors over a set of frames.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Metrics {
+    /// Frames counted.
+    pub frames: usize,
+    /// `ε_F` (eq. 3.7): weighted RMS of the force-norm error, N.
+    pub eps_f_newtons: f64,
+    /// `ε_r` (eq. 3.8): weighted RMS of the position error, m.
+    pub eps_r_m: f64,
+    /// `σ_r` (eq. 3.9): weighted dispersion of the estimated points, m.
+    pub sigma_r_m: f64,
+    /// Median position error, m.
+    pub position_median_m: f64,
+    /// 90th percentile of the position error, m.
+    pub position_p90_m: f64,
+    /// Median force error (vector difference), N.
+    pub force_median_newtons: f64,
+    /// 90th percentile of the force error, N.
+    pub force_p90_newtons: f64,
+    /// Share of frames whose estimate is on the true link.
+    pub link_accuracy: f64,
+}
+
+/// Nearest-rank percentile of unsorted values (`fraction` in [0, 1]).
+#[must_use]
+pub fn percentile(values: &[f64], fraction: f64) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let rank = ((fraction * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len());
+    sorted[rank - 1]
+}
+
+/// Metrics over `outcomes` (all zeros for none).
+#[must_use]
+pub fn metrics(outcomes: &[FrameOutcome]) -> Metrics {
+    if outcomes.is_empty() {
+        return Metrics::default();
+    }
+    let n = outcomes.len() as f64;
+    let weights: f64 = outcomes.iter().map(|o| o.p_max).sum();
+    // With all weights zero the weighted forms fall back to plain means.
+    let w = |o: &FrameOutcome| if weights > 0.0 { o.p_max / weights } else { 1.0 / n };
+    let eps_f = outcomes
+        .iter()
+        .map(|o| w(o) * (o.true_force.length() - o.estimated_force.length()).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let eps_r = outcomes
+        .iter()
+        .map(|o| w(o) * o.true_point.distance_squared(o.estimated_point))
+        .sum::<f64>()
+        .sqrt();
+    let mean = outcomes.iter().map(|o| o.estimated_point).sum::<DVec3>() / n;
+    let sigma_r = outcomes
+        .iter()
+        .map(|o| w(o) * o.estimated_point.distance_squared(mean))
+        .sum::<f64>()
+        .sqrt();
+    let position: Vec<f64> = outcomes
+        .iter()
+        .map(|o| o.true_point.distance(o.estimated_point))
+        .collect();
+    let force: Vec<f64> = outcomes
+        .iter()
+        .map(|o| o.true_force.distance(o.estimated_force))
+        .collect();
+    Metrics {
+        frames: outcomes.len(),
+        eps_f_newtons: eps_f,
+        eps_r_m: eps_r,
+        sigma_r_m: sigma_r,
+        position_median_m: percentile(&position, 0.5),
+        position_p90_m: percentile(&position, 0.9),
+        force_median_newtons: percentile(&force, 0.5),
+        force_p90_newtons: percentile(&force, 0.9),
+        link_accuracy: outcomes.iter().filter(|o| o.link_correct).count() as f64 / n,
+    }
+}
+
+/// Metrics per number of sensing joints, in increasing order.
+#[must_use]
+pub fn metrics_by_sensing_joints(outcomes: &[FrameOutcome]) -> Vec<(usize, Metrics)> {
+    let mut counts: Vec<usize> = outcomes.iter().map(|o| o.sensing_joints).collect();
+    counts.sort_unstable();
+    counts.dedup();
+    counts
+        .into_iter()
+        .map(|k| {
+            let group: Vec<FrameOutcome> = outcomes.iter().copied().filter(|o| o.sensing_joints == k).collect();
+            (k, metrics(&group))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn outcome(p: f64, dx: f64, df: f64, ok: bool) -> FrameOutcome {
+        FrameOutcome {
+            sensing_joints: 3,
+            p_max: p,
+            estimated_point: DVec3::new(dx, 0.0, 0.0),
+            estimated_force: DVec3::new(0.0, 10.0 + df, 0.0),
+            true_point: DVec3::ZERO,
+            true_force: DVec3::new(0.0, 10.0, 0.0),
+            link_correct: ok,
+        }
+    }
+
+    #[test]
+    fn weighted_and_plain_errors_by_hand() {
+        let o = [outcome(0.1, 0.01, 1.0, true), outcome(0.3, 0.03, -2.0, false)];
+        let m = metrics(&o);
+        // ε_r = sqrt((0.1·0.01² + 0.3·0.03²) / 0.4)
+        assert!((m.eps_r_m - ((0.1 * 1e-4 + 0.3 * 9e-4) / 0.4f64).sqrt()).abs() < 1e-15);
+        assert!((m.eps_f_newtons - ((0.1 * 1.0 + 0.3 * 4.0) / 0.4f64).sqrt()).abs() < 1e-12);
+        // Estimates at x = 0.01 and 0.03, mean 0.02.
+        assert!((m.sigma_r_m - 0.01).abs() < 1e-15);
+        assert!((m.position_median_m - 0.01).abs() < 1e-15);
+        assert!((m.position_p90_m - 0.03).abs() < 1e-15);
+        assert!((m.force_median_newtons - 1.0).abs() < 1e-12);
+        assert!((m.link_accuracy - 0.5).abs() < 1e-15);
+    }
+
+    #[test]
+    fn percentile_is_nearest_rank() {
+        let v = [5.0, 1.0, 4.0, 2.0, 3.0, 6.0, 7.0, 8.0, 9.0, 10.0];
+        assert!((percentile(&v, 0.5) - 5.0).abs() < 1e-15);
+        assert!((percentile(&v, 0.9) - 9.0).abs() < 1e-15);
+        assert!((percentile(&v, 1.0) - 10.0).abs() < 1e-15);
+    }
+}

@@ -1,0 +1,76 @@
+//! The estimator as a pipeline: the surface and the phase hierarchy are
+//! built once (they live in link frames), then each measurement is an
+//! update at its own configuration.
+
+use crate::core::contact::ContactModel;
+use crate::core::estimator::{EstimateError, EstimatorSettings, Posterior, estimate};
+use crate::core::kinematics::RobotPose;
+use crate::core::phases::PhaseHierarchy;
+use crate::core::robot::{LinkId, Robot};
+use crate::core::summary::{Summary, summarize};
+use crate::core::surface::{Surface, SurfaceError, SurfaceRequest};
+use crate::core::torque::TorqueModel;
+
+/// Everything fixed across updates.
+#[derive(Debug, Clone)]
+pub struct Estimator {
+    /// Candidate surface points.
+    pub surface: Surface,
+    /// Candidate links.
+    pub links: Vec<LinkId>,
+    /// Phases A/B/C, when used.
+    pub hierarchy: Option<PhaseHierarchy>,
+    /// Noise model, force range, mode.
+    pub settings: EstimatorSettings,
+}
+
+/// One measurement's result.
+#[derive(Debug, Clone)]
+pub struct Update {
+    /// The robot at the measurement's configuration.
+    pub pose: RobotPose,
+    /// The posterior over the surface points.
+    pub posterior: Posterior,
+    /// What it says.
+    pub summary: Summary,
+}
+
+impl Estimator {
+    /// Samples the surface and, with `phase_sizes`, builds the phase
+    /// hierarchy (seeded by the surface seed). `resolution_factor` sets
+    /// [`EstimatorSettings::resolution_m`] to that fraction of the surface
+    /// spacing (`None` keeps the settings' value).
+    pub fn new(
+        robot: &Robot,
+        request: &SurfaceRequest,
+        mut settings: EstimatorSettings,
+        phase_sizes: Option<[usize; 2]>,
+        resolution_factor: Option<f64>,
+    ) -> Result<Self, SurfaceError> {
+        let surface = Surface::sample(robot, request)?;
+        if let Some(factor) = resolution_factor {
+            settings.resolution_m = factor * surface.spacing_m();
+        }
+        let hierarchy = phase_sizes.map(|sizes| PhaseHierarchy::new(&surface, sizes, request.seed));
+        Ok(Self {
+            surface,
+            links: request.links.clone(),
+            hierarchy,
+            settings,
+        })
+    }
+
+    /// The posterior for torques `tau` measured at `joint_positions`
+    /// (every joint's, see [`Robot::joint_positions`]).
+    pub fn update(&self, robot: &Robot, joint_positions: &[f64], tau: &[f64]) -> Result<Update, EstimateError> {
+        let pose = RobotPose::new(robot, joint_positions);
+        let model = ContactModel::new(&TorqueModel::new(robot, &pose, &self.links), &self.surface);
+        let posterior = estimate(&model, tau, &self.settings, self.hierarchy.as_ref())?;
+        let summary = summarize(&posterior, &self.surface, &pose, model.joints());
+        Ok(Update {
+            pose,
+            posterior,
+            summary,
+        })
+    }
+}
