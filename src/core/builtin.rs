@@ -161,6 +161,8 @@ pub fn lwr4plus_generated() -> Result<Robot, RobotError> {
 #[must_use]
 pub fn lwr4plus_primitives() -> Vec<(&'static str, Vec<Primitive>)> {
     const R: f64 = 0.06;
+    // The housings' rims are rounded like the real arm's.
+    const FILLET: f64 = 0.02;
     let v = DVec3::new;
     // A link that starts at a z-axis joint and ends at a y-axis joint `h`
     // above, whose housing bulges to side `s`.
@@ -176,10 +178,11 @@ pub fn lwr4plus_primitives() -> Vec<(&'static str, Vec<Primitive>)> {
                 to: v(0.0, s * 0.035, h - 0.045),
                 radius: R,
             },
-            Primitive::Cylinder {
+            Primitive::RoundedCylinder {
                 from: v(0.0, s * 0.004, h),
                 to: v(0.0, s * 0.094, h),
                 radius: R,
+                fillet: FILLET,
             },
         ]
     };
@@ -187,10 +190,11 @@ pub fn lwr4plus_primitives() -> Vec<(&'static str, Vec<Primitive>)> {
     // at a z-axis joint 0.2 m above.
     let from_y_joint = |s: f64| {
         vec![
-            Primitive::Cylinder {
+            Primitive::RoundedCylinder {
                 from: v(0.0, -s * 0.006, 0.0),
                 to: v(0.0, s * 0.094, 0.0),
                 radius: R,
+                fillet: FILLET,
             },
             Primitive::Capsule {
                 from: v(0.0, s * 0.035, 0.045),
@@ -227,10 +231,11 @@ pub fn lwr4plus_primitives() -> Vec<(&'static str, Vec<Primitive>)> {
         ),
         (
             LWR_LINKS[7],
-            vec![Primitive::Cylinder {
+            vec![Primitive::RoundedCylinder {
                 from: v(0.0, 0.0, -0.031),
                 to: v(0.0, 0.0, 0.0),
                 radius: 0.04,
+                fillet: 0.005,
             }],
         ),
     ]

@@ -27,6 +27,18 @@ pub enum Primitive {
         /// Radius, m.
         radius: f64,
     },
+    /// A cylinder from `from` to `to` whose two rims are rounded with
+    /// quarter circles of radius `fillet`, like a machined joint housing.
+    RoundedCylinder {
+        /// Centre of the first cap, m.
+        from: DVec3,
+        /// Centre of the second cap, m.
+        to: DVec3,
+        /// Radius, m.
+        radius: f64,
+        /// Rim rounding radius, m (at most the radius and half the length).
+        fillet: f64,
+    },
     /// A cylinder with hemispherical caps centred on `from` and `to`.
     Capsule {
         /// Centre of the first hemisphere, m.
@@ -57,6 +69,28 @@ impl Primitive {
             Self::Cylinder { from, to, radius } => {
                 let length = from.distance(to);
                 let profile = vec![(0.0, 0.0), (radius, 0.0), (radius, length), (0.0, length)];
+                revolve(&profile, segments).transformed(&along(from, to))
+            }
+            Self::RoundedCylinder {
+                from,
+                to,
+                radius,
+                fillet,
+            } => {
+                let length = from.distance(to);
+                let r = fillet.clamp(0.0, radius.min(0.5 * length));
+                let steps = (segments / 4).max(2);
+                let mut profile = vec![(0.0, 0.0)];
+                for i in 0..=steps {
+                    let theta = -std::f64::consts::FRAC_PI_2 + std::f64::consts::FRAC_PI_2 * i as f64 / steps as f64;
+                    profile.push((radius - r + r * theta.cos(), r + r * theta.sin()));
+                }
+                for i in 0..=steps {
+                    let theta = std::f64::consts::FRAC_PI_2 * i as f64 / steps as f64;
+                    profile.push((radius - r + r * theta.cos(), length - r + r * theta.sin()));
+                }
+                profile.push((0.0, length));
+                profile.dedup();
                 revolve(&profile, segments).transformed(&along(from, to))
             }
             Self::Capsule { from, to, radius } => {
@@ -105,6 +139,22 @@ impl Primitive {
                 let dz = (along_axis - 0.5 * length).abs() - 0.5 * length;
                 let outside = DVec3::new(dr.max(0.0), dz.max(0.0), 0.0).length();
                 outside + dr.max(dz).min(0.0)
+            }
+            Self::RoundedCylinder {
+                from,
+                to,
+                radius,
+                fillet,
+            } => {
+                let length = from.distance(to);
+                let r = fillet.clamp(0.0, radius.min(0.5 * length));
+                let axis = (to - from).normalize_or_zero();
+                let rel = p - from;
+                let along_axis = rel.dot(axis);
+                let radial = (rel - axis * along_axis).length();
+                let dr = radial - (radius - r);
+                let dz = (along_axis - 0.5 * length).abs() - (0.5 * length - r);
+                DVec3::new(dr.max(0.0), dz.max(0.0), 0.0).length() + dr.max(dz).min(0.0) - r
             }
             Self::Cuboid {
                 link_from_box,
@@ -243,6 +293,12 @@ mod tests {
                 to: DVec3::new(0.0, -0.05, 0.3),
                 radius: 0.05,
             },
+            Primitive::RoundedCylinder {
+                from: DVec3::new(0.0, 0.0, 0.0),
+                to: DVec3::new(0.0, 0.09, 0.0),
+                radius: 0.06,
+                fillet: 0.015,
+            },
             Primitive::Cuboid {
                 link_from_box: DAffine3::from_rotation_translation(
                     DQuat::from_rotation_x(0.4),
@@ -265,6 +321,20 @@ mod tests {
                         + 4.0 / 3.0 * std::f64::consts::PI * radius.powi(3)
                 }
                 Primitive::Cuboid { half_extents, .. } => 8.0 * half_extents.x * half_extents.y * half_extents.z,
+                Primitive::RoundedCylinder {
+                    from,
+                    to,
+                    radius: big,
+                    fillet: r,
+                } => {
+                    // Pappus: the cylinder less two rim rings, each the area
+                    // between a quarter circle and its square swept around
+                    // the axis at the radius of that area's centroid.
+                    let pi = std::f64::consts::PI;
+                    let ring_area = r * r * (1.0 - pi / 4.0);
+                    let ring_radius = big - r * (10.0 - 3.0 * pi) / (12.0 - 3.0 * pi);
+                    pi * big * big * from.distance(to) - 2.0 * 2.0 * pi * ring_radius * ring_area
+                }
             };
             let v = mesh.signed_volume();
             // A 64-gon polyhedron underestimates a round solid by about 1 %.

@@ -317,6 +317,46 @@ pub struct LoadedScene {
     pub push: Option<ResolvedPush>,
 }
 
+impl EstimatorSettings {
+    /// The core estimator's settings for `joints` sensed joints (a single
+    /// σ is repeated; a per-joint list must have one value per joint).
+    pub fn to_core(&self, joints: usize) -> Result<crate::core::estimator::EstimatorSettings, String> {
+        use crate::core::estimator as est;
+        let sigma = match &self.sigma_newton_metres {
+            Sigma::All(s) => vec![*s; joints],
+            Sigma::PerJoint(v) if v.len() == joints => v.clone(),
+            Sigma::PerJoint(v) => {
+                return Err(format!(
+                    "estimator.sigma_newton_metres has {} values for {joints} sensed joints",
+                    v.len()
+                ));
+            }
+        };
+        let mode = match (self.mode, self.sampling) {
+            (Mode::Exact, _) => est::Mode::Exact,
+            (Mode::Particles, Sampling::Deterministic) => est::Mode::Particles(est::ParticleSettings {
+                sampling: est::Sampling::Deterministic {
+                    magnitudes_per_point: self.magnitudes_per_point,
+                },
+            }),
+            (Mode::Particles, Sampling::Random) => est::Mode::Particles(est::ParticleSettings {
+                sampling: est::Sampling::Random {
+                    count: self.particles,
+                    seed: 0,
+                },
+            }),
+        };
+        Ok(est::EstimatorSettings {
+            sigma,
+            force_min_newtons: self.force_min_newtons,
+            force_max_newtons: self.force_max_newtons,
+            mode,
+            phase_alpha: self.phases.enabled.then_some(self.phases.alpha),
+            resolution_m: 0.0,
+        })
+    }
+}
+
 impl LoadedScene {
     /// Exact torques of the push on the sensed joints (zeros without push).
     #[must_use]
