@@ -35,6 +35,8 @@ enum Command {
     Torques(TorquesArgs),
     /// Estimates the contact in every frame of a recorded session.
     Estimate(cli::estimate::EstimateArgs),
+    /// Speed against accuracy of estimator configurations (table and PNG plot).
+    Bench(cli::bench::BenchArgs),
     /// Links and joints of a robot (built-in name or URDF path).
     RobotInfo {
         /// `simple6`, `lwr4plus` or a URDF file.
@@ -110,6 +112,7 @@ fn main() -> Result<()> {
     match cli.command {
         Some(Command::Torques(args)) => torques(&args),
         Some(Command::Estimate(args)) => cli::estimate::run(&args),
+        Some(Command::Bench(args)) => cli::bench::run(&args),
         Some(Command::RobotInfo { robot, package_paths }) => robot_info(&robot, package_paths),
         Some(Command::Surface { scene, points }) => surface(&scene, points),
         Some(Command::ExportAssets { root }) => export_assets(&root),

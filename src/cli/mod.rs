@@ -1,5 +1,6 @@
 //! Headless commands that run the estimator.
 
+pub mod bench;
 pub mod estimate;
 
 use anyhow::{Result, bail};

@@ -1,0 +1,392 @@
+//! `proprioscope bench`: speed against accuracy for estimator
+//! configurations, on seeded random contacts with sensor noise.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context as _, Result, anyhow};
+use glam::DVec3;
+use proprioscope::core::estimator::{EstimatorSettings, Mode, ParticleSettings, Sampling};
+use proprioscope::core::kinematics::RobotPose;
+use proprioscope::core::metrics::{FrameOutcome, Metrics, metrics, percentile};
+use proprioscope::core::pipeline::Estimator;
+use proprioscope::core::rng::Rng;
+use proprioscope::core::robot::{JointKind, Robot};
+use proprioscope::core::surface::{Surface, SurfaceRequest};
+use proprioscope::core::torque::joint_torques;
+use proprioscope::io::builtin::load_robot;
+use proprioscope::io::urdf::{MeshSelection, UrdfOptions};
+
+/// Options of `bench`.
+#[derive(Debug, clap::Args)]
+pub struct BenchArgs {
+    /// URDF robots to bench besides the built-in LWR (repeatable).
+    #[arg(long)]
+    pub urdf: Vec<PathBuf>,
+    /// Extra folder for `package://` URIs (repeatable).
+    #[arg(long = "package-path")]
+    pub package_paths: Vec<PathBuf>,
+    /// Random contacts per configuration.
+    #[arg(long, default_value_t = 100)]
+    pub contacts: usize,
+    /// Sensor noise on the contacts' torques, N·m.
+    #[arg(long, default_value_t = 0.05)]
+    pub noise: f64,
+    /// Seed of the contacts.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// A few small configurations only.
+    #[arg(long)]
+    pub quick: bool,
+    /// Where to write the plot of update time against error (PNG).
+    #[arg(long, default_value = "screenshots/bench.png")]
+    pub plot: PathBuf,
+    /// Replace the text between `<!-- bench:begin -->` and
+    /// `<!-- bench:end -->` in this file with the table and the plot.
+    #[arg(long)]
+    pub readme: Option<PathBuf>,
+    /// A TrueType font for the plot's text.
+    #[arg(long, default_value = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf")]
+    pub font: PathBuf,
+}
+
+/// One estimator configuration.
+#[derive(Debug, Clone)]
+struct Config {
+    label: String,
+    surface_points: usize,
+    mode: Mode,
+    phases: bool,
+    sigma: f64,
+    threads: usize,
+}
+
+/// A seeded random push and what the sensors read.
+struct Contact {
+    joint_positions: Vec<f64>,
+    tau: Vec<f64>,
+    link: usize,
+    point_world: DVec3,
+    force_world: DVec3,
+}
+
+/// One row of the table.
+struct Row {
+    robot: String,
+    config: Config,
+    median_us: f64,
+    metrics: Metrics,
+}
+
+fn configs(quick: bool) -> Vec<Config> {
+    let exact = |n: usize, phases: bool, sigma: f64, threads: usize| Config {
+        label: format!(
+            "exact{}{}",
+            if phases { " + phases" } else { "" },
+            if threads > 1 {
+                format!(", {threads} threads")
+            } else {
+                String::new()
+            }
+        ),
+        surface_points: n,
+        mode: Mode::Exact,
+        phases,
+        sigma,
+        threads,
+    };
+    let particles = |n: usize, random: bool| Config {
+        label: format!("particles, {}", if random { "random" } else { "deterministic m = 5" }),
+        surface_points: n / 5,
+        mode: Mode::Particles(ParticleSettings {
+            sampling: if random {
+                Sampling::Random { count: n, seed: 7 }
+            } else {
+                Sampling::Deterministic {
+                    magnitudes_per_point: 5,
+                }
+            },
+        }),
+        phases: false,
+        sigma: 0.05,
+        threads: 1,
+    };
+    if quick {
+        return vec![
+            exact(1000, false, 0.05, 1),
+            exact(5000, false, 0.05, 1),
+            particles(18_000, false),
+            particles(18_000, true),
+        ];
+    }
+    let mut out: Vec<Config> = [200, 1000, 5000, 20_000, 100_000]
+        .iter()
+        .map(|&n| exact(n, false, 0.05, 1))
+        .collect();
+    out.push(exact(100_000, false, 0.05, 2));
+    out.push(exact(5000, true, 0.05, 1));
+    out.push(exact(5000, false, 0.2, 1));
+    for n in [18_000, 30_000, 50_000] {
+        out.push(particles(n, false));
+        out.push(particles(n, true));
+    }
+    out.push(Config {
+        label: "particles, deterministic m = 5 + phases".to_owned(),
+        phases: true,
+        ..particles(23_025, false)
+    });
+    out
+}
+
+/// Seeded contacts: a configuration uniform within the joint limits, a
+/// point uniform over the exposed surface (a dense sampling of its own),
+/// a push of 3–30 N along the inward normal, noise on every joint.
+fn contacts(robot: &Robot, count: usize, noise: f64, seed: u64) -> Result<Vec<Contact>> {
+    let truth = Surface::sample(
+        robot,
+        &SurfaceRequest {
+            links: robot.default_candidate_links(),
+            total_points: 20_000,
+            seed: seed.wrapping_add(1000),
+        },
+    )?;
+    let mut rng = Rng::new(seed);
+    let mut out = Vec::with_capacity(count);
+    for _ in 0..count {
+        let q: Vec<f64> = robot
+            .sensed()
+            .iter()
+            .map(|&j| {
+                let joint = &robot.joints[j];
+                match (joint.kind, joint.limits) {
+                    (JointKind::Revolute | JointKind::Prismatic, Some(l)) => rng.uniform_in(l.lower, l.upper),
+                    _ => rng.uniform_in(-std::f64::consts::PI, std::f64::consts::PI),
+                }
+            })
+            .collect();
+        let joint_positions = robot.joint_positions(&q, &[])?;
+        let pose = RobotPose::new(robot, &joint_positions);
+        let k = rng.below(truth.len());
+        let link = truth.link[k];
+        let point_world = pose.point_to_world(link, truth.point_in_link[k]);
+        let force_world =
+            pose.world_from_link[link].transform_vector3(truth.inward_normal_in_link[k]) * rng.uniform_in(3.0, 30.0);
+        let mut tau = joint_torques(robot, &pose, link, point_world, force_world);
+        for t in &mut tau {
+            *t += noise * rng.normal();
+        }
+        out.push(Contact {
+            joint_positions,
+            tau,
+            link,
+            point_world,
+            force_world,
+        });
+    }
+    Ok(out)
+}
+
+fn run_config(robot: &Robot, config: &Config, contacts: &[Contact], seed: u64) -> Result<(f64, Metrics)> {
+    let settings = EstimatorSettings {
+        sigma: vec![config.sigma; robot.sensed().len()],
+        force_min_newtons: 1.0,
+        force_max_newtons: 30.0,
+        mode: config.mode,
+        phase_alpha: config.phases.then_some(0.5),
+        resolution_m: 0.0,
+    };
+    let request = SurfaceRequest {
+        links: robot.default_candidate_links(),
+        total_points: config.surface_points,
+        seed,
+    };
+    let estimator = Estimator::new(robot, &request, settings, config.phases.then_some([200, 1000]), None)?;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(config.threads).build()?;
+    pool.install(|| -> Result<(f64, Metrics)> {
+        let mut times = Vec::with_capacity(contacts.len());
+        let mut outcomes = Vec::with_capacity(contacts.len());
+        for c in contacts {
+            let t0 = Instant::now();
+            let update = estimator.update(robot, &c.joint_positions, &c.tau)?;
+            times.push(t0.elapsed().as_secs_f64() * 1e6);
+            let map = update.summary.map;
+            let path = robot.path_joints(c.link);
+            outcomes.push(FrameOutcome {
+                sensing_joints: robot.sensed().iter().filter(|j| path.contains(j)).count(),
+                p_max: update.posterior.display[map.point],
+                estimated_point: map.point_world,
+                estimated_force: map.force_world,
+                true_point: c.point_world,
+                true_force: c.force_world,
+                link_correct: map.link == c.link,
+            });
+        }
+        Ok((percentile(&times, 0.5), metrics(&outcomes)))
+    })
+}
+
+/// Runs the command.
+pub fn run(args: &BenchArgs) -> Result<()> {
+    let mut robots = vec![load_robot("lwr4plus", Path::new("."), &UrdfOptions::default())?];
+    for urdf in &args.urdf {
+        let options = UrdfOptions {
+            package_paths: args.package_paths.clone(),
+            meshes: MeshSelection::All,
+        };
+        robots.push(load_robot(&urdf.to_string_lossy(), Path::new("."), &options)?);
+    }
+    let mut rows = Vec::new();
+    for robot in &robots {
+        let contacts = contacts(robot, args.contacts, args.noise, args.seed)?;
+        for config in configs(args.quick) {
+            eprintln!("{}: {} N = {} …", robot.name, config.label, particles_of(&config));
+            let (median_us, metrics) = run_config(robot, &config, &contacts, args.seed)?;
+            rows.push(Row {
+                robot: robot.name.clone(),
+                config,
+                median_us,
+                metrics,
+            });
+        }
+    }
+    let table = table(&rows, args);
+    println!("{table}");
+    plot(&rows, &args.plot, &args.font)?;
+    eprintln!("wrote {}", args.plot.display());
+    if let Some(readme) = &args.readme {
+        let text = std::fs::read_to_string(readme).with_context(|| format!("reading {}", readme.display()))?;
+        let (begin, end) = ("<!-- bench:begin -->", "<!-- bench:end -->");
+        let (Some(i), Some(j)) = (text.find(begin), text.find(end)) else {
+            return Err(anyhow!("{}: no {begin} … {end} section to replace", readme.display()));
+        };
+        let section = format!(
+            "{begin}\n{table}\n![Update time against position error]({})\n",
+            args.plot.display()
+        );
+        let updated = format!("{}{section}{}", &text[..i], &text[j..]);
+        std::fs::write(readme, updated).with_context(|| format!("writing {}", readme.display()))?;
+        eprintln!("updated {}", readme.display());
+    }
+    Ok(())
+}
+
+/// N as the thesis counts it: surface points in exact mode, particles otherwise.
+fn particles_of(config: &Config) -> usize {
+    match config.mode {
+        Mode::Exact => config.surface_points,
+        Mode::Particles(ParticleSettings {
+            sampling: Sampling::Random { count, .. },
+        }) => count,
+        Mode::Particles(ParticleSettings {
+            sampling: Sampling::Deterministic { magnitudes_per_point },
+        }) => config.surface_points * magnitudes_per_point,
+    }
+}
+
+fn table(rows: &[Row], args: &BenchArgs) -> String {
+    let mut out = format!(
+        "{} seeded contacts per row (seed {}): a pose uniform within the joint limits, a point uniform over the exposed surface, a push of 3–30 N along the inward normal, sensor noise σ = {} N·m; force range 1–30 N.\n\n",
+        args.contacts, args.seed, args.noise
+    );
+    out.push_str("| robot | mode | N | surface points | σ [N·m] | threads | median update [µs] | updates/s | median pos. error [mm] | p90 [mm] | median force error [N] | p90 [N] | link right |\n");
+    out.push_str("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    for r in rows {
+        let m = &r.metrics;
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {:.0} | {:.0} | {:.1} | {:.1} | {:.2} | {:.2} | {:.0} % |",
+            r.robot,
+            r.config.label,
+            particles_of(&r.config),
+            r.config.surface_points,
+            r.config.sigma,
+            r.config.threads,
+            r.median_us,
+            1e6 / r.median_us,
+            m.position_median_m * 1e3,
+            m.position_p90_m * 1e3,
+            m.force_median_newtons,
+            m.force_p90_newtons,
+            m.link_accuracy * 100.0
+        );
+    }
+    out
+}
+
+fn plot(rows: &[Row], path: &Path, font: &Path) -> Result<()> {
+    use plotters::prelude::*;
+    let bytes = std::fs::read(font).with_context(|| {
+        format!(
+            "reading the font {} (Debian: apt-get install fonts-dejavu-core; or give --font)",
+            font.display()
+        )
+    })?;
+    // The plotting library keeps registered fonts for the program's life.
+    let bytes: &'static [u8] = Vec::leak(bytes);
+    plotters::style::register_font("sans-serif", FontStyle::Normal, bytes)
+        .map_err(|_| anyhow!("{}: not a usable font", font.display()))?;
+    if let Some(folder) = path.parent() {
+        std::fs::create_dir_all(folder)?;
+    }
+    let root = BitMapBackend::new(path, (1100, 700)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    let (t_lo, t_hi) = rows.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
+        (lo.min(r.median_us), hi.max(r.median_us))
+    });
+    let e_hi = rows
+        .iter()
+        .map(|r| r.metrics.position_median_m * 1e3)
+        .fold(0.0, f64::max);
+    let mut chart = ChartBuilder::on(&root)
+        .caption("Update time against median position error", ("sans-serif", 26))
+        .margin(20)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d((t_lo * 0.5..t_hi * 2.0).log_scale(), 0.0..e_hi * 1.15 + 1.0)
+        .map_err(|e| anyhow!("{e}"))?;
+    chart
+        .configure_mesh()
+        .x_desc("median update time [µs] (log scale)")
+        .x_labels(8)
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .light_line_style(WHITE)
+        .y_desc("median position error [mm]")
+        .label_style(("sans-serif", 16))
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
+    for (i, r) in rows.iter().enumerate() {
+        let colour = match r.config.mode {
+            Mode::Exact => BLUE,
+            Mode::Particles(ParticleSettings {
+                sampling: Sampling::Deterministic { .. },
+            }) => GREEN,
+            Mode::Particles(ParticleSettings {
+                sampling: Sampling::Random { .. },
+            }) => RED,
+        };
+        let at = (r.median_us, r.metrics.position_median_m * 1e3);
+        let many_robots = rows.iter().any(|o| o.robot != r.robot);
+        let label = format!(
+            "{} N={}{}",
+            r.config.label,
+            particles_of(&r.config),
+            if many_robots {
+                format!(" ({})", r.robot)
+            } else {
+                String::new()
+            }
+        );
+        // Alternate labels above and below their points so neighbours do not overlap.
+        let dy = if i % 2 == 0 { 6 } else { -18 };
+        chart
+            .draw_series(std::iter::once(
+                EmptyElement::at(at)
+                    + Circle::new((0, 0), 6, colour.filled())
+                    + Text::new(label, (9, dy), ("sans-serif", 13).into_font()),
+            ))
+            .map_err(|e| anyhow!("{e}"))?;
+    }
+    root.present().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
