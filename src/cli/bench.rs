@@ -126,7 +126,10 @@ fn configs(quick: bool) -> Vec<Config> {
         .collect();
     out.push(exact(100_000, false, 0.05, 2));
     out.push(exact(5000, true, 0.05, 1));
-    out.push(exact(5000, false, 0.2, 1));
+    out.push(Config {
+        label: "exact, σ = 0.2".to_owned(),
+        ..exact(5000, false, 0.2, 1)
+    });
     for n in [18_000, 30_000, 50_000] {
         out.push(particles(n, false));
         out.push(particles(n, true));
