@@ -4,11 +4,140 @@
 use rayon::prelude::*;
 
 use crate::core::surface::Surface;
+use crate::core::torque::{LinkTwist, TorqueModel};
 
 /// From this many points on, the per-point work is shared among threads
 /// (below, thread hand-off costs more than it saves).
 pub const PARALLEL_MIN_POINTS: usize = 16_384;
-use crate::core::torque::TorqueModel;
+
+/// Where the estimator gets each surface point's torque per newton.
+pub trait UnitTorqueSource: Sync {
+    /// Number of sensed joints.
+    fn joints(&self) -> usize;
+    /// Number of surface points.
+    fn points(&self) -> usize;
+    /// Point k's unit torques, written into `out` (one per joint).
+    fn unit_torques_into(&self, point: usize, out: &mut [f64]);
+    /// For the measured `tau` and per-joint weights `1/σ²`, each point's
+    /// `a_k = Σ w u²` and `b_k = Σ w u τ` (its log-likelihood in the
+    /// magnitude f is `-½ (c - 2 b_k f + a_k f²)`).
+    fn quadratic_forms(&self, weights: &[f64], tau: &[f64], a: &mut Vec<f64>, b: &mut Vec<f64>);
+}
+
+/// A surface at one configuration, read without storing unit torques:
+/// each point's torques are computed where they are used and summed into
+/// its likelihood terms at once (the fast path of an update).
+#[derive(Debug, Clone, Copy)]
+pub struct PosedSurface<'a> {
+    /// The configuration's twists.
+    pub torque_model: &'a TorqueModel,
+    /// The candidate points.
+    pub surface: &'a Surface,
+}
+
+/// A twist with its joint's weights folded in.
+struct Weighted {
+    twist: LinkTwist,
+    w: f64,
+    wt: f64,
+}
+
+impl UnitTorqueSource for PosedSurface<'_> {
+    fn joints(&self) -> usize {
+        self.torque_model.sensed_count()
+    }
+
+    fn points(&self) -> usize {
+        self.surface.len()
+    }
+
+    fn unit_torques_into(&self, point: usize, out: &mut [f64]) {
+        out.fill(0.0);
+        let (Some(&link), Some(m), Some(n)) = (
+            self.surface.link.get(point),
+            self.surface.moment_in_link.get(point),
+            self.surface.inward_normal_in_link.get(point),
+        ) else {
+            return;
+        };
+        for t in self.torque_model.twists(link) {
+            if let Some(slot) = out.get_mut(t.sensed_index) {
+                *slot = t.w.dot(*m) + t.v.dot(*n);
+            }
+        }
+    }
+
+    fn quadratic_forms(&self, weights: &[f64], tau: &[f64], a: &mut Vec<f64>, b: &mut Vec<f64>) {
+        let surface = self.surface;
+        let n = surface.len();
+        a.clear();
+        a.resize(n, 0.0);
+        b.clear();
+        b.resize(n, 0.0);
+        // One link's points are contiguous: per link, per twist, a loop over
+        // the points that the compiler can vectorise.
+        let mut jobs: Vec<(std::ops::Range<usize>, Vec<Weighted>)> = Vec::new();
+        let mut start = 0;
+        while start < n {
+            let link = surface.link[start];
+            let end = start + surface.link[start..].iter().take_while(|l| **l == link).count();
+            let twists = self
+                .torque_model
+                .twists(link)
+                .iter()
+                .filter_map(|t| {
+                    let w = *weights.get(t.sensed_index)?;
+                    Some(Weighted {
+                        twist: *t,
+                        w,
+                        wt: w * tau.get(t.sensed_index)?,
+                    })
+                })
+                .collect();
+            jobs.push((start..end, twists));
+            start = end;
+        }
+        let [mx, my, mz, nx, ny, nz] = &surface.push_lines;
+        let run = |range: std::ops::Range<usize>, twists: &[Weighted], a: &mut [f64], b: &mut [f64]| {
+            let (mx, my, mz) = (&mx[range.clone()], &my[range.clone()], &mz[range.clone()]);
+            let (nx, ny, nz) = (&nx[range.clone()], &ny[range.clone()], &nz[range]);
+            for t in twists {
+                let (w, v) = (t.twist.w, t.twist.v);
+                for k in 0..a.len().min(mx.len()) {
+                    let u = w.x * mx[k] + w.y * my[k] + w.z * mz[k] + v.x * nx[k] + v.y * ny[k] + v.z * nz[k];
+                    a[k] += t.w * u * u;
+                    b[k] += t.wt * u;
+                }
+            }
+        };
+        if n >= PARALLEL_MIN_POINTS {
+            // Split each link's range into blocks and share the blocks.
+            let mut blocks = Vec::new();
+            let mut a_rest: &mut [f64] = a;
+            let mut b_rest: &mut [f64] = b;
+            for (range, twists) in &jobs {
+                let mut at = range.start;
+                while at < range.end {
+                    let len = (range.end - at).min(4096);
+                    let (a_block, a_tail) = std::mem::take(&mut a_rest).split_at_mut(len);
+                    let (b_block, b_tail) = std::mem::take(&mut b_rest).split_at_mut(len);
+                    a_rest = a_tail;
+                    b_rest = b_tail;
+                    blocks.push((at..at + len, twists.as_slice(), a_block, b_block));
+                    at += len;
+                }
+            }
+            blocks
+                .into_par_iter()
+                .for_each(|(range, twists, a_block, b_block)| run(range, twists, a_block, b_block));
+        } else {
+            for (range, twists) in &jobs {
+                let (a_block, b_block) = (&mut a[range.clone()], &mut b[range.clone()]);
+                run(range.clone(), twists, a_block, b_block);
+            }
+        }
+    }
+}
 
 /// Unit torques of every surface point for one configuration: pushing
 /// with `f` newtons along point k's inward normal produces `f · u_jk` on
@@ -55,18 +184,6 @@ impl ContactModel {
         }
     }
 
-    /// Number of sensed joints.
-    #[must_use]
-    pub fn joints(&self) -> usize {
-        self.joints
-    }
-
-    /// Number of surface points.
-    #[must_use]
-    pub fn points(&self) -> usize {
-        self.points
-    }
-
     /// Point k's unit torque on joint j.
     #[must_use]
     pub fn unit_torque(&self, joint: usize, point: usize) -> f64 {
@@ -81,11 +198,7 @@ impl ContactModel {
             .unwrap_or(&[])
     }
 
-    /// For the measured `tau` and per-joint weights `1/σ²`, the quadratic
-    /// form of every point's log-likelihood in the magnitude f:
-    /// `-½ (c - 2 b_k f + a_k f²)` with `a_k = Σ w u²`, `b_k = Σ w u τ`.
-    /// Fills `a` and `b` (resized to the number of points).
-    pub fn quadratic_forms(&self, weights: &[f64], tau: &[f64], a: &mut Vec<f64>, b: &mut Vec<f64>) {
+    fn quadratic_forms_stored(&self, weights: &[f64], tau: &[f64], a: &mut Vec<f64>, b: &mut Vec<f64>) {
         let wt: Vec<f64> = weights.iter().zip(tau).map(|(w, t)| w * t).collect();
         a.clear();
         b.clear();
@@ -137,6 +250,27 @@ impl ContactModel {
     }
 }
 
+impl UnitTorqueSource for ContactModel {
+    fn joints(&self) -> usize {
+        self.joints
+    }
+
+    fn points(&self) -> usize {
+        self.points
+    }
+
+    fn unit_torques_into(&self, point: usize, out: &mut [f64]) {
+        out.fill(0.0);
+        for (slot, u) in out.iter_mut().zip(self.unit_torques(point)) {
+            *slot = *u;
+        }
+    }
+
+    fn quadratic_forms(&self, weights: &[f64], tau: &[f64], a: &mut Vec<f64>, b: &mut Vec<f64>) {
+        self.quadratic_forms_stored(weights, tau, a, b);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -170,13 +304,35 @@ mod tests {
                 pose.point_to_world(link, surface.point_in_link[k]),
                 pose.world_from_link[link].transform_vector3(surface.inward_normal_in_link[k]),
             );
+            let mut fused = vec![0.0; 7];
+            PosedSurface {
+                torque_model: &TorqueModel::new(&robot, &pose, &links),
+                surface: &surface,
+            }
+            .unit_torques_into(k, &mut fused);
             for (j, d) in direct.iter().enumerate() {
+                assert!((fused[j] - d).abs() < 1e-12);
                 assert!(
                     (model.unit_torque(j, k) - d).abs() < 1e-12,
                     "point {k} joint {j}: {} vs {d}",
                     model.unit_torque(j, k)
                 );
             }
+        }
+        // The fused likelihood terms equal the stored model's.
+        let weights = [400.0, 100.0, 400.0, 25.0, 400.0, 100.0, 400.0];
+        let tau = [0.5, -1.2, 0.3, 0.8, -0.2, 0.1, 0.05];
+        let (mut a1, mut b1, mut a2, mut b2) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        model.quadratic_forms(&weights, &tau, &mut a1, &mut b1);
+        let tm = TorqueModel::new(&robot, &pose, &links);
+        PosedSurface {
+            torque_model: &tm,
+            surface: &surface,
+        }
+        .quadratic_forms(&weights, &tau, &mut a2, &mut b2);
+        for k in 0..surface.len() {
+            assert!((a1[k] - a2[k]).abs() <= 1e-12 * a1[k].abs().max(1.0));
+            assert!((b1[k] - b2[k]).abs() <= 1e-12 * b1[k].abs().max(1.0));
         }
     }
 }

@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use crate::core::contact::{ContactModel, PARALLEL_MIN_POINTS};
+use crate::core::contact::{PARALLEL_MIN_POINTS, UnitTorqueSource};
 use crate::core::phases::PhaseHierarchy;
 use crate::core::rng::Rng;
 use crate::core::special::ln_erf_difference;
@@ -191,8 +191,10 @@ const FAR_BELOW: f64 = 60.0;
 struct Quadratic<'a> {
     a: &'a [f64],
     b: &'a [f64],
-    c: &'a [f64],
-    norm: &'a [f64],
+    /// `c` shared by every point (the bare noise model)…
+    c: f64,
+    /// …or one per point, with its normaliser (resolution noise).
+    per_point: Option<(&'a [f64], &'a [f64])>,
     f_min: f64,
     f_max: f64,
 }
@@ -208,14 +210,24 @@ impl Quadratic<'_> {
         }
     }
 
+    /// Point k's `c` and normaliser.
+    fn c_norm(&self, k: usize) -> (f64, f64) {
+        match self.per_point {
+            None => (self.c, 0.0),
+            Some((c, norm)) => (c[k], norm[k]),
+        }
+    }
+
     /// Log-likelihood of magnitude f at point k: `-½ (c - 2 b f + a f²)`.
     fn log_likelihood(&self, k: usize, f: f64) -> f64 {
-        self.norm[k] - 0.5 * self.residual(k, f)
+        let (_, norm) = self.c_norm(k);
+        norm - 0.5 * self.residual(k, f)
     }
 
     /// `Σ w (τ - f u)²` at point k.
     fn residual(&self, k: usize, f: f64) -> f64 {
-        (self.c[k] - 2.0 * self.b[k] * f + self.a[k] * f * f).max(0.0)
+        let (c, _) = self.c_norm(k);
+        (c - 2.0 * self.b[k] * f + self.a[k] * f * f).max(0.0)
     }
 
     /// ln of the likelihood averaged over a uniform f in `[F_min, F_max]`,
@@ -240,7 +252,8 @@ impl Quadratic<'_> {
             return profile;
         }
         let mu = b / a;
-        self.norm[k] - 0.5 * (self.c[k] - b * mu).max(0.0)
+        let (c, norm) = self.c_norm(k);
+        norm - 0.5 * (c - b * mu).max(0.0)
             + 0.5 * (std::f64::consts::PI / (2.0 * a)).ln()
             + ln_erf_difference(s * (self.f_min - mu), s * (self.f_max - mu))
             - range.ln()
@@ -258,7 +271,7 @@ struct Scored {
 /// Estimates the contact from measured torques `tau` (N·m, sensed order).
 /// `hierarchy` is needed when `settings.phase_alpha` is set.
 pub fn estimate(
-    model: &ContactModel,
+    model: &impl UnitTorqueSource,
     tau: &[f64],
     settings: &EstimatorSettings,
     hierarchy: Option<&PhaseHierarchy>,
@@ -269,16 +282,15 @@ pub fn estimate(
     let no_contact_chi2: f64 = weights.iter().zip(tau).map(|(w, t)| w * t * t).sum();
     let (mut a, mut b) = (Vec::new(), Vec::new());
     model.quadratic_forms(&weights, tau, &mut a, &mut b);
-    let mut c = vec![no_contact_chi2; n];
-    let mut norm = vec![0.0; n];
+    let (mut c, mut norm) = (Vec::new(), Vec::new());
     if settings.resolution_m > 0.0 {
         add_resolution_noise(model, tau, settings, &mut a, &mut b, &mut c, &mut norm);
     }
     let q = Quadratic {
         a: &a,
         b: &b,
-        c: &c,
-        norm: &norm,
+        c: no_contact_chi2,
+        per_point: (settings.resolution_m > 0.0).then_some((c.as_slice(), norm.as_slice())),
         f_min: settings.force_min_newtons,
         f_max: settings.force_max_newtons,
     };
@@ -290,7 +302,69 @@ pub fn estimate(
     };
     let mut flags = vec![0u8; n];
     let mut phases = Vec::new();
-    let last: Vec<usize> = match (settings.phase_alpha, hierarchy) {
+    let last = search_phases(&q, settings, hierarchy, n, &mut rng, &mut flags, &mut phases)?;
+    let (scored, report) = evaluate(&q, &last, settings, n, &mut rng);
+    phases.push(report);
+
+    for &p in &last {
+        flags[p] |= phase_flag::C;
+    }
+    let total = log_sum_exp(scored.iter().map(|s| s.mass));
+    let (map_slot, best_mass) =
+        scored.iter().enumerate().fold(
+            (0, f64::NEG_INFINITY),
+            |(bi, bm), (i, s)| if s.mass > bm { (i, s.mass) } else { (bi, bm) },
+        );
+    // The smallest residual is among the likeliest points.
+    let best_residual_chi2 = last
+        .iter()
+        .zip(&scored)
+        .filter(|(_, s)| s.mass.is_finite() && s.mass >= best_mass - FAR_BELOW)
+        .map(|(&p, s)| q.residual(p, s.force))
+        .fold(f64::INFINITY, f64::min);
+    let (probability, display, log_likelihood, force_newtons) = if last.len() == n {
+        // A full search scores every point in order: no scatter needed.
+        (
+            scored.iter().map(|s| exp_or_zero(s.mass - total)).collect(),
+            scored.iter().map(|s| exp_or_zero(s.best - total)).collect(),
+            scored.iter().map(|s| s.mass).collect(),
+            scored.iter().map(|s| s.force).collect(),
+        )
+    } else {
+        let (mut p, mut d, mut l, mut f) = (vec![0.0; n], vec![0.0; n], vec![f64::NEG_INFINITY; n], vec![0.0; n]);
+        for (&k, s) in last.iter().zip(&scored) {
+            p[k] = exp_or_zero(s.mass - total);
+            d[k] = exp_or_zero(s.best - total);
+            l[k] = s.mass;
+            f[k] = s.force;
+        }
+        (p, d, l, f)
+    };
+    Ok(Posterior {
+        probability,
+        display,
+        log_likelihood,
+        force_newtons,
+        phases,
+        phase_flags: flags,
+        map_point: last.get(map_slot).copied().unwrap_or(0),
+        best_residual_chi2,
+        no_contact_chi2,
+    })
+}
+
+/// Runs phases A and B (when asked for) and returns the points of the
+/// last phase, marking phase membership in `flags`.
+fn search_phases(
+    q: &Quadratic,
+    settings: &EstimatorSettings,
+    hierarchy: Option<&PhaseHierarchy>,
+    n: usize,
+    rng: &mut Rng,
+    flags: &mut [u8],
+    phases: &mut Vec<PhaseReport>,
+) -> Result<Vec<usize>, EstimateError> {
+    Ok(match (settings.phase_alpha, hierarchy) {
         (None, _) => (0..n).collect(),
         (Some(_), None) => return Err(EstimateError::NoHierarchy),
         (Some(alpha), Some(h)) => {
@@ -306,7 +380,7 @@ pub fn estimate(
                     .map(|(p, _)| *p)
                     .collect::<Vec<usize>>()
             };
-            let (scored_a, report) = evaluate(&q, &h.a_points, settings, n, &mut rng);
+            let (scored_a, report) = evaluate(q, &h.a_points, settings, n, rng);
             phases.push(report);
             for &p in &h.a_points {
                 flags[p] |= phase_flag::A;
@@ -319,7 +393,7 @@ pub fn estimate(
                 .filter(|&bi| kept_a.contains(&h.a_of_b[bi]))
                 .map(|bi| h.b_points[bi])
                 .collect();
-            let (scored_b, report) = evaluate(&q, &b_set, settings, n, &mut rng);
+            let (scored_b, report) = evaluate(q, &b_set, settings, n, rng);
             phases.push(report);
             for &p in &b_set {
                 flags[p] |= phase_flag::B;
@@ -328,52 +402,24 @@ pub fn estimate(
                 keep(&b_set, &scored_b).iter().map(|p| h.b_of_point[*p]).collect();
             (0..n).filter(|p| kept_b.contains(&h.b_of_point[*p])).collect()
         }
-    };
-    let (scored, report) = evaluate(&q, &last, settings, n, &mut rng);
-    phases.push(report);
-
-    let mut posterior = Posterior {
-        probability: vec![0.0; n],
-        display: vec![0.0; n],
-        log_likelihood: vec![f64::NEG_INFINITY; n],
-        force_newtons: vec![0.0; n],
-        phases,
-        phase_flags: flags,
-        map_point: 0,
-        best_residual_chi2: f64::INFINITY,
-        no_contact_chi2,
-    };
-    let total = log_sum_exp(scored.iter().map(|s| s.mass));
-    let mut best = (f64::NEG_INFINITY, 0);
-    for (&p, s) in last.iter().zip(&scored) {
-        posterior.phase_flags[p] |= phase_flag::C;
-        posterior.log_likelihood[p] = s.mass;
-        posterior.probability[p] = exp_or_zero(s.mass - total);
-        posterior.display[p] = exp_or_zero(s.best - total);
-        posterior.force_newtons[p] = s.force;
-        if s.mass > best.0 {
-            best = (s.mass, p);
-        }
-        if s.mass.is_finite() {
-            posterior.best_residual_chi2 = posterior.best_residual_chi2.min(q.residual(p, s.force));
-        }
-    }
-    posterior.map_point = best.1;
-    Ok(posterior)
+    })
 }
 
 /// Replaces each point's weights `1/σ²` by `1/(σ² + (f* ρ)²)`, with f*
 /// the point's best magnitude under the bare noise, and adds the matching
 /// normaliser `-½ Σ ln(1 + (f* ρ)²/σ²)`.
 fn add_resolution_noise(
-    model: &ContactModel,
+    model: &impl UnitTorqueSource,
     tau: &[f64],
     settings: &EstimatorSettings,
     a: &mut [f64],
     b: &mut [f64],
-    c: &mut [f64],
-    norm: &mut [f64],
+    c: &mut Vec<f64>,
+    norm: &mut Vec<f64>,
 ) {
+    c.resize(model.points(), 0.0);
+    norm.resize(model.points(), 0.0);
+    let mut u = vec![0.0; model.joints()];
     let (f_min, f_max) = (settings.force_min_newtons, settings.force_max_newtons);
     let variance: Vec<f64> = settings.sigma.iter().map(|s| s * s).collect();
     for k in 0..model.points() {
@@ -384,9 +430,9 @@ fn add_resolution_noise(
         };
         let extra = (f_star * settings.resolution_m).powi(2);
         let (mut ak, mut bk, mut ck, mut nk) = (0.0, 0.0, 0.0, 0.0);
-        for (j, (v, t)) in variance.iter().zip(tau).enumerate() {
+        model.unit_torques_into(k, &mut u);
+        for ((v, t), u) in variance.iter().zip(tau).zip(&u) {
             let w = 1.0 / (v + extra);
-            let u = model.unit_torque(j, k);
             ak += w * u * u;
             bk += w * u * t;
             ck += w * t * t;
@@ -399,7 +445,7 @@ fn add_resolution_noise(
     }
 }
 
-fn validate(model: &ContactModel, tau: &[f64], settings: &EstimatorSettings) -> Result<(), EstimateError> {
+fn validate(model: &impl UnitTorqueSource, tau: &[f64], settings: &EstimatorSettings) -> Result<(), EstimateError> {
     let joints = model.joints();
     if tau.len() != joints {
         return Err(EstimateError::WrongTorqueCount {
@@ -595,6 +641,7 @@ fn log_sum_exp(values: impl Iterator<Item = f64> + Clone) -> f64 {
 mod tests {
     use super::*;
     use crate::core::builtin;
+    use crate::core::contact::ContactModel;
     use crate::core::kinematics::RobotPose;
     use crate::core::robot::Robot;
     use crate::core::summary::{Verdict, summarize};
@@ -638,8 +685,8 @@ mod tests {
             let q = Quadratic {
                 a: &av,
                 b: &bv,
-                c: &[c],
-                norm: &[0.0],
+                c,
+                per_point: None,
                 f_min,
                 f_max,
             };
@@ -656,8 +703,8 @@ mod tests {
         let q = Quadratic {
             a: &av,
             b: &bv,
-            c: &[10.0],
-            norm: &[0.0],
+            c: 10.0,
+            per_point: None,
             f_min: 2.0,
             f_max: 2.0,
         };

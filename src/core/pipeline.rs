@@ -2,7 +2,7 @@
 //! built once (they live in link frames), then each measurement is an
 //! update at its own configuration.
 
-use crate::core::contact::ContactModel;
+use crate::core::contact::{PosedSurface, UnitTorqueSource as _};
 use crate::core::estimator::{EstimateError, EstimatorSettings, Posterior, estimate};
 use crate::core::kinematics::RobotPose;
 use crate::core::phases::PhaseHierarchy;
@@ -64,9 +64,13 @@ impl Estimator {
     /// (every joint's, see [`Robot::joint_positions`]).
     pub fn update(&self, robot: &Robot, joint_positions: &[f64], tau: &[f64]) -> Result<Update, EstimateError> {
         let pose = RobotPose::new(robot, joint_positions);
-        let model = ContactModel::new(&TorqueModel::new(robot, &pose, &self.links), &self.surface);
-        let posterior = estimate(&model, tau, &self.settings, self.hierarchy.as_ref())?;
-        let summary = summarize(&posterior, &self.surface, &pose, model.joints());
+        let torque_model = TorqueModel::new(robot, &pose, &self.links);
+        let posed = PosedSurface {
+            torque_model: &torque_model,
+            surface: &self.surface,
+        };
+        let posterior = estimate(&posed, tau, &self.settings, self.hierarchy.as_ref())?;
+        let summary = summarize(&posterior, &self.surface, &pose, posed.joints());
         Ok(Update {
             pose,
             posterior,

@@ -73,6 +73,12 @@ pub struct Surface {
     pub point_in_link: Vec<DVec3>,
     /// Inward unit normal in the link frame: the direction of a push.
     pub inward_normal_in_link: Vec<DVec3>,
+    /// `point × normal` in the link frame: the moment of a unit push about
+    /// the link origin, precomputed because every update needs it.
+    pub moment_in_link: Vec<DVec3>,
+    /// The push lines `(moment, normal)` as six plain arrays (`mx, my, mz,
+    /// nx, ny, nz`), so that per-point loops vectorise.
+    pub push_lines: [Vec<f64>; 6],
     /// Area represented by the sample, m² (m of length on a segment link).
     pub area_m2: Vec<f64>,
     /// Per sampled link, in the order of [`SurfaceRequest::links`] sorted.
@@ -204,6 +210,16 @@ impl Surface {
                 surface.link.push(p.link());
                 surface.point_in_link.push(cands.points[i]);
                 surface.inward_normal_in_link.push(cands.inward_normals[i]);
+                let moment = cands.points[i].cross(cands.inward_normals[i]);
+                let normal = cands.inward_normals[i];
+                surface.moment_in_link.push(moment);
+                for (column, value) in surface
+                    .push_lines
+                    .iter_mut()
+                    .zip([moment.x, moment.y, moment.z, normal.x, normal.y, normal.z])
+                {
+                    column.push(value);
+                }
                 surface.area_m2.push(weight);
             }
             cands.stats.kept = kept.len();
