@@ -99,11 +99,16 @@ impl UnitTorqueSource for PosedSurface<'_> {
         }
         let [mx, my, mz, nx, ny, nz] = &surface.push_lines;
         let run = |range: std::ops::Range<usize>, twists: &[Weighted], a: &mut [f64], b: &mut [f64]| {
-            let (mx, my, mz) = (&mx[range.clone()], &my[range.clone()], &mz[range.clone()]);
-            let (nx, ny, nz) = (&nx[range.clone()], &ny[range.clone()], &nz[range]);
+            // Every slice exactly `len` long: the loop then has no bounds
+            // checks and vectorises.
+            let len = a.len().min(b.len()).min(range.len());
+            let (a, b) = (&mut a[..len], &mut b[..len]);
+            let at = range.start..range.start + len;
+            let (mx, my, mz) = (&mx[at.clone()], &my[at.clone()], &mz[at.clone()]);
+            let (nx, ny, nz) = (&nx[at.clone()], &ny[at.clone()], &nz[at]);
             for t in twists {
                 let (w, v) = (t.twist.w, t.twist.v);
-                for k in 0..a.len().min(mx.len()) {
+                for k in 0..len {
                     let u = w.x * mx[k] + w.y * my[k] + w.z * mz[k] + v.x * nx[k] + v.y * ny[k] + v.z * nz[k];
                     a[k] += t.w * u * u;
                     b[k] += t.wt * u;
