@@ -10,6 +10,7 @@ pub mod kinematics;
 pub mod mesh;
 pub mod metrics;
 pub mod phases;
+pub mod picking;
 pub mod pipeline;
 pub mod primitives;
 pub mod rng;
