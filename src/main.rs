@@ -33,6 +33,11 @@ enum Command {
     /// Joint torques of a push: from a scene file, or from --robot, --q,
     /// --link, --point and --force (world frame, SI).
     Torques(TorquesArgs),
+    /// Opens the desktop app on a scene file, a URDF or a built-in robot.
+    View {
+        /// A scene (`.json`), a URDF, or `lwr4plus` / `simple6`.
+        target: String,
+    },
     /// Estimates the contact in every frame of a recorded session.
     Estimate(cli::estimate::EstimateArgs),
     /// Speed against accuracy of estimator configurations (table and PNG plot).
@@ -116,12 +121,8 @@ fn main() -> Result<()> {
         Some(Command::RobotInfo { robot, package_paths }) => robot_info(&robot, package_paths),
         Some(Command::Surface { scene, points }) => surface(&scene, points),
         Some(Command::ExportAssets { root }) => export_assets(&root),
-        None => {
-            println!(
-                "The desktop app is not built yet. Headless commands: proprioscope torques, robot-info, export-assets (see --help)."
-            );
-            Ok(())
-        }
+        Some(Command::View { target }) => run_app(Some(&target)),
+        None => run_app(None),
     }
 }
 
@@ -335,6 +336,49 @@ fn surface(path: &Path, points: Option<usize>) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Opens the app: on the built-in LWR with a push, or on `target`.
+fn run_app(target: Option<&str>) -> Result<()> {
+    use proprioscope::app::{ProprioscopeApp, Push};
+    let (robot, q, push) = match target {
+        None => {
+            let robot = load_robot("lwr4plus", Path::new("."), &UrdfOptions::default())?;
+            let (q, push) = ProprioscopeApp::default_scene(&robot);
+            (robot, q, push)
+        }
+        Some(t) if t.to_ascii_lowercase().ends_with(".json") => {
+            let path = Path::new(t);
+            let loaded = Scene::read(path)?.load(path)?;
+            let push = loaded.push.and_then(|p| {
+                let frame = loaded.pose.world_from_link[p.link].inverse();
+                Some(Push {
+                    link: p.link,
+                    point_in_link: frame.transform_point3(p.point_world),
+                    inward_normal_in_link: frame.transform_vector3(p.force_world.try_normalize()?),
+                    force_newtons: p.force_world.length(),
+                })
+            });
+            (loaded.robot, loaded.scene.q.clone(), push)
+        }
+        Some(t) => {
+            let robot = load_robot(t, Path::new("."), &UrdfOptions::default())?;
+            let q = vec![0.0; robot.sensed().len()];
+            (robot, q, None)
+        }
+    };
+    let options = eframe::NativeOptions {
+        viewport: eframe::egui::ViewportBuilder::default()
+            .with_inner_size([1400.0, 900.0])
+            .with_title("Proprioscope"),
+        ..eframe::NativeOptions::default()
+    };
+    eframe::run_native(
+        "Proprioscope",
+        options,
+        Box::new(move |cc| Ok(Box::new(ProprioscopeApp::new(cc, robot, q, push)))),
+    )
+    .map_err(|e| anyhow::anyhow!("the window could not be opened: {e}"))
 }
 
 fn export_assets(root: &Path) -> Result<()> {

@@ -1,1 +1,644 @@
-//! The desktop app (eframe/egui): arrives with the app issue.
+//! The desktop app (eframe/egui): a 3-D view of the robot, joint sliders,
+//! click to push, the torques it causes and the live posterior heatmap.
+//! The only place where egui, `render` and `io` meet.
+
+pub mod worker;
+
+use std::sync::Arc;
+
+use eframe::egui;
+use glam::{DVec3, Vec2};
+
+use crate::core::estimator::{EstimatorSettings, Mode};
+use crate::core::kinematics::RobotPose;
+use crate::core::picking::Picker;
+use crate::core::robot::{LinkId, Robot};
+use crate::core::summary::Verdict;
+use crate::core::surface::SurfaceRequest;
+use crate::core::torque::{joint_torques, with_sensor_noise};
+use crate::render::camera::OrbitCamera;
+use crate::render::renderer::{Frame, Renderer};
+use crate::render::scene::{ROBOT_GREY, arrow, grid_and_axes, robot_triangles, viridis};
+use worker::{Outcome, Request, Worker};
+
+/// Log-likelihood range shown by the heatmap, from yellow (the best) to
+/// purple (e^-20 ≈ 2e-9 of it, and less).
+const HEAT_DEPTH: f64 = 20.0;
+
+/// A push on the robot, kept in the link frame so that it moves with the arm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Push {
+    /// The link pushed.
+    pub link: LinkId,
+    /// Contact point in the link frame, m.
+    pub point_in_link: DVec3,
+    /// Inward unit normal in the link frame: the push's direction.
+    pub inward_normal_in_link: DVec3,
+    /// Magnitude, N.
+    pub force_newtons: f64,
+}
+
+/// Everything the user can change; changed only by [`Command`]s.
+#[derive(Debug, Clone)]
+pub struct Model {
+    /// The robot.
+    pub robot: Arc<Robot>,
+    /// Sensed joint positions, rad.
+    pub q: Vec<f64>,
+    /// The applied push.
+    pub push: Option<Push>,
+    /// Likelihood σ, N·m.
+    pub sigma: f64,
+    /// Surface points over the candidate links.
+    pub surface_points: usize,
+    /// Sensor noise added to the push's torques, N·m.
+    pub noise_sigma: f64,
+    /// Seed of that noise.
+    pub noise_seed: u64,
+}
+
+/// A change to the [`Model`], sent by the UI and applied in one place.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Command {
+    /// Set sensed joint `index` to a position, rad.
+    SetJoint(usize, f64),
+    /// Every joint to 0.
+    ZeroJoints,
+    /// Apply a push.
+    Push(Push),
+    /// Set the push's magnitude, N.
+    SetForce(f64),
+    /// Remove the push.
+    ClearPush,
+    /// Set the likelihood σ, N·m.
+    SetSigma(f64),
+    /// Set the surface resolution.
+    SetSurfacePoints(usize),
+    /// Set the sensor noise, N·m.
+    SetNoise(f64),
+}
+
+impl Model {
+    /// Applies a command; true when something changed.
+    pub fn apply(&mut self, command: Command) -> bool {
+        let before = (
+            self.q.clone(),
+            self.push,
+            self.sigma,
+            self.surface_points,
+            self.noise_sigma,
+        );
+        match command {
+            Command::SetJoint(i, value) => {
+                if let Some(q) = self.q.get_mut(i) {
+                    *q = value;
+                }
+            }
+            Command::ZeroJoints => self.q.iter_mut().for_each(|q| *q = 0.0),
+            Command::Push(push) => self.push = Some(push),
+            Command::SetForce(f) => {
+                if let Some(p) = self.push.as_mut() {
+                    p.force_newtons = f.max(0.0);
+                }
+            }
+            Command::ClearPush => self.push = None,
+            Command::SetSigma(s) => self.sigma = s.max(1e-6),
+            Command::SetSurfacePoints(n) => self.surface_points = n.max(10),
+            Command::SetNoise(s) => self.noise_sigma = s.max(0.0),
+        }
+        before
+            != (
+                self.q.clone(),
+                self.push,
+                self.sigma,
+                self.surface_points,
+                self.noise_sigma,
+            )
+    }
+
+    /// Every joint's position.
+    #[must_use]
+    pub fn joint_positions(&self) -> Vec<f64> {
+        self.robot
+            .joint_positions(&self.q, &[])
+            .unwrap_or_else(|_| vec![0.0; self.robot.joints.len()])
+    }
+
+    /// The push in the world: (point, force).
+    #[must_use]
+    pub fn push_world(&self, pose: &RobotPose) -> Option<(LinkId, DVec3, DVec3)> {
+        let p = self.push?;
+        let frame = pose.world_from_link[p.link];
+        Some((
+            p.link,
+            frame.transform_point3(p.point_in_link),
+            frame.transform_vector3(p.inward_normal_in_link) * p.force_newtons,
+        ))
+    }
+
+    /// Exact torques of the push (zeros without one).
+    #[must_use]
+    pub fn applied_torques(&self, pose: &RobotPose) -> Vec<f64> {
+        match self.push_world(pose) {
+            Some((link, point, force)) => joint_torques(&self.robot, pose, link, point, force),
+            None => vec![0.0; self.robot.sensed().len()],
+        }
+    }
+}
+
+/// The app.
+pub struct ProprioscopeApp {
+    /// The user's model.
+    pub model: Model,
+    camera: OrbitCamera,
+    picker: Picker,
+    worker: Worker,
+    generation: u64,
+    /// The latest estimate shown.
+    pub outcome: Option<Outcome>,
+    renderer: Option<Renderer>,
+    texture: Option<egui::TextureId>,
+    view_rect: Option<egui::Rect>,
+    status: String,
+}
+
+impl ProprioscopeApp {
+    /// The app on `robot` at `q`, with an optional push, ready to draw.
+    #[must_use]
+    pub fn new(cc: &eframe::CreationContext<'_>, robot: Robot, q: Vec<f64>, push: Option<Push>) -> Self {
+        let ctx = cc.egui_ctx.clone();
+        let renderer = cc
+            .wgpu_render_state
+            .as_ref()
+            .map(|state| Renderer::new(&state.device, [640, 480]));
+        let picker = Picker::new(&robot);
+        let mut app = Self {
+            model: Model {
+                robot: Arc::new(robot),
+                q,
+                push,
+                sigma: 0.1,
+                surface_points: 5000,
+                noise_sigma: 0.05,
+                noise_seed: 1,
+            },
+            camera: OrbitCamera::default(),
+            picker,
+            worker: Worker::spawn(move || ctx.request_repaint()),
+            generation: 0,
+            outcome: None,
+            renderer,
+            texture: None,
+            view_rect: None,
+            status: String::new(),
+        };
+        app.request_estimate();
+        app
+    }
+
+    /// The built-in LWR in a bent pose with a push on its upper arm (link
+    /// 3, which only three joints sense: the posterior shows a band of
+    /// equally good contacts, the point of the method).
+    #[must_use]
+    pub fn default_scene(robot: &Robot) -> (Vec<f64>, Option<Push>) {
+        let q = vec![0.3, 0.6, -0.4, -1.2, 0.5, 0.9, 0.2];
+        let positions = robot.joint_positions(&q, &[]).unwrap_or_default();
+        let pose = RobotPose::new(robot, &positions);
+        let picker = Picker::new(robot);
+        let push = robot.link_id("lwr_3_link").ok().and_then(|l3| {
+            let centre = pose.point_to_world(l3, DVec3::new(0.0, 0.0, 0.1));
+            let origin = centre + DVec3::new(1.0, 0.6, 0.1);
+            picker
+                .pick(robot, &pose, origin, centre - origin, &[l3])
+                .map(|hit| Push {
+                    link: hit.link,
+                    point_in_link: hit.point_in_link,
+                    inward_normal_in_link: pose.world_from_link[hit.link]
+                        .inverse()
+                        .transform_vector3(hit.inward_normal_world),
+                    force_newtons: 15.0,
+                })
+        });
+        (q, push)
+    }
+
+    /// Applies a command and, if it changed the model, re-estimates.
+    pub fn apply(&mut self, command: Command) {
+        if self.model.apply(command) {
+            self.request_estimate();
+        }
+    }
+
+    fn request_estimate(&mut self) {
+        let positions = self.model.joint_positions();
+        let pose = RobotPose::new(&self.model.robot, &positions);
+        let tau = with_sensor_noise(
+            &self.model.applied_torques(&pose),
+            self.model.noise_sigma,
+            self.model.noise_seed,
+        );
+        self.generation += 1;
+        self.worker.request(Request {
+            generation: self.generation,
+            robot: self.model.robot.clone(),
+            joint_positions: positions,
+            tau,
+            surface: SurfaceRequest {
+                links: self.model.robot.default_candidate_links(),
+                total_points: self.model.surface_points,
+                seed: 0,
+            },
+            settings: EstimatorSettings {
+                sigma: vec![self.model.sigma; self.model.robot.sensed().len()],
+                force_min_newtons: 1.0,
+                force_max_newtons: 30.0,
+                mode: Mode::Exact,
+                phase_alpha: None,
+                resolution_m: 0.0,
+            },
+        });
+    }
+
+    /// Where a link's origin region appears in the window (the centre of
+    /// its sampled surface, projected), for tests and tours.
+    #[must_use]
+    pub fn pixel_of_link(&self, name: &str) -> Option<egui::Pos2> {
+        let link = self.model.robot.link_id(name).ok()?;
+        let positions = self.model.joint_positions();
+        let pose = RobotPose::new(&self.model.robot, &positions);
+        let rect = self.view_rect?;
+        let mesh = &self.model.robot.links[link].mesh;
+        let (lo, hi) = mesh.bounds()?;
+        let centre = pose.point_to_world(link, 0.5 * (lo + hi));
+        // Aim at the centre, then walk towards the eye until the ray hits this link.
+        let size = Vec2::new(rect.width(), rect.height());
+        let pixel = self.camera.project(centre.as_vec3(), size)?;
+        let (origin, dir) = self.camera.ray(pixel, size);
+        let hit = self
+            .picker
+            .pick(&self.model.robot, &pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
+        (hit.link == link).then(|| rect.min + egui::vec2(pixel.x, pixel.y))
+    }
+
+    /// The newest estimate for the current model has arrived.
+    #[must_use]
+    pub fn is_up_to_date(&self) -> bool {
+        self.outcome.as_ref().is_some_and(|o| o.generation == self.generation)
+    }
+
+    fn robot_panel_ui(&mut self, ui: &mut egui::Ui) -> Vec<Command> {
+        let mut commands = Vec::new();
+        ui.heading(&self.model.robot.name);
+        ui.label("Joints (degrees)");
+        for (i, &j) in self.model.robot.sensed().iter().enumerate() {
+            let joint = &self.model.robot.joints[j];
+            let (lo, hi) = joint
+                .limits
+                .map_or((-180.0, 180.0), |l| (l.lower.to_degrees(), l.upper.to_degrees()));
+            let mut deg = self.model.q[i].to_degrees();
+            if ui.add(egui::Slider::new(&mut deg, lo..=hi).text(&joint.name)).changed() {
+                commands.push(Command::SetJoint(i, deg.to_radians()));
+            }
+        }
+        if ui.button("Zero pose").clicked() {
+            commands.push(Command::ZeroJoints);
+        }
+        ui.separator();
+        ui.label("Push (click the arm)");
+        match self.model.push {
+            Some(p) => {
+                let mut f = p.force_newtons;
+                if ui
+                    .add(egui::Slider::new(&mut f, 0.0..=30.0).text("force [N]"))
+                    .changed()
+                {
+                    commands.push(Command::SetForce(f));
+                }
+                ui.label(format!("on {}", self.model.robot.links[p.link].name));
+                if ui.button("Clear push").clicked() {
+                    commands.push(Command::ClearPush);
+                }
+            }
+            None => {
+                ui.label("none");
+            }
+        }
+        let mut noise = self.model.noise_sigma;
+        if ui
+            .add(egui::Slider::new(&mut noise, 0.0..=0.5).text("sensor noise σ [N·m]"))
+            .changed()
+        {
+            commands.push(Command::SetNoise(noise));
+        }
+        commands
+    }
+
+    fn estimator_panel_ui(&mut self, ui: &mut egui::Ui) -> Vec<Command> {
+        let mut commands = Vec::new();
+        ui.heading("Estimator");
+        let mut sigma = self.model.sigma;
+        if ui
+            .add(
+                egui::Slider::new(&mut sigma, 0.005..=1.0)
+                    .logarithmic(true)
+                    .text("σ [N·m]"),
+            )
+            .changed()
+        {
+            commands.push(Command::SetSigma(sigma));
+        }
+        let mut points = self.model.surface_points;
+        if ui
+            .add(
+                egui::Slider::new(&mut points, 200..=50_000)
+                    .logarithmic(true)
+                    .text("N (surface points)"),
+            )
+            .changed()
+        {
+            commands.push(Command::SetSurfacePoints(points));
+        }
+        ui.separator();
+        match &self.outcome {
+            Some(o) => match &o.update {
+                Ok(u) => {
+                    let s = &u.summary;
+                    ui.label(format!(
+                        "update: {:.2} ms ({:.0} Hz)",
+                        o.update_ms,
+                        1e3 / o.update_ms.max(1e-3)
+                    ));
+                    ui.label(match s.verdict {
+                        Verdict::Contact => "contact".to_owned(),
+                        Verdict::NoContact => "no contact: torques within noise".to_owned(),
+                        Verdict::PoorFit => "no candidate explains these torques".to_owned(),
+                    });
+                    ui.label(format!(
+                        "most probable: {} ({:.1} %), {:.1} N",
+                        self.model.robot.links[s.map.link].name,
+                        s.map.probability * 100.0,
+                        s.map.force_newtons
+                    ));
+                    ui.label(format!(
+                        "90 % credible set: {} points, radius {:.0} mm",
+                        s.credible90.points.len(),
+                        s.credible90.radius_m * 1e3
+                    ));
+                    let positions = self.model.joint_positions();
+                    let pose = RobotPose::new(&self.model.robot, &positions);
+                    if let Some((_, point, force)) = self.model.push_world(&pose) {
+                        ui.label(format!(
+                            "error: {:.0} mm, {:.1} N",
+                            s.map.point_world.distance(point) * 1e3,
+                            s.map.force_world.distance(force)
+                        ));
+                    }
+                    ui.separator();
+                    ui.label("Probability per link (summed)");
+                    for share in &s.per_link {
+                        ui.add(egui::ProgressBar::new(share.summed as f32).text(format!(
+                            "{} {:.1} %",
+                            self.model.robot.links[share.link].name,
+                            share.summed * 100.0
+                        )));
+                    }
+                }
+                Err(e) => {
+                    ui.colored_label(egui::Color32::LIGHT_RED, e);
+                }
+            },
+            None => {
+                ui.label("estimating…");
+            }
+        }
+        commands
+    }
+
+    fn torques_ui(&self, ui: &mut egui::Ui) {
+        use egui_plot::{Bar, BarChart, Legend, Plot};
+        let positions = self.model.joint_positions();
+        let pose = RobotPose::new(&self.model.robot, &positions);
+        let applied = self.model.applied_torques(&pose);
+        let measured = with_sensor_noise(&applied, self.model.noise_sigma, self.model.noise_seed);
+        let explained: Option<Vec<f64>> = self.outcome.as_ref().and_then(|o| o.update.as_ref().ok()).map(|u| {
+            let m = u.summary.map;
+            joint_torques(&self.model.robot, &pose, m.link, m.point_world, m.force_world)
+        });
+        let path = self
+            .model
+            .push
+            .map(|p| self.model.robot.path_joints(p.link))
+            .unwrap_or_default();
+        let bars = |values: &[f64], offset: f64, colour: egui::Color32| -> Vec<Bar> {
+            values
+                .iter()
+                .enumerate()
+                .map(|(i, v)| {
+                    let senses = self.model.robot.sensed().get(i).is_some_and(|j| path.contains(j));
+                    Bar::new(i as f64 + 1.0 + offset, *v).width(0.25).fill(if senses {
+                        colour
+                    } else {
+                        colour.gamma_multiply(0.3)
+                    })
+                })
+                .collect()
+        };
+        Plot::new("torques")
+            .legend(Legend::default())
+            .height(ui.available_height().max(120.0))
+            .show(ui, |plot| {
+                let series = [
+                    ("applied", Some(&applied), -0.27, egui::Color32::from_rgb(90, 140, 230)),
+                    ("measured", Some(&measured), 0.0, egui::Color32::from_rgb(230, 160, 60)),
+                    (
+                        "explained by the estimate",
+                        explained.as_ref(),
+                        0.27,
+                        egui::Color32::from_rgb(110, 200, 120),
+                    ),
+                ];
+                for (name, values, offset, colour) in series {
+                    if let Some(values) = values {
+                        plot.bar_chart(BarChart::new(name, bars(values, offset, colour)).color(colour));
+                    }
+                }
+            });
+    }
+
+    /// The posed robot with its heatmap, the push and the estimate.
+    fn scene_frame(&self) -> Frame {
+        let positions = self.model.joint_positions();
+        let pose = RobotPose::new(&self.model.robot, &positions);
+        let mut frame = Frame::default();
+        let heat = self
+            .outcome
+            .as_ref()
+            .and_then(|o| o.update.as_ref().ok().map(|u| (o, u)));
+        let top = heat.map_or(f64::NEG_INFINITY, |(_, u)| {
+            u.posterior
+                .log_likelihood
+                .iter()
+                .copied()
+                .fold(f64::NEG_INFINITY, f64::max)
+        });
+        // Log scale: the best point is yellow, e^-HEAT_DEPTH of it and less purple.
+        let color = |link: LinkId, vertex: usize| -> [f32; 4] {
+            let Some((o, u)) = heat else { return ROBOT_GREY };
+            match o.nearest.get(link).and_then(|v| v.get(vertex)).copied().flatten() {
+                Some(k) if top.is_finite() => {
+                    viridis((1.0 + (u.posterior.log_likelihood[k] - top) / HEAT_DEPTH) as f32)
+                }
+                _ => ROBOT_GREY,
+            }
+        };
+        robot_triangles(&self.model.robot, &pose, &color, &mut frame.triangles);
+        grid_and_axes(1.0, 0.1, &mut frame.lines);
+        if let Some((_, point, force)) = self.model.push_world(&pose) {
+            arrow(
+                &mut frame.lines,
+                point,
+                force,
+                0.02 * force.length().max(1.0),
+                [1.0, 0.35, 0.25, 1.0],
+            );
+        }
+        if let Some((_, u)) = heat {
+            let m = u.summary.map;
+            arrow(
+                &mut frame.lines,
+                m.point_world,
+                m.force_world,
+                0.02 * m.force_newtons.max(1.0),
+                [0.3, 1.0, 0.5, 1.0],
+            );
+        }
+        frame
+    }
+
+    fn view_ui(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) -> Vec<Command> {
+        let mut commands = Vec::new();
+        let rect = ui.available_rect_before_wrap();
+        self.view_rect = Some(rect);
+        let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+        let size = Vec2::new(rect.width(), rect.height());
+        if response.dragged_by(egui::PointerButton::Primary) {
+            let d = response.drag_delta();
+            self.camera.orbit(Vec2::new(d.x, d.y));
+        }
+        if response.dragged_by(egui::PointerButton::Secondary) || response.dragged_by(egui::PointerButton::Middle) {
+            let d = response.drag_delta();
+            self.camera.pan(Vec2::new(d.x, d.y), size);
+        }
+        if let Some(hover) = response.hover_pos() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                let local = hover - rect.min;
+                self.camera
+                    .zoom_towards((-scroll * 0.002).exp(), Vec2::new(local.x, local.y), size);
+            }
+        }
+        if ui.input(|i| i.key_pressed(egui::Key::R)) {
+            self.camera = OrbitCamera::default();
+        }
+        let pick_at = |pos: egui::Pos2, camera: &OrbitCamera| {
+            let local = pos - rect.min;
+            let (origin, dir) = camera.ray(Vec2::new(local.x, local.y), size);
+            let positions = self.model.joint_positions();
+            let pose = RobotPose::new(&self.model.robot, &positions);
+            self.picker
+                .pick(&self.model.robot, &pose, origin.as_dvec3(), dir.as_dvec3(), &[])
+                .map(|hit| (hit, pose))
+        };
+        if response.double_clicked() {
+            if let Some((hit, _)) = response.interact_pointer_pos().and_then(|p| pick_at(p, &self.camera)) {
+                self.camera.centre_on(hit.point_world.as_vec3());
+            }
+        } else if response.clicked()
+            && let Some((hit, pose)) = response.interact_pointer_pos().and_then(|p| pick_at(p, &self.camera))
+        {
+            let force = self.model.push.map_or(15.0, |p| p.force_newtons);
+            commands.push(Command::Push(Push {
+                link: hit.link,
+                point_in_link: hit.point_in_link,
+                inward_normal_in_link: pose.world_from_link[hit.link]
+                    .inverse()
+                    .transform_vector3(hit.inward_normal_world),
+                force_newtons: force,
+            }));
+        }
+        let pixels = rect.size() * ui.ctx().pixels_per_point();
+        let scene = self.scene_frame();
+        match (frame.wgpu_render_state(), self.renderer.as_mut()) {
+            (Some(state), Some(renderer)) => {
+                let resized = renderer.resize(&state.device, [pixels.x.round() as u32, pixels.y.round() as u32]);
+                renderer.render(&state.device, &state.queue, &self.camera, &scene);
+                let mut egui_renderer = state.renderer.write();
+                match self.texture {
+                    None => {
+                        self.texture = Some(egui_renderer.register_native_texture(
+                            &state.device,
+                            renderer.color_view(),
+                            wgpu::FilterMode::Linear,
+                        ));
+                    }
+                    Some(id) if resized => {
+                        egui_renderer.update_egui_texture_from_wgpu_texture(
+                            &state.device,
+                            renderer.color_view(),
+                            wgpu::FilterMode::Linear,
+                            id,
+                        );
+                    }
+                    Some(_) => {}
+                }
+                if let Some(id) = self.texture {
+                    let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+                    ui.painter().image(id, rect, uv, egui::Color32::WHITE);
+                }
+            }
+            _ => {
+                ui.painter().text(
+                    rect.center(),
+                    egui::Align2::CENTER_CENTER,
+                    "no GPU renderer",
+                    egui::FontId::default(),
+                    egui::Color32::GRAY,
+                );
+            }
+        }
+        if !self.status.is_empty() {
+            ui.painter().text(
+                rect.left_top() + egui::vec2(8.0, 8.0),
+                egui::Align2::LEFT_TOP,
+                &self.status,
+                egui::FontId::default(),
+                egui::Color32::LIGHT_GRAY,
+            );
+        }
+        commands
+    }
+}
+
+impl eframe::App for ProprioscopeApp {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        if let Some(outcome) = self.worker.latest() {
+            self.outcome = Some(outcome);
+        }
+        self.status = if self.is_up_to_date() {
+            String::new()
+        } else {
+            "estimating…".to_owned()
+        };
+        let mut commands = Vec::new();
+        egui::Panel::left("robot").show(ui, |ui| commands.extend(self.robot_panel_ui(ui)));
+        egui::Panel::right("estimator").show(ui, |ui| commands.extend(self.estimator_panel_ui(ui)));
+        egui::Panel::bottom("torques").resizable(true).show(ui, |ui| {
+            ui.label("Joint torques [N·m]: applied, measured, explained by the estimate (faded: the joint cannot sense the push)");
+            self.torques_ui(ui);
+        });
+        egui::CentralPanel::default().show(ui, |ui| commands.extend(self.view_ui(ui, frame)));
+        for command in commands {
+            self.apply(command);
+        }
+    }
+}

@@ -61,6 +61,16 @@ impl TriMesh {
         ])
     }
 
+    /// Corners of a triangle given by its indices; `None` if one is out of range.
+    #[must_use]
+    pub fn corners_of(&self, t: &[u32; 3]) -> Option<[DVec3; 3]> {
+        Some([
+            *self.positions.get(t[0] as usize)?,
+            *self.positions.get(t[1] as usize)?,
+            *self.positions.get(t[2] as usize)?,
+        ])
+    }
+
     /// Iterator over all triangles' corners (triangles with bad indices are skipped).
     pub fn triangle_corners(&self) -> impl Iterator<Item = [DVec3; 3]> + '_ {
         (0..self.triangles.len()).filter_map(|i| self.corners(i))

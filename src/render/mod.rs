@@ -1,4 +1,7 @@
-//! 3-D rendering for the app: camera math now; wgpu pipelines arrive with
-//! the view. f32 at this boundary.
+//! 3-D rendering for the app: the camera and an offscreen wgpu renderer
+//! (pipelines built once, plain vertex data per frame). f32 at this
+//! boundary; no egui here.
 
 pub mod camera;
+pub mod renderer;
+pub mod scene;

@@ -1,0 +1,104 @@
+//! The desktop app driven headless (`egui_kittest`, wgpu on Mesa's software
+//! Vulkan): widgets found by label, clicks on the 3-D view, snapshots.
+
+// Test helpers may unwrap: a panic is a failed test with its message.
+#![allow(clippy::unwrap_used)]
+
+use std::path::Path;
+use std::time::Duration;
+
+use eframe::egui;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable as _;
+use proprioscope::app::ProprioscopeApp;
+use proprioscope::io::builtin::load_robot;
+use proprioscope::io::urdf::UrdfOptions;
+
+fn app_harness() -> Harness<'static, ProprioscopeApp> {
+    let robot = load_robot("lwr4plus", Path::new("."), &UrdfOptions::default()).unwrap();
+    let (q, push) = ProprioscopeApp::default_scene(&robot);
+    Harness::builder()
+        .with_size(egui::vec2(1200.0, 800.0))
+        .wgpu()
+        .build_eframe(move |cc| ProprioscopeApp::new(cc, robot, q, push))
+}
+
+/// Runs frames until the newest estimate has arrived.
+fn settle(harness: &mut Harness<'_, ProprioscopeApp>) {
+    for _ in 0..500 {
+        harness.step();
+        if harness.state().is_up_to_date() {
+            harness.run_steps(2);
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    panic!("the estimate did not arrive");
+}
+
+#[test]
+fn default_scene_renders_with_a_heatmap() {
+    let mut harness = app_harness();
+    settle(&mut harness);
+    let image = harness.render().unwrap();
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-default.png");
+    image.save(&out).unwrap();
+    assert!(harness.state().model.push.is_some());
+}
+
+#[test]
+fn a_joint_slider_found_by_its_label_changes_q() {
+    let mut harness = app_harness();
+    settle(&mut harness);
+    let before = harness.state().model.q[1];
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Slider, "lwr_joint_2")
+        .set_value_accesskit(-45.0);
+    harness.run_steps(3);
+    let after = harness.state().model.q[1];
+    assert!((after - (-45f64).to_radians()).abs() < 1e-9, "{before} -> {after}");
+    settle(&mut harness);
+}
+
+#[test]
+fn a_click_on_link_5_pushes_link_5_and_only_joints_1_to_5_feel_it() {
+    let mut harness = app_harness();
+    settle(&mut harness);
+    // Clear the default push, then click where link 5 is drawn.
+    harness.get_by_label("Clear push").click();
+    harness.run_steps(2);
+    assert!(harness.state().model.push.is_none());
+    let pixel = harness.state().pixel_of_link("lwr_5_link").unwrap();
+    harness.hover_at(pixel);
+    harness.drag_at(pixel);
+    harness.drop_at(pixel);
+    harness.run_steps(3);
+    let app = harness.state();
+    let push = app.model.push.unwrap();
+    assert_eq!(app.model.robot.links[push.link].name, "lwr_5_link");
+    let pose = proprioscope::core::kinematics::RobotPose::new(&app.model.robot, &app.model.joint_positions());
+    let tau = app.model.applied_torques(&pose);
+    assert!(tau[5].abs() < 1e-12 && tau[6].abs() < 1e-12, "{tau:?}");
+    assert!(tau[..5].iter().any(|t| t.abs() > 1e-3), "{tau:?}");
+}
+
+#[test]
+fn changing_sigma_reruns_the_estimator_and_changes_the_heatmap() {
+    let mut harness = app_harness();
+    settle(&mut harness);
+    let first = harness.state().outcome.clone().unwrap();
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Slider, "σ [N·m]")
+        .set_value_accesskit(0.5);
+    harness.run_steps(2);
+    settle(&mut harness);
+    let second = harness.state().outcome.clone().unwrap();
+    assert!(second.generation > first.generation);
+    let spread = |o: &proprioscope::app::worker::Outcome| o.update.as_ref().unwrap().summary.credible90.points.len();
+    assert!(
+        spread(&second) > spread(&first),
+        "{} vs {}",
+        spread(&first),
+        spread(&second)
+    );
+}
