@@ -38,6 +38,21 @@ enum Command {
         /// A scene (`.json`), a URDF, or `lwr4plus` / `simple6`.
         target: String,
     },
+    /// Renders the full app for a scene headless (no window or display
+    /// needed) and writes a PNG.
+    Screenshot {
+        /// A scene (`.json`), a URDF, or a built-in robot name; none: the default scene.
+        target: Option<String>,
+        /// The PNG to write.
+        #[arg(long)]
+        out: PathBuf,
+        /// Width, pixels.
+        #[arg(long, default_value_t = 1400)]
+        width: u32,
+        /// Height, pixels.
+        #[arg(long, default_value_t = 900)]
+        height: u32,
+    },
     /// Estimates the contact in every frame of a recorded session.
     Estimate(cli::estimate::EstimateArgs),
     /// Speed against accuracy of estimator configurations (table and PNG plot).
@@ -122,6 +137,12 @@ fn main() -> Result<()> {
         Some(Command::Surface { scene, points }) => surface(&scene, points),
         Some(Command::ExportAssets { root }) => export_assets(&root),
         Some(Command::View { target }) => run_app(Some(&target)),
+        Some(Command::Screenshot {
+            target,
+            out,
+            width,
+            height,
+        }) => screenshot(target.as_deref(), &out, [width, height]),
         None => run_app(None),
     }
 }
@@ -338,35 +359,23 @@ fn surface(path: &Path, points: Option<usize>) -> Result<()> {
     Ok(())
 }
 
+/// Renders the app headless into a PNG.
+fn screenshot(target: Option<&str>, out: &Path, size: [u32; 2]) -> Result<()> {
+    let start = proprioscope::app::open_target(target)?;
+    let image = proprioscope::app::render_headless(start, [size[0] as f32, size[1] as f32])
+        .map_err(|e| anyhow::anyhow!("rendering the app headless: {e}"))?;
+    if let Some(folder) = out.parent() {
+        std::fs::create_dir_all(folder).with_context(|| format!("creating {}", folder.display()))?;
+    }
+    image.save(out).with_context(|| format!("writing {}", out.display()))?;
+    println!("wrote {} ({}×{})", out.display(), image.width(), image.height());
+    Ok(())
+}
+
 /// Opens the app: on the built-in LWR with a push, or on `target`.
 fn run_app(target: Option<&str>) -> Result<()> {
-    use proprioscope::app::{ProprioscopeApp, Push};
-    let (robot, q, push) = match target {
-        None => {
-            let robot = load_robot("lwr4plus", Path::new("."), &UrdfOptions::default())?;
-            let (q, push) = ProprioscopeApp::default_scene(&robot);
-            (robot, q, push)
-        }
-        Some(t) if t.to_ascii_lowercase().ends_with(".json") => {
-            let path = Path::new(t);
-            let loaded = Scene::read(path)?.load(path)?;
-            let push = loaded.push.and_then(|p| {
-                let frame = loaded.pose.world_from_link[p.link].inverse();
-                Some(Push {
-                    link: p.link,
-                    point_in_link: frame.transform_point3(p.point_world),
-                    inward_normal_in_link: frame.transform_vector3(p.force_world.try_normalize()?),
-                    force_newtons: p.force_world.length(),
-                })
-            });
-            (loaded.robot, loaded.scene.q.clone(), push)
-        }
-        Some(t) => {
-            let robot = load_robot(t, Path::new("."), &UrdfOptions::default())?;
-            let q = vec![0.0; robot.sensed().len()];
-            (robot, q, None)
-        }
-    };
+    use proprioscope::app::ProprioscopeApp;
+    let start = proprioscope::app::open_target(target)?;
     let options = eframe::NativeOptions {
         viewport: eframe::egui::ViewportBuilder::default()
             .with_inner_size([1400.0, 900.0])
@@ -376,7 +385,7 @@ fn run_app(target: Option<&str>) -> Result<()> {
     eframe::run_native(
         "Proprioscope",
         options,
-        Box::new(move |cc| Ok(Box::new(ProprioscopeApp::new(cc, robot, q, push)))),
+        Box::new(move |cc| Ok(Box::new(ProprioscopeApp::from_start(cc, start)))),
     )
     .map_err(|e| anyhow::anyhow!("the window could not be opened: {e}"))
 }

@@ -5,35 +5,19 @@
 #![allow(clippy::unwrap_used)]
 
 use std::path::Path;
-use std::time::Duration;
 
 use eframe::egui;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable as _;
-use proprioscope::app::ProprioscopeApp;
-use proprioscope::io::builtin::load_robot;
-use proprioscope::io::urdf::UrdfOptions;
+use proprioscope::app::{ProprioscopeApp, open_target};
 
 fn app_harness() -> Harness<'static, ProprioscopeApp> {
-    let robot = load_robot("lwr4plus", Path::new("."), &UrdfOptions::default()).unwrap();
-    let (q, push) = ProprioscopeApp::default_scene(&robot);
-    Harness::builder()
-        .with_size(egui::vec2(1200.0, 800.0))
-        .wgpu()
-        .build_eframe(move |cc| ProprioscopeApp::new(cc, robot, q, push))
+    proprioscope::app::headless_harness(open_target(None).unwrap(), [1200.0, 800.0])
 }
 
 /// Runs frames until the newest estimate has arrived.
 fn settle(harness: &mut Harness<'_, ProprioscopeApp>) {
-    for _ in 0..500 {
-        harness.step();
-        if harness.state().is_up_to_date() {
-            harness.run_steps(2);
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    panic!("the estimate did not arrive");
+    proprioscope::app::settle(harness).unwrap();
 }
 
 #[test]
@@ -101,4 +85,33 @@ fn changing_sigma_reruns_the_estimator_and_changes_the_heatmap() {
         spread(&first),
         spread(&second)
     );
+}
+
+/// The main scenes against snapshots rendered on Mesa's software Vulkan
+/// (`UPDATE_SNAPSHOTS=1 cargo test --test app` rewrites them). The update
+/// time printed in the panel changes from run to run: a few hundred
+/// pixels may differ, a missing robot or heatmap cannot.
+#[test]
+fn main_scenes_match_their_snapshots() {
+    let options = egui_kittest::SnapshotOptions::new()
+        .threshold(2.0)
+        .max_failed_pixels(4000);
+    let mut results = egui_kittest::SnapshotResults::new();
+    for (name, target) in [
+        ("default", None),
+        ("lwr-collision-1", Some("scenes/lwr-collision-1.json")),
+        ("lwr-collision-3", Some("scenes/lwr-collision-3.json")),
+    ] {
+        let start = open_target(
+            target
+                .map(|t| Path::new(env!("CARGO_MANIFEST_DIR")).join(t))
+                .as_deref()
+                .and_then(Path::to_str),
+        )
+        .unwrap();
+        let mut harness = proprioscope::app::headless_harness(start, [1000.0, 640.0]);
+        settle(&mut harness);
+        harness.snapshot_options(name, &options);
+        results.extend(harness.take_snapshot_results());
+    }
 }

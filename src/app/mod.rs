@@ -4,6 +4,110 @@
 
 pub mod worker;
 
+/// Renders the app headless (Mesa's software Vulkan or a GPU, no window):
+/// runs frames until the estimate for the current model has arrived, then
+/// returns the image. The path of `proprioscope screenshot` and the UI tests.
+pub fn render_headless(start: AppStart, size: [f32; 2]) -> Result<image::RgbaImage, String> {
+    let mut harness = headless_harness(start, size);
+    settle(&mut harness)?;
+    harness.render()
+}
+
+/// The app in a headless harness (wgpu), not yet settled.
+#[must_use]
+pub fn headless_harness(start: AppStart, size: [f32; 2]) -> egui_kittest::Harness<'static, ProprioscopeApp> {
+    egui_kittest::Harness::builder()
+        .with_size(egui::vec2(size[0], size[1]))
+        .wgpu()
+        .build_eframe(move |cc| ProprioscopeApp::from_start(cc, start))
+}
+
+/// What the app opens on.
+#[derive(Debug, Clone)]
+pub struct AppStart {
+    /// The robot.
+    pub robot: Robot,
+    /// Sensed joint positions, rad.
+    pub q: Vec<f64>,
+    /// The push, if any.
+    pub push: Option<Push>,
+    /// Estimator and sensor settings.
+    pub settings: StartSettings,
+}
+
+/// The default scene (`None`), a scene file (`.json`, with its push and
+/// settings), a URDF or a built-in robot name.
+pub fn open_target(target: Option<&str>) -> anyhow::Result<AppStart> {
+    use crate::io::builtin::load_robot;
+    use crate::io::scene::{Scene, Sigma};
+    use crate::io::urdf::UrdfOptions;
+    use std::path::Path;
+    Ok(match target {
+        None => {
+            let robot = load_robot("lwr4plus", Path::new("."), &UrdfOptions::default())?;
+            let (q, push) = ProprioscopeApp::default_scene(&robot);
+            AppStart {
+                robot,
+                q,
+                push,
+                settings: StartSettings::default(),
+            }
+        }
+        Some(t) if t.to_ascii_lowercase().ends_with(".json") => {
+            let path = Path::new(t);
+            let loaded = Scene::read(path)?.load(path)?;
+            let push = loaded.push.and_then(|p| {
+                let link_from_world = loaded.pose.world_from_link[p.link].inverse();
+                Some(Push {
+                    link: p.link,
+                    point_in_link: link_from_world.transform_point3(p.point_world),
+                    inward_normal_in_link: link_from_world.transform_vector3(p.force_world.try_normalize()?),
+                    force_newtons: p.force_world.length(),
+                })
+            });
+            let e = &loaded.scene.estimator;
+            let settings = StartSettings {
+                sigma: match &e.sigma_newton_metres {
+                    Sigma::All(s) => *s,
+                    Sigma::PerJoint(v) => v.iter().copied().fold(0.0, f64::max),
+                },
+                surface_points: loaded.scene.surface_points,
+                noise: (loaded.scene.noise.sigma_newton_metres, loaded.scene.noise.seed),
+                force_range_newtons: (e.force_min_newtons, e.force_max_newtons),
+            };
+            AppStart {
+                q: loaded.scene.q.clone(),
+                robot: loaded.robot,
+                push,
+                settings,
+            }
+        }
+        Some(t) => {
+            let robot = load_robot(t, Path::new("."), &UrdfOptions::default())?;
+            let q = vec![0.0; robot.sensed().len()];
+            AppStart {
+                robot,
+                q,
+                push: None,
+                settings: StartSettings::default(),
+            }
+        }
+    })
+}
+
+/// Runs frames until the newest estimate has arrived (at most ~10 s).
+pub fn settle(harness: &mut egui_kittest::Harness<'_, ProprioscopeApp>) -> Result<(), String> {
+    for _ in 0..1000 {
+        harness.step();
+        if harness.state().is_up_to_date() {
+            harness.run_steps(2);
+            return Ok(());
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    Err("the estimate did not arrive within 10 s".to_owned())
+}
+
 use std::sync::Arc;
 
 use eframe::egui;
@@ -55,6 +159,33 @@ pub struct Model {
     pub noise_sigma: f64,
     /// Seed of that noise.
     pub noise_seed: u64,
+    /// Push magnitudes considered by the estimator, N.
+    pub force_range_newtons: (f64, f64),
+}
+
+/// Estimator and sensor settings to start the app with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StartSettings {
+    /// Likelihood σ, N·m.
+    pub sigma: f64,
+    /// Surface points.
+    pub surface_points: usize,
+    /// Sensor noise σ, N·m, and its seed.
+    pub noise: (f64, u64),
+    /// Push magnitudes considered, N.
+    pub force_range_newtons: (f64, f64),
+}
+
+impl Default for StartSettings {
+    /// σ 0.1 N·m, 5000 points, 0.05 N·m of sensor noise, 1–30 N.
+    fn default() -> Self {
+        Self {
+            sigma: 0.1,
+            surface_points: 5000,
+            noise: (0.05, 1),
+            force_range_newtons: (1.0, 30.0),
+        }
+    }
 }
 
 /// A change to the [`Model`], sent by the UI and applied in one place.
@@ -165,7 +296,13 @@ pub struct ProprioscopeApp {
 impl ProprioscopeApp {
     /// The app on `robot` at `q`, with an optional push, ready to draw.
     #[must_use]
-    pub fn new(cc: &eframe::CreationContext<'_>, robot: Robot, q: Vec<f64>, push: Option<Push>) -> Self {
+    pub fn new(
+        cc: &eframe::CreationContext<'_>,
+        robot: Robot,
+        q: Vec<f64>,
+        push: Option<Push>,
+        settings: StartSettings,
+    ) -> Self {
         let ctx = cc.egui_ctx.clone();
         let renderer = cc
             .wgpu_render_state
@@ -177,10 +314,11 @@ impl ProprioscopeApp {
                 robot: Arc::new(robot),
                 q,
                 push,
-                sigma: 0.1,
-                surface_points: 5000,
-                noise_sigma: 0.05,
-                noise_seed: 1,
+                sigma: settings.sigma,
+                surface_points: settings.surface_points,
+                noise_sigma: settings.noise.0,
+                noise_seed: settings.noise.1,
+                force_range_newtons: settings.force_range_newtons,
             },
             camera: OrbitCamera::default(),
             picker,
@@ -194,6 +332,12 @@ impl ProprioscopeApp {
         };
         app.request_estimate();
         app
+    }
+
+    /// The app on what [`open_target`] found.
+    #[must_use]
+    pub fn from_start(cc: &eframe::CreationContext<'_>, start: AppStart) -> Self {
+        Self::new(cc, start.robot, start.q, start.push, start.settings)
     }
 
     /// The built-in LWR in a bent pose with a push on its upper arm (link
@@ -250,8 +394,8 @@ impl ProprioscopeApp {
             },
             settings: EstimatorSettings {
                 sigma: vec![self.model.sigma; self.model.robot.sensed().len()],
-                force_min_newtons: 1.0,
-                force_max_newtons: 30.0,
+                force_min_newtons: self.model.force_range_newtons.0,
+                force_max_newtons: self.model.force_range_newtons.1,
                 mode: Mode::Exact,
                 phase_alpha: None,
                 resolution_m: 0.0,
