@@ -115,3 +115,31 @@ fn main_scenes_match_their_snapshots() {
         results.extend(harness.take_snapshot_results());
     }
 }
+
+#[test]
+fn the_phases_checkbox_runs_phases_a_b_c() {
+    let mut harness = app_harness();
+    settle(&mut harness);
+    harness.get_by_label("phases A/B/C").click();
+    harness.run_steps(2);
+    settle(&mut harness);
+    let outcome = harness.state().outcome.clone().unwrap();
+    let update = outcome.update.unwrap();
+    assert_eq!(update.posterior.phases.len(), 3);
+    assert!(
+        update.posterior.phases[0].points <= 210,
+        "{:?}",
+        update.posterior.phases
+    );
+}
+
+#[test]
+fn view_options_change_the_picture_but_do_not_re_estimate() {
+    let mut harness = app_harness();
+    settle(&mut harness);
+    let generation = harness.state().outcome.as_ref().unwrap().generation;
+    harness.get_by_label("linear").click();
+    harness.run_steps(3);
+    assert!(!harness.state().model.view.log_scale);
+    assert_eq!(harness.state().outcome.as_ref().unwrap().generation, generation);
+}

@@ -122,7 +122,7 @@ use crate::core::surface::SurfaceRequest;
 use crate::core::torque::{joint_torques, with_sensor_noise};
 use crate::render::camera::OrbitCamera;
 use crate::render::renderer::{Frame, Renderer};
-use crate::render::scene::{ROBOT_GREY, arrow, grid_and_axes, robot_triangles, viridis};
+use crate::render::scene::{ROBOT_GREY, arrow, grid_and_axes, red_green, robot_triangles, viridis};
 use worker::{Outcome, Request, Worker};
 
 /// Log-likelihood range shown by the heatmap, from yellow (the best) to
@@ -161,6 +161,75 @@ pub struct Model {
     pub noise_seed: u64,
     /// Push magnitudes considered by the estimator, N.
     pub force_range_newtons: (f64, f64),
+    /// Estimator mode and phases.
+    pub estimator: EstimatorChoice,
+    /// How the posterior is shown (changing it re-runs nothing).
+    pub view: ViewOptions,
+}
+
+/// The estimator's mode as the panel offers it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModeChoice {
+    /// Closed form per surface point.
+    Exact,
+    /// Thesis particles, m magnitudes per point.
+    ParticlesDeterministic,
+    /// Thesis particles, uniform random.
+    ParticlesRandom,
+}
+
+/// Estimator settings beyond σ and the resolution.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EstimatorChoice {
+    /// The mode.
+    pub mode: ModeChoice,
+    /// N for random particles.
+    pub particles: usize,
+    /// m for deterministic particles.
+    pub magnitudes_per_point: usize,
+    /// Phases A/B/C on.
+    pub phases: bool,
+    /// Sizes of phases A and B.
+    pub phase_sizes: [usize; 2],
+    /// α between phases.
+    pub alpha: f64,
+}
+
+impl Default for EstimatorChoice {
+    fn default() -> Self {
+        Self {
+            mode: ModeChoice::Exact,
+            particles: 20_000,
+            magnitudes_per_point: 5,
+            phases: false,
+            phase_sizes: [200, 1000],
+            alpha: 0.5,
+        }
+    }
+}
+
+/// How the heatmap is drawn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ViewOptions {
+    /// Log scale (else linear in probability).
+    pub log_scale: bool,
+    /// Hide points below this fraction of the scale (0 shows all).
+    pub threshold: f64,
+    /// The thesis' red-to-green map instead of viridis.
+    pub red_green: bool,
+    /// Draw the candidate points (phase A red, B orange, the 90 % credible set white).
+    pub show_points: bool,
+}
+
+impl Default for ViewOptions {
+    fn default() -> Self {
+        Self {
+            log_scale: true,
+            threshold: 0.0,
+            red_green: false,
+            show_points: false,
+        }
+    }
 }
 
 /// Estimator and sensor settings to start the app with.
@@ -207,18 +276,18 @@ pub enum Command {
     SetSurfacePoints(usize),
     /// Set the sensor noise, N·m.
     SetNoise(f64),
+    /// Set the estimator's mode and phases.
+    SetEstimator(EstimatorChoice),
+    /// Set the force range, N.
+    SetForceRange(f64, f64),
+    /// Set how the heatmap is drawn.
+    SetView(ViewOptions),
 }
 
 impl Model {
     /// Applies a command; true when something changed.
     pub fn apply(&mut self, command: Command) -> bool {
-        let before = (
-            self.q.clone(),
-            self.push,
-            self.sigma,
-            self.surface_points,
-            self.noise_sigma,
-        );
+        let before = self.estimate_inputs();
         match command {
             Command::SetJoint(i, value) => {
                 if let Some(q) = self.q.get_mut(i) {
@@ -236,15 +305,63 @@ impl Model {
             Command::SetSigma(s) => self.sigma = s.max(1e-6),
             Command::SetSurfacePoints(n) => self.surface_points = n.max(10),
             Command::SetNoise(s) => self.noise_sigma = s.max(0.0),
+            Command::SetEstimator(choice) => {
+                self.estimator = EstimatorChoice {
+                    particles: choice.particles.max(1),
+                    magnitudes_per_point: choice.magnitudes_per_point.max(1),
+                    alpha: choice.alpha.clamp(0.0, 0.99),
+                    ..choice
+                };
+            }
+            Command::SetForceRange(lo, hi) => {
+                let lo = lo.max(0.0);
+                self.force_range_newtons = (lo, hi.max(lo));
+            }
+            Command::SetView(view) => self.view = view,
         }
-        before
-            != (
-                self.q.clone(),
-                self.push,
-                self.sigma,
-                self.surface_points,
-                self.noise_sigma,
-            )
+        before != self.estimate_inputs()
+    }
+
+    /// What the estimate depends on (view options excluded).
+    #[allow(clippy::type_complexity)] // A snapshot for comparison only.
+    fn estimate_inputs(&self) -> (Vec<f64>, Option<Push>, f64, usize, f64, EstimatorChoice, (f64, f64)) {
+        (
+            self.q.clone(),
+            self.push,
+            self.sigma,
+            self.surface_points,
+            self.noise_sigma,
+            self.estimator,
+            self.force_range_newtons,
+        )
+    }
+
+    /// The core estimator's settings.
+    #[must_use]
+    pub fn estimator_settings(&self) -> EstimatorSettings {
+        use crate::core::estimator::{ParticleSettings, Sampling};
+        let e = self.estimator;
+        EstimatorSettings {
+            sigma: vec![self.sigma; self.robot.sensed().len()],
+            force_min_newtons: self.force_range_newtons.0,
+            force_max_newtons: self.force_range_newtons.1,
+            mode: match e.mode {
+                ModeChoice::Exact => Mode::Exact,
+                ModeChoice::ParticlesDeterministic => Mode::Particles(ParticleSettings {
+                    sampling: Sampling::Deterministic {
+                        magnitudes_per_point: e.magnitudes_per_point,
+                    },
+                }),
+                ModeChoice::ParticlesRandom => Mode::Particles(ParticleSettings {
+                    sampling: Sampling::Random {
+                        count: e.particles,
+                        seed: 7,
+                    },
+                }),
+            },
+            phase_alpha: e.phases.then_some(e.alpha),
+            resolution_m: 0.0,
+        }
     }
 
     /// Every joint's position.
@@ -319,6 +436,8 @@ impl ProprioscopeApp {
                 noise_sigma: settings.noise.0,
                 noise_seed: settings.noise.1,
                 force_range_newtons: settings.force_range_newtons,
+                estimator: EstimatorChoice::default(),
+                view: ViewOptions::default(),
             },
             camera: OrbitCamera::default(),
             picker,
@@ -392,14 +511,8 @@ impl ProprioscopeApp {
                 total_points: self.model.surface_points,
                 seed: 0,
             },
-            settings: EstimatorSettings {
-                sigma: vec![self.model.sigma; self.model.robot.sensed().len()],
-                force_min_newtons: self.model.force_range_newtons.0,
-                force_max_newtons: self.model.force_range_newtons.1,
-                mode: Mode::Exact,
-                phase_alpha: None,
-                resolution_m: 0.0,
-            },
+            settings: self.model.estimator_settings(),
+            phase_sizes: self.model.estimator.phases.then_some(self.model.estimator.phase_sizes),
         });
     }
 
@@ -502,6 +615,8 @@ impl ProprioscopeApp {
         {
             commands.push(Command::SetSurfacePoints(points));
         }
+        commands.extend(self.estimator_options_ui(ui));
+        commands.extend(self.view_options_ui(ui));
         ui.separator();
         match &self.outcome {
             Some(o) => match &o.update {
@@ -537,6 +652,18 @@ impl ProprioscopeApp {
                             s.map.force_world.distance(force)
                         ));
                     }
+                    if !s.clusters.is_empty() {
+                        ui.label("Clusters of probable contacts (P ≥ 0.9 max)");
+                        for (i, c) in s.clusters.iter().take(5).enumerate() {
+                            ui.label(format!(
+                                "{}: {} points, σ_r {:.0} mm, σ_F {:.1} N",
+                                i + 1,
+                                c.points.len(),
+                                c.sigma_r_m * 1e3,
+                                c.sigma_f_newtons
+                            ));
+                        }
+                    }
                     ui.separator();
                     ui.label("Probability per link (summed)");
                     for share in &s.per_link {
@@ -556,6 +683,91 @@ impl ProprioscopeApp {
             }
         }
         commands
+    }
+
+    /// Mode, particles, phases and force range.
+    fn estimator_options_ui(&self, ui: &mut egui::Ui) -> Vec<Command> {
+        let mut choice = self.model.estimator;
+        egui::ComboBox::from_label("mode")
+            .selected_text(match choice.mode {
+                ModeChoice::Exact => "exact",
+                ModeChoice::ParticlesDeterministic => "particles, deterministic",
+                ModeChoice::ParticlesRandom => "particles, random",
+            })
+            .show_ui(ui, |ui| {
+                ui.selectable_value(&mut choice.mode, ModeChoice::Exact, "exact");
+                ui.selectable_value(
+                    &mut choice.mode,
+                    ModeChoice::ParticlesDeterministic,
+                    "particles, deterministic",
+                );
+                ui.selectable_value(&mut choice.mode, ModeChoice::ParticlesRandom, "particles, random");
+            });
+        match choice.mode {
+            ModeChoice::Exact => {}
+            ModeChoice::ParticlesDeterministic => {
+                ui.add(egui::Slider::new(&mut choice.magnitudes_per_point, 1..=20).text("m (magnitudes per point)"));
+            }
+            ModeChoice::ParticlesRandom => {
+                ui.add(
+                    egui::Slider::new(&mut choice.particles, 1000..=200_000)
+                        .logarithmic(true)
+                        .text("N (particles)"),
+                );
+            }
+        }
+        ui.checkbox(&mut choice.phases, "phases A/B/C");
+        if choice.phases {
+            ui.add(egui::Slider::new(&mut choice.alpha, 0.0..=0.99).text("α"));
+        }
+        let (mut lo, mut hi) = self.model.force_range_newtons;
+        let mut commands = Vec::new();
+        ui.horizontal(|ui| {
+            let a = ui.add(
+                egui::DragValue::new(&mut lo)
+                    .range(0.0..=1000.0)
+                    .speed(0.1)
+                    .prefix("F min "),
+            );
+            let b = ui.add(
+                egui::DragValue::new(&mut hi)
+                    .range(0.0..=1000.0)
+                    .speed(0.1)
+                    .prefix("F max "),
+            );
+            ui.label("N");
+            if a.changed() || b.changed() {
+                commands.push(Command::SetForceRange(lo, hi));
+            }
+        });
+        if choice != self.model.estimator {
+            commands.push(Command::SetEstimator(choice));
+        }
+        commands
+    }
+
+    /// Scale, threshold, colour map and candidate points.
+    fn view_options_ui(&self, ui: &mut egui::Ui) -> Vec<Command> {
+        let mut view = self.model.view;
+        ui.separator();
+        ui.label("Heatmap");
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut view.log_scale, true, "log");
+            ui.radio_value(&mut view.log_scale, false, "linear");
+            ui.separator();
+            ui.radio_value(&mut view.red_green, false, "viridis");
+            ui.radio_value(&mut view.red_green, true, "red-green");
+        });
+        ui.add(egui::Slider::new(&mut view.threshold, 0.0..=0.99).text("hide below"));
+        ui.checkbox(
+            &mut view.show_points,
+            "candidate points (A red, B orange, 90 % set white)",
+        );
+        if view == self.model.view {
+            Vec::new()
+        } else {
+            vec![Command::SetView(view)]
+        }
     }
 
     fn torques_ui(&self, ui: &mut egui::Ui) {
@@ -625,12 +837,32 @@ impl ProprioscopeApp {
                 .copied()
                 .fold(f64::NEG_INFINITY, f64::max)
         });
-        // Log scale: the best point is yellow, e^-HEAT_DEPTH of it and less purple.
+        let view = self.model.view;
+        let display_top = heat.map_or(0.0, |(_, u)| u.posterior.display.iter().copied().fold(0.0, f64::max));
+        // Log scale: the best point is 1, e^-HEAT_DEPTH of it and less 0;
+        // linear: the display value over the largest.
+        let scale = |u: &crate::core::pipeline::Update, k: usize| -> f64 {
+            if view.log_scale {
+                (1.0 + (u.posterior.log_likelihood[k] - top) / HEAT_DEPTH).clamp(0.0, 1.0)
+            } else if display_top > 0.0 {
+                u.posterior.display[k] / display_top
+            } else {
+                0.0
+            }
+        };
+        let paint = |t: f64| {
+            if view.red_green {
+                red_green(t as f32)
+            } else {
+                viridis(t as f32)
+            }
+        };
         let color = |link: LinkId, vertex: usize| -> [f32; 4] {
             let Some((o, u)) = heat else { return ROBOT_GREY };
             match o.nearest.get(link).and_then(|v| v.get(vertex)).copied().flatten() {
                 Some(k) if top.is_finite() => {
-                    viridis((1.0 + (u.posterior.log_likelihood[k] - top) / HEAT_DEPTH) as f32)
+                    let t = scale(u, k);
+                    if t < view.threshold { ROBOT_GREY } else { paint(t) }
                 }
                 _ => ROBOT_GREY,
             }
@@ -645,6 +877,27 @@ impl ProprioscopeApp {
                 0.02 * force.length().max(1.0),
                 [1.0, 0.35, 0.25, 1.0],
             );
+        }
+        if let (true, Some((o, u))) = (view.show_points, heat) {
+            let surface = &o.estimator.surface;
+            let in_set: std::collections::HashSet<usize> = u.summary.credible90.points.iter().copied().collect();
+            for k in 0..surface.len() {
+                let flags = u.posterior.phase_flags[k];
+                let colour = if in_set.contains(&k) {
+                    [1.0, 1.0, 1.0, 1.0]
+                } else if flags & crate::core::estimator::phase_flag::A != 0 {
+                    [0.95, 0.2, 0.2, 1.0]
+                } else if flags & crate::core::estimator::phase_flag::B != 0 {
+                    [1.0, 0.6, 0.1, 1.0]
+                } else {
+                    paint(scale(u, k))
+                };
+                let world_from_link = pose.world_from_link[surface.link[k]];
+                let p = world_from_link.transform_point3(surface.point_in_link[k]);
+                let n = world_from_link.transform_vector3(surface.inward_normal_in_link[k]);
+                // A short hair standing out of the surface at each candidate.
+                crate::render::scene::line(&mut frame.lines, p.as_vec3(), (p - n * 0.012).as_vec3(), colour);
+            }
         }
         if let Some((_, u)) = heat {
             let m = u.summary.map;

@@ -17,6 +17,7 @@ struct Cached {
     robot: usize,
     links: Vec<LinkId>,
     points: usize,
+    phase_sizes: Option<[usize; 2]>,
     estimator: Arc<Estimator>,
     nearest: Arc<Vec<Vec<Option<usize>>>>,
 }
@@ -36,6 +37,9 @@ pub struct Request {
     pub surface: SurfaceRequest,
     /// Likelihood settings.
     pub settings: EstimatorSettings,
+    /// Sizes of phases A and B when phases are on (the hierarchy is built
+    /// with the surface).
+    pub phase_sizes: Option<[usize; 2]>,
 }
 
 /// A finished estimate.
@@ -73,16 +77,26 @@ impl Worker {
                 }
                 let robot_key = Arc::as_ptr(&request.robot) as usize;
                 let reuse = cache.as_ref().is_some_and(|c| {
-                    c.robot == robot_key && c.links == request.surface.links && c.points == request.surface.total_points
+                    c.robot == robot_key
+                        && c.links == request.surface.links
+                        && c.points == request.surface.total_points
+                        && c.phase_sizes == request.phase_sizes
                 });
                 if !reuse {
-                    match Estimator::new(&request.robot, &request.surface, request.settings.clone(), None, None) {
+                    match Estimator::new(
+                        &request.robot,
+                        &request.surface,
+                        request.settings.clone(),
+                        request.phase_sizes,
+                        None,
+                    ) {
                         Ok(estimator) => {
                             let nearest = nearest_samples(&request.robot, &estimator.surface);
                             cache = Some(Cached {
                                 robot: robot_key,
                                 links: request.surface.links.clone(),
                                 points: request.surface.total_points,
+                                phase_sizes: request.phase_sizes,
                                 estimator: Arc::new(estimator),
                                 nearest: Arc::new(nearest),
                             });

@@ -38,6 +38,14 @@ pub fn viridis(t: f32) -> [f32; 4] {
     ]
 }
 
+/// The thesis' map: red (improbable) through yellow to green (probable),
+/// `t` in [0, 1].
+#[must_use]
+pub fn red_green(t: f32) -> [f32; 4] {
+    let t = t.clamp(0.0, 1.0);
+    [(2.0 * (1.0 - t)).min(1.0) * 0.9, (2.0 * t).min(1.0) * 0.85, 0.15, 1.0]
+}
+
 /// For every link and mesh vertex, the nearest surface sample on that
 /// link (in the link frame), so that per-sample values paint the mesh.
 #[must_use]
