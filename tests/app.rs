@@ -143,3 +143,48 @@ fn view_options_change_the_picture_but_do_not_re_estimate() {
     assert!(!harness.state().model.view.log_scale);
     assert_eq!(harness.state().outcome.as_ref().unwrap().generation, generation);
 }
+
+#[test]
+fn opening_a_malformed_scene_shows_the_error_and_keeps_the_scene() {
+    let mut harness = app_harness();
+    settle(&mut harness);
+    let dir = std::env::temp_dir().join(format!("proprioscope-app-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("broken.json");
+    std::fs::write(&bad, r#"{"version": 1, "robot": "lwr4plus", "q": [0, 0], "colour": 3}"#).unwrap();
+    let before = harness.state().model.q.clone();
+    harness.state_mut().open(bad.to_str().unwrap());
+    harness.run_steps(2);
+    let error = harness.state().error.clone().unwrap();
+    assert!(error.contains("broken.json") && error.contains("colour"), "{error}");
+    assert_eq!(harness.state().model.q, before);
+    // The message is on screen.
+    assert!(harness.query_by_label_contains("colour").is_some());
+    // A good scene opens and clears the error.
+    harness.state_mut().open(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes/lwr-collision-2.json")
+            .to_str()
+            .unwrap(),
+    );
+    harness.run_steps(2);
+    assert!(harness.state().error.is_none());
+    assert_eq!(harness.state().model.q, vec![0.0; 7]);
+}
+
+#[test]
+fn a_saved_scene_opens_again_with_the_same_push() {
+    let mut harness = app_harness();
+    settle(&mut harness);
+    let path = std::env::temp_dir().join(format!("proprioscope-app-save-{}.json", std::process::id()));
+    harness.state_mut().save(&path);
+    assert!(harness.state().error.is_none(), "{:?}", harness.state().error);
+    let saved = harness.state().model.clone();
+    harness.state_mut().open(path.to_str().unwrap());
+    let reopened = &harness.state().model;
+    assert_eq!(reopened.q, saved.q);
+    let (a, b) = (saved.push.unwrap(), reopened.push.unwrap());
+    assert_eq!(a.link, b.link);
+    assert!((a.point_in_link - b.point_in_link).length() < 1e-9);
+    assert!((a.force_newtons - b.force_newtons).abs() < 1e-9);
+}

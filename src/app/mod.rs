@@ -25,6 +25,8 @@ pub fn headless_harness(start: AppStart, size: [f32; 2]) -> egui_kittest::Harnes
 /// What the app opens on.
 #[derive(Debug, Clone)]
 pub struct AppStart {
+    /// How the robot was named (built-in name or URDF path), for saving.
+    pub robot_spec: String,
     /// The robot.
     pub robot: Robot,
     /// Sensed joint positions, rad.
@@ -47,6 +49,7 @@ pub fn open_target(target: Option<&str>) -> anyhow::Result<AppStart> {
             let robot = load_robot("lwr4plus", Path::new("."), &UrdfOptions::default())?;
             let (q, push) = ProprioscopeApp::default_scene(&robot);
             AppStart {
+                robot_spec: "lwr4plus".to_owned(),
                 robot,
                 q,
                 push,
@@ -75,7 +78,17 @@ pub fn open_target(target: Option<&str>) -> anyhow::Result<AppStart> {
                 noise: (loaded.scene.noise.sigma_newton_metres, loaded.scene.noise.seed),
                 force_range_newtons: (e.force_min_newtons, e.force_max_newtons),
             };
+            let spec = if crate::io::builtin::is_builtin(&loaded.scene.robot) {
+                loaded.scene.robot.clone()
+            } else {
+                path.parent()
+                    .unwrap_or(Path::new("."))
+                    .join(&loaded.scene.robot)
+                    .display()
+                    .to_string()
+            };
             AppStart {
+                robot_spec: spec,
                 q: loaded.scene.q.clone(),
                 robot: loaded.robot,
                 push,
@@ -86,6 +99,7 @@ pub fn open_target(target: Option<&str>) -> anyhow::Result<AppStart> {
             let robot = load_robot(t, Path::new("."), &UrdfOptions::default())?;
             let q = vec![0.0; robot.sensed().len()];
             AppStart {
+                robot_spec: t.to_owned(),
                 robot,
                 q,
                 push: None,
@@ -124,6 +138,22 @@ use crate::render::camera::OrbitCamera;
 use crate::render::renderer::{Frame, Renderer};
 use crate::render::scene::{ROBOT_GREY, arrow, grid_and_axes, red_green, robot_triangles, viridis};
 use worker::{Outcome, Request, Worker};
+
+/// The scene files shipped in `scenes/` (relative to the working
+/// directory), sorted; none when the folder is not there.
+fn shipped_scenes() -> Vec<std::path::PathBuf> {
+    let mut paths: Vec<std::path::PathBuf> = std::fs::read_dir("scenes")
+        .map(|entries| {
+            entries
+                .filter_map(Result::ok)
+                .map(|e| e.path())
+                .filter(|p| p.extension().is_some_and(|e| e == "json"))
+                .collect()
+        })
+        .unwrap_or_default();
+    paths.sort();
+    paths
+}
 
 /// Log-likelihood range shown by the heatmap, from yellow (the best) to
 /// purple (e^-20 ≈ 2e-9 of it, and less).
@@ -407,6 +437,9 @@ pub struct ProprioscopeApp {
     renderer: Option<Renderer>,
     texture: Option<egui::TextureId>,
     view_rect: Option<egui::Rect>,
+    robot_spec: String,
+    /// The last failed open or save, shown until the next success.
+    pub error: Option<String>,
     status: String,
 }
 
@@ -447,6 +480,8 @@ impl ProprioscopeApp {
             renderer,
             texture: None,
             view_rect: None,
+            robot_spec: String::new(),
+            error: None,
             status: String::new(),
         };
         app.request_estimate();
@@ -456,7 +491,146 @@ impl ProprioscopeApp {
     /// The app on what [`open_target`] found.
     #[must_use]
     pub fn from_start(cc: &eframe::CreationContext<'_>, start: AppStart) -> Self {
-        Self::new(cc, start.robot, start.q, start.push, start.settings)
+        let spec = start.robot_spec.clone();
+        let mut app = Self::new(cc, start.robot, start.q, start.push, start.settings);
+        app.robot_spec = spec;
+        app
+    }
+
+    /// Opens a scene, URDF or built-in robot; on failure shows the error
+    /// and keeps the current scene.
+    pub fn open(&mut self, target: &str) {
+        match open_target(Some(target)) {
+            Ok(start) => {
+                self.picker = Picker::new(&start.robot);
+                let view = self.model.view;
+                self.model = Model {
+                    robot: Arc::new(start.robot),
+                    q: start.q,
+                    push: start.push,
+                    sigma: start.settings.sigma,
+                    surface_points: start.settings.surface_points,
+                    noise_sigma: start.settings.noise.0,
+                    noise_seed: start.settings.noise.1,
+                    force_range_newtons: start.settings.force_range_newtons,
+                    estimator: EstimatorChoice::default(),
+                    view,
+                };
+                self.robot_spec = start.robot_spec;
+                self.error = None;
+                self.request_estimate();
+            }
+            Err(e) => self.error = Some(format!("could not open {target}: {e:#}")),
+        }
+    }
+
+    /// The current model as a scene file.
+    #[must_use]
+    pub fn to_scene(&self) -> crate::io::scene::Scene {
+        use crate::io::scene as sc;
+        let m = &self.model;
+        let positions = m.joint_positions();
+        let pose = RobotPose::new(&m.robot, &positions);
+        sc::Scene {
+            version: sc::SCENE_VERSION,
+            name: String::new(),
+            description: "Saved from the app.".to_owned(),
+            robot: self.robot_spec.clone(),
+            package_paths: Vec::new(),
+            sensed_joints: None,
+            q: m.q.clone(),
+            other_joints: std::collections::BTreeMap::new(),
+            candidate_links: None,
+            surface_points: m.surface_points,
+            surface_seed: 0,
+            push: m.push_world(&pose).map(|(link, point, force)| sc::Push {
+                link: m.robot.links[link].name.clone(),
+                point_in_link: None,
+                point_world: Some(point.to_array()),
+                force_world: Some(force.to_array()),
+                force_newtons: None,
+            }),
+            noise: sc::Noise {
+                sigma_newton_metres: m.noise_sigma,
+                seed: m.noise_seed,
+            },
+            estimator: sc::EstimatorSettings {
+                mode: if m.estimator.mode == ModeChoice::Exact {
+                    sc::Mode::Exact
+                } else {
+                    sc::Mode::Particles
+                },
+                sigma_newton_metres: sc::Sigma::All(m.sigma),
+                sampling: if m.estimator.mode == ModeChoice::ParticlesRandom {
+                    sc::Sampling::Random
+                } else {
+                    sc::Sampling::Deterministic
+                },
+                particles: m.estimator.particles,
+                magnitudes_per_point: m.estimator.magnitudes_per_point,
+                phases: sc::Phases {
+                    enabled: m.estimator.phases,
+                    sizes: m.estimator.phase_sizes,
+                    alpha: m.estimator.alpha,
+                },
+                force_min_newtons: m.force_range_newtons.0,
+                force_max_newtons: m.force_range_newtons.1,
+            },
+        }
+    }
+
+    /// Writes the current scene as JSON.
+    pub fn save(&mut self, path: &std::path::Path) {
+        let result = self
+            .to_scene()
+            .to_json()
+            .map_err(|e| e.to_string())
+            .and_then(|json| std::fs::write(path, json).map_err(|e| e.to_string()));
+        self.error = result.err().map(|e| format!("could not save {}: {e}", path.display()));
+    }
+
+    fn menu_ui(&mut self, ui: &mut egui::Ui) {
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("Scenes", |ui| {
+                if ui.button("Open scene or URDF…").clicked() {
+                    ui.close();
+                    if let Some(path) = rfd::FileDialog::new()
+                        .add_filter("scene or URDF", &["json", "urdf"])
+                        .pick_file()
+                    {
+                        self.open(&path.display().to_string());
+                    }
+                }
+                if ui.button("Save scene…").clicked() {
+                    ui.close();
+                    if let Some(path) = rfd::FileDialog::new().add_filter("scene", &["json"]).save_file() {
+                        self.save(&path);
+                    }
+                }
+                ui.separator();
+                for path in shipped_scenes() {
+                    let name = path
+                        .file_stem()
+                        .map(|s| s.to_string_lossy().into_owned())
+                        .unwrap_or_default();
+                    if ui.button(name).clicked() {
+                        ui.close();
+                        self.open(&path.display().to_string());
+                    }
+                }
+            });
+            ui.menu_button("Robot", |ui| {
+                for name in crate::core::builtin::BUILTIN_NAMES {
+                    if ui.button(name).clicked() {
+                        ui.close();
+                        self.open(name);
+                    }
+                }
+            });
+            if let Some(error) = &self.error {
+                ui.colored_label(egui::Color32::LIGHT_RED, error);
+            }
+        });
     }
 
     /// The built-in LWR in a bent pose with a push on its upper arm (link
@@ -1027,6 +1201,7 @@ impl eframe::App for ProprioscopeApp {
             "estimating…".to_owned()
         };
         let mut commands = Vec::new();
+        egui::Panel::top("menu").show(ui, |ui| self.menu_ui(ui));
         egui::Panel::left("robot").show(ui, |ui| commands.extend(self.robot_panel_ui(ui)));
         egui::Panel::right("estimator").show(ui, |ui| commands.extend(self.estimator_panel_ui(ui)));
         egui::Panel::bottom("torques").resizable(true).show(ui, |ui| {
