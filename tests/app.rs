@@ -188,3 +188,34 @@ fn a_saved_scene_opens_again_with_the_same_push() {
     assert!((a.point_in_link - b.point_in_link).length() < 1e-9);
     assert!((a.force_newtons - b.force_newtons).abs() < 1e-9);
 }
+
+/// Prints the frame time while a joint slider moves (the estimator runs
+/// beside it) and the time to the first frame; run with `--ignored
+/// --nocapture`. A measurement, not a check.
+#[test]
+#[ignore = "measurement: prints timings"]
+fn measure_frame_time_while_dragging_a_joint() {
+    let t0 = std::time::Instant::now();
+    let mut harness = app_harness();
+    harness.step();
+    let first = t0.elapsed();
+    settle(&mut harness);
+    let mut times = Vec::new();
+    for i in 0..60 {
+        let value = -60.0 + 2.0 * f64::from(i);
+        harness
+            .get_by_role_and_label(egui::accesskit::Role::Slider, "lwr_joint_2")
+            .set_value_accesskit(value);
+        let t = std::time::Instant::now();
+        harness.step();
+        let _ = harness.render();
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    times.sort_by(f64::total_cmp);
+    println!(
+        "first frame after {:.0} ms; while dragging: median {:.1} ms, p90 {:.1} ms per frame (1200x800, lavapipe)",
+        first.as_secs_f64() * 1e3,
+        times[times.len() / 2],
+        times[times.len() * 9 / 10]
+    );
+}

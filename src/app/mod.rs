@@ -122,6 +122,7 @@ pub fn settle(harness: &mut egui_kittest::Harness<'_, ProprioscopeApp>) -> Resul
     Err("the estimate did not arrive within 10 s".to_owned())
 }
 
+use std::fmt::Write as _;
 use std::sync::Arc;
 
 use eframe::egui;
@@ -240,6 +241,7 @@ impl Default for EstimatorChoice {
 
 /// How the heatmap is drawn.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[allow(clippy::struct_excessive_bools)] // Independent display toggles, one checkbox each.
 pub struct ViewOptions {
     /// Log scale (else linear in probability).
     pub log_scale: bool,
@@ -249,6 +251,8 @@ pub struct ViewOptions {
     pub red_green: bool,
     /// Draw the candidate points (phase A red, B orange, the 90 % credible set white).
     pub show_points: bool,
+    /// Draw every sensed joint's axis.
+    pub show_axes: bool,
 }
 
 impl Default for ViewOptions {
@@ -258,6 +262,7 @@ impl Default for ViewOptions {
             threshold: 0.0,
             red_green: false,
             show_points: false,
+            show_axes: false,
         }
     }
 }
@@ -440,6 +445,8 @@ pub struct ProprioscopeApp {
     robot_spec: String,
     /// The last failed open or save, shown until the next success.
     pub error: Option<String>,
+    /// The joint whose torque bar the pointer is over (sensed index).
+    hovered_joint: Option<usize>,
     status: String,
 }
 
@@ -482,6 +489,7 @@ impl ProprioscopeApp {
             view_rect: None,
             robot_spec: String::new(),
             error: None,
+            hovered_joint: None,
             status: String::new(),
         };
         app.request_estimate();
@@ -920,6 +928,101 @@ impl ProprioscopeApp {
         commands
     }
 
+    /// Renders the 3-D view into its texture and shows it in `rect`.
+    fn paint_view(&mut self, ui: &egui::Ui, frame: &eframe::Frame, rect: egui::Rect) {
+        let pixels = rect.size() * ui.ctx().pixels_per_point();
+        let scene = self.scene_frame();
+        match (frame.wgpu_render_state(), self.renderer.as_mut()) {
+            (Some(state), Some(renderer)) => {
+                let resized = renderer.resize(&state.device, [pixels.x.round() as u32, pixels.y.round() as u32]);
+                renderer.render(&state.device, &state.queue, &self.camera, &scene);
+                let mut egui_renderer = state.renderer.write();
+                match self.texture {
+                    None => {
+                        self.texture = Some(egui_renderer.register_native_texture(
+                            &state.device,
+                            renderer.color_view(),
+                            wgpu::FilterMode::Linear,
+                        ));
+                    }
+                    Some(id) if resized => {
+                        egui_renderer.update_egui_texture_from_wgpu_texture(
+                            &state.device,
+                            renderer.color_view(),
+                            wgpu::FilterMode::Linear,
+                            id,
+                        );
+                    }
+                    Some(_) => {}
+                }
+                if let Some(id) = self.texture {
+                    let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+                    ui.painter().image(id, rect, uv, egui::Color32::WHITE);
+                }
+            }
+            _ => {
+                ui.painter().text(
+                    rect.center(),
+                    egui::Align2::CENTER_CENTER,
+                    "no GPU renderer",
+                    egui::FontId::default(),
+                    egui::Color32::GRAY,
+                );
+            }
+        }
+        if !self.status.is_empty() {
+            ui.painter().text(
+                rect.left_top() + egui::vec2(8.0, 8.0),
+                egui::Align2::LEFT_TOP,
+                &self.status,
+                egui::FontId::default(),
+                egui::Color32::LIGHT_GRAY,
+            );
+        }
+    }
+
+    /// What the candidate under the pointer would explain: its force and
+    /// the torques it produces beside the measured ones.
+    fn candidate_tooltip(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<String> {
+        let outcome = self.outcome.as_ref()?;
+        let update = outcome.update.as_ref().ok()?;
+        let surface = &outcome.estimator.surface;
+        let size = Vec2::new(rect.width(), rect.height());
+        let local = pos - rect.min;
+        let (origin, dir) = self.camera.ray(Vec2::new(local.x, local.y), size);
+        let hit = self
+            .picker
+            .pick(&self.model.robot, &update.pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
+        let k = (0..surface.len())
+            .filter(|&k| surface.link[k] == hit.link)
+            .min_by(|&a, &b| {
+                surface.point_in_link[a]
+                    .distance_squared(hit.point_in_link)
+                    .total_cmp(&surface.point_in_link[b].distance_squared(hit.point_in_link))
+            })?;
+        let contact = crate::core::summary::contact_at(&update.posterior, surface, &update.pose, k);
+        let produced = joint_torques(
+            &self.model.robot,
+            &update.pose,
+            contact.link,
+            contact.point_world,
+            contact.force_world,
+        );
+        let measured = with_sensor_noise(
+            &self.model.applied_torques(&update.pose),
+            self.model.noise_sigma,
+            self.model.noise_seed,
+        );
+        let mut text = format!(
+            "{}: P = {:.2e}, best push {:.1} N\njoint   produces   measured",
+            self.model.robot.links[contact.link].name, contact.probability, contact.force_newtons
+        );
+        for (i, (p, m)) in produced.iter().zip(&measured).enumerate() {
+            let _ = write!(text, "\n{:>5}   {:>8.3}   {:>8.3}", i + 1, p, m);
+        }
+        Some(text)
+    }
+
     /// Scale, threshold, colour map and candidate points.
     fn view_options_ui(&self, ui: &mut egui::Ui) -> Vec<Command> {
         let mut view = self.model.view;
@@ -937,6 +1040,10 @@ impl ProprioscopeApp {
             &mut view.show_points,
             "candidate points (A red, B orange, 90 % set white)",
         );
+        ui.checkbox(
+            &mut view.show_axes,
+            "joint axes (hover a torque bar: its axis and lever arm)",
+        );
         if view == self.model.view {
             Vec::new()
         } else {
@@ -944,7 +1051,7 @@ impl ProprioscopeApp {
         }
     }
 
-    fn torques_ui(&self, ui: &mut egui::Ui) {
+    fn torques_ui(&mut self, ui: &mut egui::Ui) {
         use egui_plot::{Bar, BarChart, Legend, Plot};
         let positions = self.model.joint_positions();
         let pose = RobotPose::new(&self.model.robot, &positions);
@@ -973,7 +1080,7 @@ impl ProprioscopeApp {
                 })
                 .collect()
         };
-        Plot::new("torques")
+        let hovered = Plot::new("torques")
             .legend(Legend::default())
             .height(ui.available_height().max(120.0))
             .show(ui, |plot| {
@@ -992,7 +1099,12 @@ impl ProprioscopeApp {
                         plot.bar_chart(BarChart::new(name, bars(values, offset, colour)).color(colour));
                     }
                 }
-            });
+                plot.pointer_coordinate().map(|p| p.x.round() as i64 - 1)
+            })
+            .inner;
+        self.hovered_joint = hovered
+            .and_then(|j| usize::try_from(j).ok())
+            .filter(|&j| j < applied.len());
     }
 
     /// The posed robot with its heatmap, the push and the estimate.
@@ -1051,6 +1163,27 @@ impl ProprioscopeApp {
                 0.02 * force.length().max(1.0),
                 [1.0, 0.35, 0.25, 1.0],
             );
+        }
+        let cyan = [0.3, 0.9, 1.0, 1.0];
+        for (i, &j) in self.model.robot.sensed().iter().enumerate() {
+            let hovered = self.hovered_joint == Some(i);
+            if !(view.show_axes || hovered) {
+                continue;
+            }
+            let o = pose.joint_origin_world(j);
+            let a = pose.joint_axis_world(&self.model.robot, j);
+            let colour = if hovered { [1.0, 1.0, 0.2, 1.0] } else { cyan };
+            crate::render::scene::line(
+                &mut frame.lines,
+                (o - a * 0.2).as_vec3(),
+                (o + a * 0.2).as_vec3(),
+                colour,
+            );
+            if hovered && let Some((_, point, _)) = self.model.push_world(&pose) {
+                // The lever: from the axis to the contact, at right angles to the axis.
+                let foot = o + a * a.dot(point - o);
+                crate::render::scene::line(&mut frame.lines, foot.as_vec3(), point.as_vec3(), [1.0, 1.0, 0.2, 1.0]);
+            }
         }
         if let (true, Some((o, u))) = (view.show_points, heat) {
             let surface = &o.estimator.surface;
@@ -1120,6 +1253,12 @@ impl ProprioscopeApp {
                 .pick(&self.model.robot, &pose, origin.as_dvec3(), dir.as_dvec3(), &[])
                 .map(|hit| (hit, pose))
         };
+        if let Some(pos) = response.hover_pos()
+            && !response.dragged()
+            && let Some(text) = self.candidate_tooltip(pos, rect)
+        {
+            response.clone().on_hover_text(text);
+        }
         if response.double_clicked() {
             if let Some((hit, _)) = response.interact_pointer_pos().and_then(|p| pick_at(p, &self.camera)) {
                 self.camera.centre_on(hit.point_world.as_vec3());
@@ -1137,55 +1276,7 @@ impl ProprioscopeApp {
                 force_newtons: force,
             }));
         }
-        let pixels = rect.size() * ui.ctx().pixels_per_point();
-        let scene = self.scene_frame();
-        match (frame.wgpu_render_state(), self.renderer.as_mut()) {
-            (Some(state), Some(renderer)) => {
-                let resized = renderer.resize(&state.device, [pixels.x.round() as u32, pixels.y.round() as u32]);
-                renderer.render(&state.device, &state.queue, &self.camera, &scene);
-                let mut egui_renderer = state.renderer.write();
-                match self.texture {
-                    None => {
-                        self.texture = Some(egui_renderer.register_native_texture(
-                            &state.device,
-                            renderer.color_view(),
-                            wgpu::FilterMode::Linear,
-                        ));
-                    }
-                    Some(id) if resized => {
-                        egui_renderer.update_egui_texture_from_wgpu_texture(
-                            &state.device,
-                            renderer.color_view(),
-                            wgpu::FilterMode::Linear,
-                            id,
-                        );
-                    }
-                    Some(_) => {}
-                }
-                if let Some(id) = self.texture {
-                    let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
-                    ui.painter().image(id, rect, uv, egui::Color32::WHITE);
-                }
-            }
-            _ => {
-                ui.painter().text(
-                    rect.center(),
-                    egui::Align2::CENTER_CENTER,
-                    "no GPU renderer",
-                    egui::FontId::default(),
-                    egui::Color32::GRAY,
-                );
-            }
-        }
-        if !self.status.is_empty() {
-            ui.painter().text(
-                rect.left_top() + egui::vec2(8.0, 8.0),
-                egui::Align2::LEFT_TOP,
-                &self.status,
-                egui::FontId::default(),
-                egui::Color32::LIGHT_GRAY,
-            );
-        }
+        self.paint_view(ui, frame, rect);
         commands
     }
 }
