@@ -1107,6 +1107,28 @@ impl ProprioscopeApp {
             .filter(|&j| j < applied.len());
     }
 
+    /// The sensed joints' axes (all with the toggle; the hovered one in
+    /// yellow with its lever arm to the push).
+    fn joint_axes(&self, pose: &RobotPose, lines: &mut Vec<crate::render::renderer::LineVertex>) {
+        let view = self.model.view;
+        let cyan = [0.3, 0.9, 1.0, 1.0];
+        for (i, &j) in self.model.robot.sensed().iter().enumerate() {
+            let hovered = self.hovered_joint == Some(i);
+            if !(view.show_axes || hovered) {
+                continue;
+            }
+            let o = pose.joint_origin_world(j);
+            let a = pose.joint_axis_world(&self.model.robot, j);
+            let colour = if hovered { [1.0, 1.0, 0.2, 1.0] } else { cyan };
+            crate::render::scene::line(lines, (o - a * 0.2).as_vec3(), (o + a * 0.2).as_vec3(), colour);
+            if hovered && let Some((_, point, _)) = self.model.push_world(pose) {
+                // The lever: from the axis to the contact, at right angles to the axis.
+                let foot = o + a * a.dot(point - o);
+                crate::render::scene::line(lines, foot.as_vec3(), point.as_vec3(), [1.0, 1.0, 0.2, 1.0]);
+            }
+        }
+    }
+
     /// The posed robot with its heatmap, the push and the estimate.
     fn scene_frame(&self) -> Frame {
         let positions = self.model.joint_positions();
@@ -1164,27 +1186,7 @@ impl ProprioscopeApp {
                 [1.0, 0.35, 0.25, 1.0],
             );
         }
-        let cyan = [0.3, 0.9, 1.0, 1.0];
-        for (i, &j) in self.model.robot.sensed().iter().enumerate() {
-            let hovered = self.hovered_joint == Some(i);
-            if !(view.show_axes || hovered) {
-                continue;
-            }
-            let o = pose.joint_origin_world(j);
-            let a = pose.joint_axis_world(&self.model.robot, j);
-            let colour = if hovered { [1.0, 1.0, 0.2, 1.0] } else { cyan };
-            crate::render::scene::line(
-                &mut frame.lines,
-                (o - a * 0.2).as_vec3(),
-                (o + a * 0.2).as_vec3(),
-                colour,
-            );
-            if hovered && let Some((_, point, _)) = self.model.push_world(&pose) {
-                // The lever: from the axis to the contact, at right angles to the axis.
-                let foot = o + a * a.dot(point - o);
-                crate::render::scene::line(&mut frame.lines, foot.as_vec3(), point.as_vec3(), [1.0, 1.0, 0.2, 1.0]);
-            }
-        }
+        self.joint_axes(&pose, &mut frame.lines);
         if let (true, Some((o, u))) = (view.show_points, heat) {
             let surface = &o.estimator.surface;
             let in_set: std::collections::HashSet<usize> = u.summary.credible90.points.iter().copied().collect();
