@@ -219,3 +219,19 @@ fn measure_frame_time_while_dragging_a_joint() {
         times[times.len() * 9 / 10]
     );
 }
+
+#[test]
+fn random_pose_stays_within_the_joint_limits_and_re_estimates() {
+    let mut harness = app_harness();
+    settle(&mut harness);
+    let generation = harness.state().outcome.as_ref().unwrap().generation;
+    harness.get_by_label("Random pose").click();
+    harness.run_steps(2);
+    settle(&mut harness);
+    let app = harness.state();
+    for (q, &j) in app.model.q.iter().zip(app.model.robot.sensed()) {
+        let limits = app.model.robot.joints[j].limits.unwrap();
+        assert!((limits.lower..=limits.upper).contains(q), "{q} outside {limits:?}");
+    }
+    assert!(app.outcome.as_ref().unwrap().generation > generation);
+}

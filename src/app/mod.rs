@@ -140,6 +140,19 @@ use crate::render::renderer::{Frame, Renderer};
 use crate::render::scene::{ROBOT_GREY, arrow, grid_and_axes, red_green, robot_triangles, viridis};
 use worker::{Outcome, Request, Worker};
 
+/// Points and particles evaluated, per phase when there are phases.
+fn phase_report(phases: &[crate::core::estimator::PhaseReport]) -> String {
+    if let [one] = phases {
+        return format!("evaluated {} points, {} particles", one.points, one.particles);
+    }
+    let parts: Vec<String> = phases
+        .iter()
+        .zip(["A", "B", "C"])
+        .map(|(p, name)| format!("{name}: {} points, {} particles", p.points, p.particles))
+        .collect();
+    format!("phases {}", parts.join("; "))
+}
+
 /// The scene files shipped in `scenes/` (relative to the working
 /// directory), sorted; none when the folder is not there.
 fn shipped_scenes() -> Vec<std::path::PathBuf> {
@@ -299,6 +312,10 @@ pub enum Command {
     SetJoint(usize, f64),
     /// Every joint to 0.
     ZeroJoints,
+    /// Every joint to a random position within its limits (seeded).
+    RandomPose(u64),
+    /// Set the seed of the sensor noise.
+    SetNoiseSeed(u64),
     /// Apply a push.
     Push(Push),
     /// Set the push's magnitude, N.
@@ -330,6 +347,16 @@ impl Model {
                 }
             }
             Command::ZeroJoints => self.q.iter_mut().for_each(|q| *q = 0.0),
+            Command::RandomPose(seed) => {
+                let mut rng = crate::core::rng::Rng::new(seed);
+                for (q, &j) in self.q.iter_mut().zip(self.robot.sensed()) {
+                    let (lo, hi) = self.robot.joints[j]
+                        .limits
+                        .map_or((-std::f64::consts::PI, std::f64::consts::PI), |l| (l.lower, l.upper));
+                    *q = rng.uniform_in(lo, hi);
+                }
+            }
+            Command::SetNoiseSeed(seed) => self.noise_seed = seed,
             Command::Push(push) => self.push = Some(push),
             Command::SetForce(f) => {
                 if let Some(p) = self.push.as_mut() {
@@ -359,13 +386,25 @@ impl Model {
 
     /// What the estimate depends on (view options excluded).
     #[allow(clippy::type_complexity)] // A snapshot for comparison only.
-    fn estimate_inputs(&self) -> (Vec<f64>, Option<Push>, f64, usize, f64, EstimatorChoice, (f64, f64)) {
+    fn estimate_inputs(
+        &self,
+    ) -> (
+        Vec<f64>,
+        Option<Push>,
+        f64,
+        usize,
+        f64,
+        u64,
+        EstimatorChoice,
+        (f64, f64),
+    ) {
         (
             self.q.clone(),
             self.push,
             self.sigma,
             self.surface_points,
             self.noise_sigma,
+            self.noise_seed,
             self.estimator,
             self.force_range_newtons,
         )
@@ -447,6 +486,8 @@ pub struct ProprioscopeApp {
     pub error: Option<String>,
     /// The joint whose torque bar the pointer is over (sensed index).
     hovered_joint: Option<usize>,
+    /// Seed of the last random pose.
+    pose_seed: u64,
     status: String,
 }
 
@@ -490,6 +531,7 @@ impl ProprioscopeApp {
             robot_spec: String::new(),
             error: None,
             hovered_joint: None,
+            pose_seed: 0,
             status: String::new(),
         };
         app.request_estimate();
@@ -739,9 +781,15 @@ impl ProprioscopeApp {
                 commands.push(Command::SetJoint(i, deg.to_radians()));
             }
         }
-        if ui.button("Zero pose").clicked() {
-            commands.push(Command::ZeroJoints);
-        }
+        ui.horizontal(|ui| {
+            if ui.button("Zero pose").clicked() {
+                commands.push(Command::ZeroJoints);
+            }
+            if ui.button("Random pose").clicked() {
+                self.pose_seed += 1;
+                commands.push(Command::RandomPose(self.pose_seed));
+            }
+        });
         ui.separator();
         ui.label("Push (click the arm)");
         match self.model.push {
@@ -753,7 +801,13 @@ impl ProprioscopeApp {
                 {
                     commands.push(Command::SetForce(f));
                 }
-                ui.label(format!("on {}", self.model.robot.links[p.link].name));
+                let positions = self.model.joint_positions();
+                let pose = RobotPose::new(&self.model.robot, &positions);
+                let at = pose.point_to_world(p.link, p.point_in_link);
+                ui.label(format!(
+                    "on {} at ({:.3}, {:.3}, {:.3}) m",
+                    self.model.robot.links[p.link].name, at.x, at.y, at.z
+                ));
                 if ui.button("Clear push").clicked() {
                     commands.push(Command::ClearPush);
                 }
@@ -761,6 +815,10 @@ impl ProprioscopeApp {
             None => {
                 ui.label("none");
             }
+        }
+        let mut seed = self.model.noise_seed;
+        if ui.add(egui::DragValue::new(&mut seed).prefix("noise seed ")).changed() {
+            commands.push(Command::SetNoiseSeed(seed));
         }
         let mut noise = self.model.noise_sigma;
         if ui
@@ -809,6 +867,7 @@ impl ProprioscopeApp {
                         o.update_ms,
                         1e3 / o.update_ms.max(1e-3)
                     ));
+                    ui.label(phase_report(&u.posterior.phases));
                     ui.label(match s.verdict {
                         Verdict::Contact => "contact".to_owned(),
                         Verdict::NoContact => "no contact: torques within noise".to_owned(),
@@ -847,12 +906,13 @@ impl ProprioscopeApp {
                         }
                     }
                     ui.separator();
-                    ui.label("Probability per link (summed)");
+                    ui.label("Probability per link (bar: summed; max: its best point)");
                     for share in &s.per_link {
                         ui.add(egui::ProgressBar::new(share.summed as f32).text(format!(
-                            "{} {:.1} %",
+                            "{} {:.1} % (max {:.1e})",
                             self.model.robot.links[share.link].name,
-                            share.summed * 100.0
+                            share.summed * 100.0,
+                            share.max
                         )));
                     }
                 }
@@ -1034,6 +1094,11 @@ impl ProprioscopeApp {
             ui.separator();
             ui.radio_value(&mut view.red_green, false, "viridis");
             ui.radio_value(&mut view.red_green, true, "red-green");
+        });
+        ui.label(if view.log_scale {
+            "yellow: the most probable; purple: e^-20 of it and less"
+        } else {
+            "yellow: the most probable; purple: zero"
         });
         ui.add(egui::Slider::new(&mut view.threshold, 0.0..=0.99).text("hide below"));
         ui.checkbox(
