@@ -235,3 +235,19 @@ fn random_pose_stays_within_the_joint_limits_and_re_estimates() {
     }
     assert!(app.outcome.as_ref().unwrap().generation > generation);
 }
+
+#[test]
+fn unticking_a_link_removes_it_from_the_surface() {
+    let mut harness = app_harness();
+    settle(&mut harness);
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::CheckBox, "lwr_3_link")
+        .click();
+    harness.run_steps(2);
+    settle(&mut harness);
+    let app = harness.state();
+    let l3 = app.model.robot.link_id("lwr_3_link").unwrap();
+    assert!(!app.model.candidate_links.contains(&l3));
+    let surface = &app.outcome.as_ref().unwrap().estimator.surface;
+    assert!(!surface.is_empty() && !surface.link.contains(&l3));
+}

@@ -77,6 +77,11 @@ pub fn open_target(target: Option<&str>) -> anyhow::Result<AppStart> {
                 surface_points: loaded.scene.surface_points,
                 noise: (loaded.scene.noise.sigma_newton_metres, loaded.scene.noise.seed),
                 force_range_newtons: (e.force_min_newtons, e.force_max_newtons),
+                candidate_links: loaded
+                    .scene
+                    .candidate_links
+                    .is_some()
+                    .then(|| loaded.candidate_links.clone()),
             };
             let spec = if crate::io::builtin::is_builtin(&loaded.scene.robot) {
                 loaded.scene.robot.clone()
@@ -199,6 +204,8 @@ pub struct Model {
     pub sigma: f64,
     /// Surface points over the candidate links.
     pub surface_points: usize,
+    /// Links that can be touched: only these are sampled and evaluated.
+    pub candidate_links: Vec<LinkId>,
     /// Sensor noise added to the push's torques, N·m.
     pub noise_sigma: f64,
     /// Seed of that noise.
@@ -280,8 +287,22 @@ impl Default for ViewOptions {
     }
 }
 
+/// The parts of the [`Model`] an estimate depends on, to tell whether a
+/// command calls for a new one.
+#[derive(Debug, Clone, PartialEq)]
+struct EstimateInputs {
+    q: Vec<f64>,
+    push: Option<Push>,
+    sigma: f64,
+    surface_points: usize,
+    candidate_links: Vec<LinkId>,
+    noise: (f64, u64),
+    estimator: EstimatorChoice,
+    force_range_newtons: (f64, f64),
+}
+
 /// Estimator and sensor settings to start the app with.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct StartSettings {
     /// Likelihood σ, N·m.
     pub sigma: f64,
@@ -291,6 +312,8 @@ pub struct StartSettings {
     pub noise: (f64, u64),
     /// Push magnitudes considered, N.
     pub force_range_newtons: (f64, f64),
+    /// Candidate links by name; `None`: every link a revolute joint moves.
+    pub candidate_links: Option<Vec<LinkId>>,
 }
 
 impl Default for StartSettings {
@@ -301,6 +324,7 @@ impl Default for StartSettings {
             surface_points: 5000,
             noise: (0.05, 1),
             force_range_newtons: (1.0, 30.0),
+            candidate_links: None,
         }
     }
 }
@@ -326,6 +350,8 @@ pub enum Command {
     SetSigma(f64),
     /// Set the surface resolution.
     SetSurfacePoints(usize),
+    /// Make a link a candidate (true) or not.
+    SetCandidate(LinkId, bool),
     /// Set the sensor noise, N·m.
     SetNoise(f64),
     /// Set the estimator's mode and phases.
@@ -366,6 +392,16 @@ impl Model {
             Command::ClearPush => self.push = None,
             Command::SetSigma(s) => self.sigma = s.max(1e-6),
             Command::SetSurfacePoints(n) => self.surface_points = n.max(10),
+            Command::SetCandidate(link, on) => {
+                let can_touch = self.robot.default_candidate_links().contains(&link);
+                if on && can_touch && !self.candidate_links.contains(&link) {
+                    self.candidate_links.push(link);
+                    self.candidate_links.sort_unstable();
+                } else if !on && self.candidate_links.len() > 1 {
+                    // At least one link stays: an empty surface has no posterior.
+                    self.candidate_links.retain(|l| *l != link);
+                }
+            }
             Command::SetNoise(s) => self.noise_sigma = s.max(0.0),
             Command::SetEstimator(choice) => {
                 self.estimator = EstimatorChoice {
@@ -385,29 +421,17 @@ impl Model {
     }
 
     /// What the estimate depends on (view options excluded).
-    #[allow(clippy::type_complexity)] // A snapshot for comparison only.
-    fn estimate_inputs(
-        &self,
-    ) -> (
-        Vec<f64>,
-        Option<Push>,
-        f64,
-        usize,
-        f64,
-        u64,
-        EstimatorChoice,
-        (f64, f64),
-    ) {
-        (
-            self.q.clone(),
-            self.push,
-            self.sigma,
-            self.surface_points,
-            self.noise_sigma,
-            self.noise_seed,
-            self.estimator,
-            self.force_range_newtons,
-        )
+    fn estimate_inputs(&self) -> EstimateInputs {
+        EstimateInputs {
+            q: self.q.clone(),
+            push: self.push,
+            sigma: self.sigma,
+            surface_points: self.surface_points,
+            candidate_links: self.candidate_links.clone(),
+            noise: (self.noise_sigma, self.noise_seed),
+            estimator: self.estimator,
+            force_range_newtons: self.force_range_newtons,
+        }
     }
 
     /// The core estimator's settings.
@@ -507,6 +531,7 @@ impl ProprioscopeApp {
             .as_ref()
             .map(|state| Renderer::new(&state.device, [640, 480]));
         let picker = Picker::new(&robot);
+        let robot_candidates = robot.default_candidate_links();
         let mut app = Self {
             model: Model {
                 robot: Arc::new(robot),
@@ -514,6 +539,7 @@ impl ProprioscopeApp {
                 push,
                 sigma: settings.sigma,
                 surface_points: settings.surface_points,
+                candidate_links: settings.candidate_links.unwrap_or(robot_candidates),
                 noise_sigma: settings.noise.0,
                 noise_seed: settings.noise.1,
                 force_range_newtons: settings.force_range_newtons,
@@ -554,12 +580,18 @@ impl ProprioscopeApp {
             Ok(start) => {
                 self.picker = Picker::new(&start.robot);
                 let view = self.model.view;
+                let candidate_links = start
+                    .settings
+                    .candidate_links
+                    .clone()
+                    .unwrap_or_else(|| start.robot.default_candidate_links());
                 self.model = Model {
                     robot: Arc::new(start.robot),
                     q: start.q,
                     push: start.push,
                     sigma: start.settings.sigma,
                     surface_points: start.settings.surface_points,
+                    candidate_links,
                     noise_sigma: start.settings.noise.0,
                     noise_seed: start.settings.noise.1,
                     force_range_newtons: start.settings.force_range_newtons,
@@ -590,7 +622,12 @@ impl ProprioscopeApp {
             sensed_joints: None,
             q: m.q.clone(),
             other_joints: std::collections::BTreeMap::new(),
-            candidate_links: None,
+            candidate_links: (m.candidate_links != m.robot.default_candidate_links()).then(|| {
+                m.candidate_links
+                    .iter()
+                    .map(|&l| m.robot.links[l].name.clone())
+                    .collect()
+            }),
             surface_points: m.surface_points,
             surface_seed: 0,
             push: m.push_world(&pose).map(|(link, point, force)| sc::Push {
@@ -731,7 +768,7 @@ impl ProprioscopeApp {
             joint_positions: positions,
             tau,
             surface: SurfaceRequest {
-                links: self.model.robot.default_candidate_links(),
+                links: self.model.candidate_links.clone(),
                 total_points: self.model.surface_points,
                 seed: 0,
             },
@@ -816,6 +853,15 @@ impl ProprioscopeApp {
                 ui.label("none");
             }
         }
+        ui.separator();
+        ui.label("Links that can be touched");
+        for link in self.model.robot.default_candidate_links() {
+            let mut on = self.model.candidate_links.contains(&link);
+            if ui.checkbox(&mut on, &self.model.robot.links[link].name).changed() {
+                commands.push(Command::SetCandidate(link, on));
+            }
+        }
+        ui.separator();
         let mut seed = self.model.noise_seed;
         if ui.add(egui::DragValue::new(&mut seed).prefix("noise seed ")).changed() {
             commands.push(Command::SetNoiseSeed(seed));
