@@ -200,8 +200,8 @@ pub struct Model {
     pub q: Vec<f64>,
     /// The applied push.
     pub push: Option<Push>,
-    /// Likelihood σ, N·m.
-    pub sigma: f64,
+    /// Likelihood σ per sensed joint, N·m.
+    pub sigma: Vec<f64>,
     /// Surface points over the candidate links.
     pub surface_points: usize,
     /// Links that can be touched: only these are sampled and evaluated.
@@ -293,7 +293,7 @@ impl Default for ViewOptions {
 struct EstimateInputs {
     q: Vec<f64>,
     push: Option<Push>,
-    sigma: f64,
+    sigma: Vec<f64>,
     surface_points: usize,
     candidate_links: Vec<LinkId>,
     noise: (f64, u64),
@@ -346,8 +346,10 @@ pub enum Command {
     SetForce(f64),
     /// Remove the push.
     ClearPush,
-    /// Set the likelihood σ, N·m.
+    /// Set the likelihood σ of every joint, N·m.
     SetSigma(f64),
+    /// Set one joint's likelihood σ, N·m.
+    SetJointSigma(usize, f64),
     /// Set the surface resolution.
     SetSurfacePoints(usize),
     /// Make a link a candidate (true) or not.
@@ -390,7 +392,12 @@ impl Model {
                 }
             }
             Command::ClearPush => self.push = None,
-            Command::SetSigma(s) => self.sigma = s.max(1e-6),
+            Command::SetSigma(s) => self.sigma.iter_mut().for_each(|v| *v = s.max(1e-6)),
+            Command::SetJointSigma(i, s) => {
+                if let Some(v) = self.sigma.get_mut(i) {
+                    *v = s.max(1e-6);
+                }
+            }
             Command::SetSurfacePoints(n) => self.surface_points = n.max(10),
             Command::SetCandidate(link, on) => {
                 let can_touch = self.robot.default_candidate_links().contains(&link);
@@ -425,7 +432,7 @@ impl Model {
         EstimateInputs {
             q: self.q.clone(),
             push: self.push,
-            sigma: self.sigma,
+            sigma: self.sigma.clone(),
             surface_points: self.surface_points,
             candidate_links: self.candidate_links.clone(),
             noise: (self.noise_sigma, self.noise_seed),
@@ -440,7 +447,7 @@ impl Model {
         use crate::core::estimator::{ParticleSettings, Sampling};
         let e = self.estimator;
         EstimatorSettings {
-            sigma: vec![self.sigma; self.robot.sensed().len()],
+            sigma: self.sigma.clone(),
             force_min_newtons: self.force_range_newtons.0,
             force_max_newtons: self.force_range_newtons.1,
             mode: match e.mode {
@@ -532,12 +539,13 @@ impl ProprioscopeApp {
             .map(|state| Renderer::new(&state.device, [640, 480]));
         let picker = Picker::new(&robot);
         let robot_candidates = robot.default_candidate_links();
+        let joints = robot.sensed().len();
         let mut app = Self {
             model: Model {
                 robot: Arc::new(robot),
                 q,
                 push,
-                sigma: settings.sigma,
+                sigma: vec![settings.sigma; joints],
                 surface_points: settings.surface_points,
                 candidate_links: settings.candidate_links.unwrap_or(robot_candidates),
                 noise_sigma: settings.noise.0,
@@ -585,11 +593,12 @@ impl ProprioscopeApp {
                     .candidate_links
                     .clone()
                     .unwrap_or_else(|| start.robot.default_candidate_links());
+                let joints = start.robot.sensed().len();
                 self.model = Model {
                     robot: Arc::new(start.robot),
                     q: start.q,
                     push: start.push,
-                    sigma: start.settings.sigma,
+                    sigma: vec![start.settings.sigma; joints],
                     surface_points: start.settings.surface_points,
                     candidate_links,
                     noise_sigma: start.settings.noise.0,
@@ -647,7 +656,11 @@ impl ProprioscopeApp {
                 } else {
                     sc::Mode::Particles
                 },
-                sigma_newton_metres: sc::Sigma::All(m.sigma),
+                sigma_newton_metres: if m.sigma.iter().all(|v| (v - m.sigma[0]).abs() < 1e-15) {
+                    sc::Sigma::All(m.sigma.first().copied().unwrap_or(0.1))
+                } else {
+                    sc::Sigma::PerJoint(m.sigma.clone())
+                },
                 sampling: if m.estimator.mode == ModeChoice::ParticlesRandom {
                     sc::Sampling::Random
                 } else {
@@ -879,7 +892,7 @@ impl ProprioscopeApp {
     fn estimator_panel_ui(&mut self, ui: &mut egui::Ui) -> Vec<Command> {
         let mut commands = Vec::new();
         ui.heading("Estimator");
-        let mut sigma = self.model.sigma;
+        let mut sigma = self.model.sigma.iter().copied().fold(0.0, f64::max);
         if ui
             .add(
                 egui::Slider::new(&mut sigma, 0.005..=1.0)
@@ -890,6 +903,23 @@ impl ProprioscopeApp {
         {
             commands.push(Command::SetSigma(sigma));
         }
+        egui::CollapsingHeader::new("σ per joint").show(ui, |ui| {
+            for (i, value) in self.model.sigma.iter().enumerate() {
+                let mut v = *value;
+                let name = &self.model.robot.joints[self.model.robot.sensed()[i]].name;
+                if ui
+                    .add(
+                        egui::DragValue::new(&mut v)
+                            .range(0.001..=10.0)
+                            .speed(0.001)
+                            .prefix(format!("{name}: ")),
+                    )
+                    .changed()
+                {
+                    commands.push(Command::SetJointSigma(i, v));
+                }
+            }
+        });
         let mut points = self.model.surface_points;
         if ui
             .add(
@@ -904,6 +934,12 @@ impl ProprioscopeApp {
         commands.extend(self.estimator_options_ui(ui));
         commands.extend(self.view_options_ui(ui));
         ui.separator();
+        self.summary_ui(ui);
+        commands
+    }
+
+    /// What the latest estimate says.
+    fn summary_ui(&self, ui: &mut egui::Ui) {
         match &self.outcome {
             Some(o) => match &o.update {
                 Ok(u) => {
@@ -970,7 +1006,6 @@ impl ProprioscopeApp {
                 ui.label("estimating…");
             }
         }
-        commands
     }
 
     /// Mode, particles, phases and force range.
@@ -1416,5 +1451,78 @@ impl eframe::App for ProprioscopeApp {
         for command in commands {
             self.apply(command);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model() -> Model {
+        let robot = crate::core::builtin::lwr4plus_generated().unwrap();
+        let candidate_links = robot.default_candidate_links();
+        Model {
+            q: vec![0.0; 7],
+            push: None,
+            sigma: vec![0.1; 7],
+            surface_points: 1000,
+            candidate_links,
+            noise_sigma: 0.0,
+            noise_seed: 1,
+            force_range_newtons: (1.0, 30.0),
+            estimator: EstimatorChoice::default(),
+            view: ViewOptions::default(),
+            robot: Arc::new(robot),
+        }
+    }
+
+    #[test]
+    fn sigma_commands_set_all_joints_or_one() {
+        let mut m = model();
+        assert!(m.apply(Command::SetSigma(0.3)));
+        assert!(m.sigma.iter().all(|s| (s - 0.3).abs() < 1e-15));
+        assert!(m.apply(Command::SetJointSigma(2, 0.05)));
+        assert!((m.sigma[2] - 0.05).abs() < 1e-15 && (m.sigma[1] - 0.3).abs() < 1e-15);
+        assert!(
+            !m.apply(Command::SetJointSigma(99, 0.05)),
+            "no such joint: nothing changes"
+        );
+        assert_eq!(m.estimator_settings().sigma, m.sigma);
+    }
+
+    #[test]
+    fn view_commands_change_no_estimate_input() {
+        let mut m = model();
+        let view = ViewOptions {
+            log_scale: false,
+            ..ViewOptions::default()
+        };
+        assert!(!m.apply(Command::SetView(view)));
+        assert_eq!(m.view, view);
+    }
+
+    #[test]
+    fn at_least_one_candidate_link_stays_and_only_touchable_links_join() {
+        let mut m = model();
+        let all = m.candidate_links.clone();
+        for &l in &all {
+            m.apply(Command::SetCandidate(l, false));
+        }
+        assert_eq!(m.candidate_links.len(), 1);
+        assert!(
+            !m.apply(Command::SetCandidate(0, true)),
+            "the base is not a touchable link"
+        );
+        assert!(m.apply(Command::SetCandidate(all[0], true)) || m.candidate_links == vec![all[0]]);
+    }
+
+    #[test]
+    fn random_poses_are_seeded() {
+        let (mut a, mut b) = (model(), model());
+        a.apply(Command::RandomPose(3));
+        b.apply(Command::RandomPose(3));
+        assert_eq!(a.q, b.q);
+        b.apply(Command::RandomPose(4));
+        assert_ne!(a.q, b.q);
     }
 }
