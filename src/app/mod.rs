@@ -1042,6 +1042,19 @@ impl ProprioscopeApp {
         ui.checkbox(&mut choice.phases, "phases A/B/C");
         if choice.phases {
             ui.add(egui::Slider::new(&mut choice.alpha, 0.0..=0.99).text("α"));
+            ui.horizontal(|ui| {
+                ui.add(
+                    egui::DragValue::new(&mut choice.phase_sizes[0])
+                        .range(10..=5000)
+                        .prefix("A: "),
+                );
+                ui.add(
+                    egui::DragValue::new(&mut choice.phase_sizes[1])
+                        .range(10..=20000)
+                        .prefix("B: "),
+                );
+                ui.label("points");
+            });
         }
         let (mut lo, mut hi) = self.model.force_range_newtons;
         let mut commands = Vec::new();
@@ -1111,6 +1124,13 @@ impl ProprioscopeApp {
                 );
             }
         }
+        ui.painter().text(
+            rect.left_bottom() + egui::vec2(8.0, -8.0),
+            egui::Align2::LEFT_BOTTOM,
+            "arrows: 2 cm per newton (red: the push, green: the most probable contact)",
+            egui::FontId::default(),
+            egui::Color32::LIGHT_GRAY,
+        );
         if !self.status.is_empty() {
             ui.painter().text(
                 rect.left_top() + egui::vec2(8.0, 8.0),
@@ -1313,9 +1333,9 @@ impl ProprioscopeApp {
         };
         let color = |link: LinkId, vertex: usize| -> [f32; 4] {
             let Some((o, u)) = heat else { return ROBOT_GREY };
-            match o.nearest.get(link).and_then(|v| v.get(vertex)).copied().flatten() {
-                Some(k) if top.is_finite() => {
-                    let t = scale(u, k);
+            match o.nearest.get(link).and_then(|v| v.get(vertex)) {
+                Some(weights) if !weights.is_empty() && top.is_finite() => {
+                    let t: f64 = weights.iter().map(|&(k, w)| w * scale(u, k)).sum();
                     if t < view.threshold { ROBOT_GREY } else { paint(t) }
                 }
                 _ => ROBOT_GREY,

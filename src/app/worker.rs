@@ -9,7 +9,7 @@ use crate::core::estimator::EstimatorSettings;
 use crate::core::pipeline::{Estimator, Update};
 use crate::core::robot::{LinkId, Robot};
 use crate::core::surface::{Surface, SurfaceRequest};
-use crate::render::scene::nearest_samples;
+use crate::render::scene::{VertexSamples, nearest_samples};
 
 /// The sampled surface kept between requests: which robot, links and
 /// resolution it was made for.
@@ -19,7 +19,7 @@ struct Cached {
     points: usize,
     phase_sizes: Option<[usize; 2]>,
     estimator: Arc<Estimator>,
-    nearest: Arc<Vec<Vec<Option<usize>>>>,
+    nearest: Arc<Vec<Vec<VertexSamples>>>,
 }
 
 /// What to estimate.
@@ -50,7 +50,7 @@ pub struct Outcome {
     /// The estimator it used (surface included).
     pub estimator: Arc<Estimator>,
     /// Per link and mesh vertex, the nearest surface sample (for the heatmap).
-    pub nearest: Arc<Vec<Vec<Option<usize>>>>,
+    pub nearest: Arc<Vec<Vec<VertexSamples>>>,
     /// The posterior and its summary, or what went wrong.
     pub update: Result<Update, String>,
     /// Time of the update, ms (surface sampling excluded).

@@ -46,10 +46,15 @@ pub fn red_green(t: f32) -> [f32; 4] {
     [(2.0 * (1.0 - t)).min(1.0) * 0.9, (2.0 * t).min(1.0) * 0.85, 0.15, 1.0]
 }
 
-/// For every link and mesh vertex, the nearest surface sample on that
-/// link (in the link frame), so that per-sample values paint the mesh.
+/// Per vertex, the candidates it takes its heat from and their weights.
+pub type VertexSamples = Vec<(usize, f64)>;
+
+/// For every link and mesh vertex, the three nearest surface samples on
+/// that link (in the link frame) with inverse-distance weights summing to
+/// 1, so that per-sample values paint the mesh smoothly.
 #[must_use]
-pub fn nearest_samples(robot: &Robot, surface: &Surface) -> Vec<Vec<Option<usize>>> {
+pub fn nearest_samples(robot: &Robot, surface: &Surface) -> Vec<Vec<VertexSamples>> {
+    const NEIGHBOURS: usize = 3;
     robot
         .links
         .iter()
@@ -60,11 +65,23 @@ pub fn nearest_samples(robot: &Robot, surface: &Surface) -> Vec<Vec<Option<usize
                 .positions
                 .iter()
                 .map(|v| {
-                    samples.iter().copied().min_by(|&x, &y| {
-                        surface.point_in_link[x]
-                            .distance_squared(*v)
-                            .total_cmp(&surface.point_in_link[y].distance_squared(*v))
-                    })
+                    let mut best: Vec<(f64, usize)> = Vec::with_capacity(NEIGHBOURS + 1);
+                    for &k in &samples {
+                        let d = surface.point_in_link[k].distance(*v);
+                        if best.len() < NEIGHBOURS || d < best[best.len() - 1].0 {
+                            let at = best.partition_point(|(bd, _)| *bd <= d);
+                            best.insert(at, (d, k));
+                            best.truncate(NEIGHBOURS);
+                        }
+                    }
+                    // A vertex on a sample takes its value alone.
+                    if let Some(&(d, k)) = best.first()
+                        && d < 1e-9
+                    {
+                        return vec![(k, 1.0)];
+                    }
+                    let total: f64 = best.iter().map(|(d, _)| 1.0 / d).sum();
+                    best.iter().map(|(d, k)| (*k, 1.0 / d / total)).collect()
                 })
                 .collect()
         })
@@ -198,12 +215,16 @@ mod tests {
         .unwrap();
         let nearest = nearest_samples(&robot, &surface);
         let l5 = robot.link_id("lwr_5_link").unwrap();
-        for (v, k) in robot.links[l5].mesh.positions.iter().zip(&nearest[l5]) {
-            let k = k.unwrap();
+        for (v, weights) in robot.links[l5].mesh.positions.iter().zip(&nearest[l5]) {
+            assert!(!weights.is_empty() && weights.len() <= 3);
+            assert!((weights.iter().map(|(_, w)| w).sum::<f64>() - 1.0).abs() < 1e-12);
+            let (k, _) = weights[0];
             assert_eq!(surface.link[k], l5);
             // Buried vertices may sit a few centimetres from exposed samples.
             assert!(surface.point_in_link[k].distance(*v) < 0.08);
+            // The nearest sample weighs most.
+            assert!(weights.iter().all(|(_, w)| *w <= weights[0].1 + 1e-12));
         }
-        assert!(nearest[0].iter().all(Option::is_none), "the base is no candidate");
+        assert!(nearest[0].iter().all(Vec::is_empty), "the base is no candidate");
     }
 }
