@@ -129,17 +129,14 @@ impl Primitive {
                 };
                 p.distance(from + d * t) - radius
             }
-            Self::Cylinder { from, to, radius } => {
-                let length = from.distance(to);
-                let axis = (to - from).normalize_or_zero();
-                let rel = p - from;
-                let along_axis = rel.dot(axis);
-                let radial = (rel - axis * along_axis).length();
-                let dr = radial - radius;
-                let dz = (along_axis - 0.5 * length).abs() - 0.5 * length;
-                let outside = DVec3::new(dr.max(0.0), dz.max(0.0), 0.0).length();
-                outside + dr.max(dz).min(0.0)
+            // A plain cylinder is a filleted one with no fillet.
+            Self::Cylinder { from, to, radius } => Self::RoundedCylinder {
+                from,
+                to,
+                radius,
+                fillet: 0.0,
             }
+            .signed_distance(p),
             Self::RoundedCylinder {
                 from,
                 to,
