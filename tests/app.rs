@@ -251,3 +251,19 @@ fn unticking_a_link_removes_it_from_the_surface() {
     let surface = &app.outcome.as_ref().unwrap().estimator.surface;
     assert!(!surface.is_empty() && !surface.link.contains(&l3));
 }
+
+#[test]
+fn a_scene_with_sigma_per_joint_opens_with_it() {
+    let dir = std::env::temp_dir().join(format!("proprioscope-app-sigma-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("per-joint.json");
+    std::fs::write(
+        &path,
+        r#"{"version": 1, "robot": "lwr4plus", "q": [0, 0, 0, 0, 0, 0, 0],
+            "estimator": {"sigma_newton_metres": [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]}}"#,
+    )
+    .unwrap();
+    let mut harness = proprioscope::app::headless_harness(open_target(path.to_str()).unwrap(), [800.0, 600.0]);
+    settle(&mut harness);
+    assert_eq!(harness.state().model.sigma, vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]);
+}

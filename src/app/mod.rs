@@ -71,8 +71,8 @@ pub fn open_target(target: Option<&str>) -> anyhow::Result<AppStart> {
             let e = &loaded.scene.estimator;
             let settings = StartSettings {
                 sigma: match &e.sigma_newton_metres {
-                    Sigma::All(s) => *s,
-                    Sigma::PerJoint(v) => v.iter().copied().fold(0.0, f64::max),
+                    Sigma::All(s) => vec![*s],
+                    Sigma::PerJoint(v) => v.clone(),
                 },
                 surface_points: loaded.scene.surface_points,
                 noise: (loaded.scene.noise.sigma_newton_metres, loaded.scene.noise.seed),
@@ -144,6 +144,15 @@ use crate::render::camera::OrbitCamera;
 use crate::render::renderer::{Frame, Renderer};
 use crate::render::scene::{ROBOT_GREY, arrow, grid_and_axes, red_green, robot_triangles, viridis};
 use worker::{Outcome, Request, Worker};
+
+/// One σ per joint from a list of one (for every joint) or one per joint.
+fn per_joint(sigma: &[f64], joints: usize) -> Vec<f64> {
+    if sigma.len() == joints {
+        sigma.to_vec()
+    } else {
+        vec![sigma.first().copied().unwrap_or(0.1); joints]
+    }
+}
 
 /// Points and particles evaluated, per phase when there are phases.
 fn phase_report(phases: &[crate::core::estimator::PhaseReport]) -> String {
@@ -304,8 +313,8 @@ struct EstimateInputs {
 /// Estimator and sensor settings to start the app with.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StartSettings {
-    /// Likelihood σ, N·m.
-    pub sigma: f64,
+    /// Likelihood σ, N·m: one value for every joint, or one per sensed joint.
+    pub sigma: Vec<f64>,
     /// Surface points.
     pub surface_points: usize,
     /// Sensor noise σ, N·m, and its seed.
@@ -320,7 +329,7 @@ impl Default for StartSettings {
     /// σ 0.1 N·m, 5000 points, 0.05 N·m of sensor noise, 1–30 N.
     fn default() -> Self {
         Self {
-            sigma: 0.1,
+            sigma: vec![0.1],
             surface_points: 5000,
             noise: (0.05, 1),
             force_range_newtons: (1.0, 30.0),
@@ -545,7 +554,7 @@ impl ProprioscopeApp {
                 robot: Arc::new(robot),
                 q,
                 push,
-                sigma: vec![settings.sigma; joints],
+                sigma: per_joint(&settings.sigma, joints),
                 surface_points: settings.surface_points,
                 candidate_links: settings.candidate_links.unwrap_or(robot_candidates),
                 noise_sigma: settings.noise.0,
@@ -598,7 +607,7 @@ impl ProprioscopeApp {
                     robot: Arc::new(start.robot),
                     q: start.q,
                     push: start.push,
-                    sigma: vec![start.settings.sigma; joints],
+                    sigma: per_joint(&start.settings.sigma, joints),
                     surface_points: start.settings.surface_points,
                     candidate_links,
                     noise_sigma: start.settings.noise.0,
