@@ -296,6 +296,17 @@ impl Default for ViewOptions {
     }
 }
 
+/// Everything the 3-D view's picture depends on.
+#[derive(Debug, Clone, PartialEq)]
+struct ViewKey {
+    inputs: EstimateInputs,
+    view: ViewOptions,
+    generation: Option<u64>,
+    hovered_joint: Option<usize>,
+    camera: OrbitCamera,
+    size: [u32; 2],
+}
+
 /// The parts of the [`Model`] an estimate depends on, to tell whether a
 /// command calls for a new one.
 #[derive(Debug, Clone, PartialEq)]
@@ -528,6 +539,8 @@ pub struct ProprioscopeApp {
     hovered_joint: Option<usize>,
     /// Seed of the last random pose.
     pose_seed: u64,
+    /// What the view texture last showed: it is redrawn only when this changes.
+    drawn: Option<ViewKey>,
     status: String,
 }
 
@@ -575,6 +588,7 @@ impl ProprioscopeApp {
             error: None,
             hovered_joint: None,
             pose_seed: 0,
+            drawn: None,
             status: String::new(),
         };
         app.request_estimate();
@@ -1094,11 +1108,25 @@ impl ProprioscopeApp {
     /// Renders the 3-D view into its texture and shows it in `rect`.
     fn paint_view(&mut self, ui: &egui::Ui, frame: &eframe::Frame, rect: egui::Rect) {
         let pixels = rect.size() * ui.ctx().pixels_per_point();
-        let scene = self.scene_frame();
+        let size = [pixels.x.round() as u32, pixels.y.round() as u32];
+        // The vertex lists and the GPU pass are redone only when something
+        // they show has changed, not every frame.
+        let key = ViewKey {
+            inputs: self.model.estimate_inputs(),
+            view: self.model.view,
+            generation: self.outcome.as_ref().map(|o| o.generation),
+            hovered_joint: self.hovered_joint,
+            camera: self.camera,
+            size,
+        };
+        let scene = (self.drawn.as_ref() != Some(&key)).then(|| self.scene_frame());
         match (frame.wgpu_render_state(), self.renderer.as_mut()) {
             (Some(state), Some(renderer)) => {
-                let resized = renderer.resize(&state.device, [pixels.x.round() as u32, pixels.y.round() as u32]);
-                renderer.render(&state.device, &state.queue, &self.camera, &scene);
+                let resized = renderer.resize(&state.device, size);
+                if let Some(scene) = &scene {
+                    renderer.render(&state.device, &state.queue, &self.camera, scene);
+                    self.drawn = Some(key);
+                }
                 let mut egui_renderer = state.renderer.write();
                 match self.texture {
                     None => {
@@ -1542,7 +1570,14 @@ mod tests {
             !m.apply(Command::SetCandidate(0, true)),
             "the base is not a touchable link"
         );
-        assert!(m.apply(Command::SetCandidate(all[0], true)) || m.candidate_links == vec![all[0]]);
+        let kept = m.candidate_links[0];
+        let other = *all.iter().find(|&&l| l != kept).unwrap();
+        assert!(m.apply(Command::SetCandidate(other, true)));
+        assert_eq!(m.candidate_links.len(), 2);
+        assert!(
+            !m.apply(Command::SetCandidate(other, true)),
+            "ticking twice changes nothing"
+        );
     }
 
     #[test]
