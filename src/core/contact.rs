@@ -3,6 +3,7 @@
 
 use rayon::prelude::*;
 
+use crate::core::phases::link_ranges;
 use crate::core::surface::Surface;
 use crate::core::torque::{LinkTwist, TorqueModel};
 
@@ -77,10 +78,7 @@ impl UnitTorqueSource for PosedSurface<'_> {
         // One link's points are contiguous: per link, per twist, a loop over
         // the points that the compiler can vectorise.
         let mut jobs: Vec<(std::ops::Range<usize>, Vec<Weighted>)> = Vec::new();
-        let mut start = 0;
-        while start < n {
-            let link = surface.link[start];
-            let end = start + surface.link[start..].iter().take_while(|l| **l == link).count();
+        for (link, range) in link_ranges(&surface.link) {
             let twists = self
                 .torque_model
                 .twists(link)
@@ -94,8 +92,7 @@ impl UnitTorqueSource for PosedSurface<'_> {
                     })
                 })
                 .collect();
-            jobs.push((start..end, twists));
-            start = end;
+            jobs.push((range, twists));
         }
         let [mx, my, mz, nx, ny, nz] = &surface.push_lines;
         let run = |range: std::ops::Range<usize>, twists: &[Weighted], a: &mut [f64], b: &mut [f64]| {

@@ -171,6 +171,9 @@ pub struct Posterior {
     pub phases: Vec<PhaseReport>,
     /// Per point, [`phase_flag`] bits.
     pub phase_flags: Vec<u8>,
+    /// The points with non-zero probability, in index order (usually a
+    /// few dozen: summaries read these instead of the whole surface).
+    pub support: Vec<usize>,
     /// Index of the most probable point.
     pub map_point: usize,
     /// Smallest `Σ (τ - f u)² / σ²` over evaluated points and magnitudes.
@@ -188,19 +191,24 @@ const FAR_BELOW: f64 = 60.0;
 /// `c = Σ w τ²` with `w = 1/σ²` (per point once the resolution noise is
 /// added), and `norm`, the point's share of the Gaussian normaliser
 /// relative to the bare noise model.
+/// Per-point `c` and normaliser arrays.
+type PerPoint<'a> = (&'a [f64], &'a [f64]);
+
 struct Quadratic<'a> {
     a: &'a [f64],
     b: &'a [f64],
     /// `c` shared by every point (the bare noise model)…
     c: f64,
     /// …or one per point, with its normaliser (resolution noise).
-    per_point: Option<(&'a [f64], &'a [f64])>,
+    per_point: Option<PerPoint<'a>>,
     f_min: f64,
     f_max: f64,
 }
 
 impl Quadratic<'_> {
-    /// Best magnitude in range at point k.
+    /// Best magnitude in range at point k (the tests' reference for
+    /// [`profile_chunk`]).
+    #[cfg(test)]
     fn best_force(&self, k: usize) -> f64 {
         let (a, b) = (self.a[k], self.b[k]);
         if a > 0.0 {
@@ -230,10 +238,112 @@ impl Quadratic<'_> {
         (c - 2.0 * self.b[k] * f + self.a[k] * f * f).max(0.0)
     }
 
+    /// Each listed point's best magnitude and its log-likelihood there
+    /// (the profile), and the largest profile. Whole-surface lists read
+    /// the arrays in place; the loops vectorise, and large surfaces share
+    /// them among threads.
+    fn profiles(&self, points: &[usize], surface_points: usize) -> (Vec<f64>, Vec<f64>, f64) {
+        const CHUNK: usize = 4096;
+        let gather = |values: &[f64]| -> Vec<f64> { points.iter().map(|&k| values[k]).collect() };
+        let full = points.len() == surface_points;
+        let gathered;
+        let (a, b, per_point): (&[f64], &[f64], Option<PerPoint>) = if full {
+            (self.a, self.b, self.per_point)
+        } else {
+            gathered = (
+                gather(self.a),
+                gather(self.b),
+                self.per_point.map(|(c, norm)| (gather(c), gather(norm))),
+            );
+            (
+                &gathered.0,
+                &gathered.1,
+                gathered.2.as_ref().map(|(c, norm)| (c.as_slice(), norm.as_slice())),
+            )
+        };
+        let len = a.len();
+        let (mut force, mut mass) = (vec![0.0; len], vec![0.0; len]);
+        let chunk = |start: usize, force: &mut [f64], mass: &mut [f64]| -> f64 {
+            let range = start..start + force.len();
+            let c = match per_point {
+                None => Shared::Value(self.c),
+                Some((c, norm)) => Shared::PerPoint(&c[range.clone()], &norm[range.clone()]),
+            };
+            profile_chunk(&a[range.clone()], &b[range], c, self.f_min, self.f_max, force, mass)
+        };
+        let best = if len >= PARALLEL_MIN_POINTS {
+            force
+                .par_chunks_mut(CHUNK)
+                .zip(mass.par_chunks_mut(CHUNK))
+                .enumerate()
+                .map(|(i, (force, mass))| chunk(i * CHUNK, force, mass))
+                .reduce(|| f64::NEG_INFINITY, f64::max)
+        } else {
+            chunk(0, &mut force, &mut mass)
+        };
+        (force, mass, best)
+    }
+
+    /// The exact evaluation of the listed points: the evidence near the
+    /// best, the profile (a tight upper bound) elsewhere.
+    fn exact_scores(&self, points: &[usize], surface_points: usize) -> Scores {
+        let (force, mut mass, profile_best) = self.profiles(points, surface_points);
+        let slots_from = |low: f64, high: f64| -> Vec<usize> {
+            let slots_in = |start: usize, mass: &[f64]| -> Vec<usize> {
+                (start..)
+                    .zip(mass)
+                    .filter(|(_, m)| **m >= low && **m < high)
+                    .map(|(i, _)| i)
+                    .collect()
+            };
+            if mass.len() >= PARALLEL_MIN_POINTS {
+                const CHUNK: usize = 8192;
+                mass.par_chunks(CHUNK)
+                    .enumerate()
+                    .map(|(c, chunk)| slots_in(c * CHUNK, chunk))
+                    .collect::<Vec<_>>()
+                    .concat()
+            } else {
+                slots_in(0, &mass)
+            }
+        };
+        let evidence = |slots: &[usize]| -> Vec<f64> {
+            let one = |&i: &usize| self.log_evidence(points[i], mass[i]);
+            if slots.len() >= PARALLEL_MIN_EVIDENCE {
+                slots.par_iter().map(one).collect()
+            } else {
+                slots.iter().map(one).collect()
+            }
+        };
+        let threshold = profile_best - FAR_BELOW;
+        let mut candidates = slots_from(threshold, f64::INFINITY);
+        let mut values = evidence(&candidates);
+        // A point's evidence may lie well below its profile (a narrow
+        // peak in f); then points with profiles below the first threshold
+        // may still be within reach of the best evidence: score them too,
+        // so that every point left out is negligible.
+        let best_evidence = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        if best_evidence - FAR_BELOW < threshold {
+            let extra = slots_from(best_evidence - FAR_BELOW, threshold);
+            values.extend(evidence(&extra));
+            candidates.extend(extra);
+        }
+        for (&i, &l) in candidates.iter().zip(&values) {
+            mass[i] = l;
+        }
+        candidates.sort_unstable();
+        Scores {
+            mass,
+            best: Vec::new(),
+            force,
+            candidates: Some(candidates),
+        }
+    }
+
     /// ln of the likelihood averaged over a uniform f in `[F_min, F_max]`,
     /// given the likelihood at the point's best magnitude (`profile`) and
     /// the best such value over the points (`profile_best`).
-    fn log_evidence(&self, k: usize, profile: f64, profile_best: f64) -> f64 {
+    fn log_evidence(&self, k: usize, profile: f64) -> f64 {
         let (a, b) = (self.a[k], self.b[k]);
         let range = self.f_max - self.f_min;
         if range <= 1e-12 * self.f_max.max(1.0) {
@@ -245,12 +355,6 @@ impl Quadratic<'_> {
             let mid = 0.5 * (self.f_min + self.f_max);
             return self.log_likelihood(k, mid);
         }
-        if profile < profile_best - FAR_BELOW {
-            // Far below the best: the profile likelihood, a tight upper
-            // bound (the average over f never exceeds the peak), saves a
-            // logarithm per point where the mass is below e^-50 anyway.
-            return profile;
-        }
         let mu = b / a;
         let (c, norm) = self.c_norm(k);
         norm - 0.5 * (c - b * mu).max(0.0)
@@ -260,12 +364,51 @@ impl Quadratic<'_> {
     }
 }
 
-/// Per evaluated point: the score that sums (ln mass), the score a
-/// heatmap shows (ln of the best particle), and the best magnitude.
-struct Scored {
-    mass: f64,
-    best: f64,
-    force: f64,
+/// Per evaluated point (one array each, so that the exact mode's loops
+/// vectorise): the score that sums (ln mass), the score a heatmap shows
+/// (ln of the best particle), and the best magnitude.
+struct Scores {
+    mass: Vec<f64>,
+    /// Empty where each point's best is its mass (exact mode).
+    best: Vec<f64>,
+    force: Vec<f64>,
+    /// The slots that may hold mass, in order (every other slot is below
+    /// e^-60 of the best); `None`: any slot may.
+    candidates: Option<Vec<usize>>,
+}
+
+impl Scores {
+    /// `len` points, none scored yet.
+    fn unscored(len: usize, force: f64) -> Self {
+        Self {
+            mass: vec![f64::NEG_INFINITY; len],
+            best: vec![f64::NEG_INFINITY; len],
+            force: vec![force; len],
+            candidates: None,
+        }
+    }
+
+    /// Slot i's heatmap score.
+    fn best(&self, i: usize) -> f64 {
+        self.best
+            .get(i)
+            .or(self.mass.get(i))
+            .copied()
+            .unwrap_or(f64::NEG_INFINITY)
+    }
+
+    /// Adds a particle of log-likelihood `l` and magnitude `f` to slot `i`.
+    fn add_particle(&mut self, i: usize, l: f64, f: f64) {
+        if let (Some(mass), Some(best), Some(force)) =
+            (self.mass.get_mut(i), self.best.get_mut(i), self.force.get_mut(i))
+        {
+            *mass = log_add(*mass, l);
+            if l > *best {
+                *best = l;
+                *force = f;
+            }
+        }
+    }
 }
 
 /// Estimates the contact from measured torques `tau` (N·m, sensed order).
@@ -303,42 +446,73 @@ pub fn estimate(
     let mut flags = vec![0u8; n];
     let mut phases = Vec::new();
     let last = search_phases(&q, settings, hierarchy, n, &mut rng, &mut flags, &mut phases)?;
-    let (scored, report) = evaluate(&q, &last, settings, n, &mut rng);
+    let (mut scored, report) = evaluate(&q, &last, settings, n, &mut rng);
     phases.push(report);
 
-    for &p in &last {
-        flags[p] |= phase_flag::C;
-    }
-    let total = log_sum_exp(scored.iter().map(|s| s.mass));
-    let (map_slot, best_mass) =
-        scored.iter().enumerate().fold(
-            (0, f64::NEG_INFINITY),
-            |(bi, bm), (i, s)| if s.mass > bm { (i, s.mass) } else { (bi, bm) },
-        );
-    // The smallest residual is among the likeliest points.
-    let best_residual_chi2 = last
-        .iter()
-        .zip(&scored)
-        .filter(|(_, s)| s.mass.is_finite() && s.mass >= best_mass - FAR_BELOW)
-        .map(|(&p, s)| q.residual(p, s.force))
-        .fold(f64::INFINITY, f64::min);
-    let (probability, display, log_likelihood, force_newtons) = if last.len() == n {
-        // A full search scores every point in order: no scatter needed.
-        (
-            scored.iter().map(|s| exp_or_zero(s.mass - total)).collect(),
-            scored.iter().map(|s| exp_or_zero(s.best - total)).collect(),
-            scored.iter().map(|s| s.mass).collect(),
-            scored.iter().map(|s| s.force).collect(),
-        )
-    } else {
-        let (mut p, mut d, mut l, mut f) = (vec![0.0; n], vec![0.0; n], vec![f64::NEG_INFINITY; n], vec![0.0; n]);
-        for (&k, s) in last.iter().zip(&scored) {
-            p[k] = exp_or_zero(s.mass - total);
-            d[k] = exp_or_zero(s.best - total);
-            l[k] = s.mass;
-            f[k] = s.force;
+    if last.len() == n {
+        for f in &mut flags {
+            *f |= phase_flag::C;
         }
-        (p, d, l, f)
+    } else {
+        for &p in &last {
+            flags[p] |= phase_flag::C;
+        }
+    }
+    let candidates = scored
+        .candidates
+        .take()
+        .unwrap_or_else(|| (0..scored.mass.len()).collect());
+    let best_mass = candidates
+        .iter()
+        .map(|&i| scored.mass[i])
+        .fold(f64::NEG_INFINITY, |best, m| if m > best { m } else { best });
+    let map_slot = candidates
+        .iter()
+        .copied()
+        .find(|&i| scored.mass[i].total_cmp(&best_mass).is_eq())
+        .unwrap_or(0);
+    // Only points near the best carry mass; listing them first keeps
+    // `exp` off the rest (a branch around `exp` in a loop over every point
+    // is compiled into an unconditional call, slow for large negative
+    // arguments).
+    let near: Vec<usize> = candidates
+        .into_iter()
+        .filter(|&i| scored.mass[i] >= best_mass + NEGLIGIBLE_LOG_MASS)
+        .collect();
+    let total = best_mass
+        + near
+            .iter()
+            .map(|&i| (scored.mass[i] - best_mass).exp())
+            .sum::<f64>()
+            .ln();
+    // The smallest residual is among the likeliest points.
+    let best_residual_chi2 = near
+        .iter()
+        .filter(|&&i| scored.mass[i].is_finite())
+        .map(|&i| q.residual(last[i], scored.force[i]))
+        .fold(f64::INFINITY, f64::min);
+    let (mut probability, mut display) = (vec![0.0; n], vec![0.0; n]);
+    let mut support = Vec::with_capacity(near.len());
+    for &i in &near {
+        let k = last[i];
+        probability[k] = exp_or_zero(scored.mass[i] - total);
+        display[k] = exp_or_zero(scored.best(i) - total);
+        if probability[k] > 0.0 || display[k] > 0.0 {
+            support.push(k);
+        }
+    }
+    // `last` is in index order already; this keeps the promise if that changes.
+    support.sort_unstable();
+    let (log_likelihood, force_newtons) = if last.len() == n {
+        // A full search scores every point in order: no scatter needed.
+        (scored.mass, scored.force)
+    } else {
+        let (mut l, mut f) = (vec![f64::NEG_INFINITY; n], vec![0.0; n]);
+        for ((&k, &mass), &force) in last.iter().zip(&scored.mass).zip(&scored.force) {
+            l[k] = mass;
+            f[k] = force;
+        }
+        (l, f)
     };
     Ok(Posterior {
         probability,
@@ -347,6 +521,7 @@ pub fn estimate(
         force_newtons,
         phases,
         phase_flags: flags,
+        support,
         map_point: last.get(map_slot).copied().unwrap_or(0),
         best_residual_chi2,
         no_contact_chi2,
@@ -371,13 +546,15 @@ fn search_phases(
             if h.b_of_point.len() != n {
                 return Err(EstimateError::NoHierarchy);
             }
-            let keep = |points: &[usize], scored: &[Scored]| {
-                let best = scored.iter().map(|s| s.best).fold(f64::NEG_INFINITY, f64::max);
+            let keep = |points: &[usize], scored: &Scores| {
+                let best = (0..points.len())
+                    .map(|i| scored.best(i))
+                    .fold(f64::NEG_INFINITY, f64::max);
                 points
                     .iter()
-                    .zip(scored)
-                    .filter(|(_, s)| s.best >= best + alpha.ln())
-                    .map(|(p, _)| *p)
+                    .enumerate()
+                    .filter(|(i, _)| scored.best(*i) >= best + alpha.ln())
+                    .map(|(_, p)| *p)
                     .collect::<Vec<usize>>()
             };
             let (scored_a, report) = evaluate(q, &h.a_points, settings, n, rng);
@@ -499,6 +676,52 @@ fn validate(model: &impl UnitTorqueSource, tau: &[f64], settings: &EstimatorSett
     }
 }
 
+/// From this many near-best points on, their evidence is shared among
+/// threads.
+const PARALLEL_MIN_EVIDENCE: usize = 512;
+
+/// The `c` and normaliser of a chunk of points.
+#[derive(Clone, Copy)]
+enum Shared<'a> {
+    /// One `c` for all, no normaliser.
+    Value(f64),
+    /// Per point.
+    PerPoint(&'a [f64], &'a [f64]),
+}
+
+/// Writes each point's best magnitude in `[f_min, f_max]` and its
+/// log-likelihood, and returns the largest log-likelihood.
+fn profile_chunk(a: &[f64], b: &[f64], c: Shared, f_min: f64, f_max: f64, force: &mut [f64], mass: &mut [f64]) -> f64 {
+    // `a = 0` implies `b = 0`, so the guarded quotient is then 0 and
+    // clamps to `F_min`, without a branch that would stop the loop from
+    // vectorising (as would `f64::clamp`'s NaN rules).
+    for ((f, &a), &b) in force.iter_mut().zip(a).zip(b) {
+        let q = b / a.max(f64::MIN_POSITIVE);
+        let q = if q > f_min { q } else { f_min };
+        *f = if q < f_max { q } else { f_max };
+    }
+    let residual = |a: f64, b: f64, c: f64, f: f64| {
+        let r = c - 2.0 * b * f + a * f * f;
+        if r > 0.0 { r } else { 0.0 }
+    };
+    match c {
+        Shared::Value(c) => {
+            for (((m, &a), &b), &f) in mass.iter_mut().zip(a).zip(b).zip(&*force) {
+                *m = -0.5 * residual(a, b, c, f);
+            }
+        }
+        Shared::PerPoint(c, norm) => {
+            for (((m, &a), &b), (&f, (&c, &norm))) in
+                mass.iter_mut().zip(a).zip(b).zip(force.iter().zip(c.iter().zip(norm)))
+            {
+                *m = norm - 0.5 * residual(a, b, c, f);
+            }
+        }
+    }
+    mass.iter()
+        .fold(f64::NEG_INFINITY, |best, &m| if m > best { m } else { best })
+}
+
 /// Scores the points of one phase.
 fn evaluate(
     q: &Quadratic,
@@ -506,65 +729,34 @@ fn evaluate(
     settings: &EstimatorSettings,
     surface_points: usize,
     rng: &mut Rng,
-) -> (Vec<Scored>, PhaseReport) {
+) -> (Scores, PhaseReport) {
     let range = q.f_max - q.f_min;
     match settings.mode {
         Mode::Exact => {
-            // One pass for the best magnitudes and their likelihoods, one
-            // for the evidence (exact near the best, the profile far below).
-            let score = |&k: &usize| {
-                let force = q.best_force(k);
-                let profile = q.log_likelihood(k, force);
-                Scored {
-                    mass: profile,
-                    best: profile,
-                    force,
-                }
-            };
-            let mut scored: Vec<Scored> = if points.len() >= PARALLEL_MIN_POINTS {
-                points.par_iter().map(score).collect()
-            } else {
-                points.iter().map(score).collect()
-            };
-            let profile_best = scored.iter().map(|s| s.mass).fold(f64::NEG_INFINITY, f64::max);
-            for (&k, s) in points.iter().zip(&mut scored) {
-                if s.mass >= profile_best - FAR_BELOW {
-                    let l = q.log_evidence(k, s.mass, profile_best);
-                    s.mass = l;
-                    s.best = l;
-                }
-            }
+            let scores = q.exact_scores(points, surface_points);
             let report = PhaseReport {
                 points: points.len(),
                 particles: points.len(),
             };
-            (scored, report)
+            (scores, report)
         }
         Mode::Particles(ParticleSettings {
             sampling: Sampling::Deterministic {
                 magnitudes_per_point: m,
             },
         }) => {
-            let scored = points
-                .iter()
-                .map(|&k| {
-                    let mut s = Scored {
-                        mass: f64::NEG_INFINITY,
-                        best: f64::NEG_INFINITY,
-                        force: q.f_min,
-                    };
-                    for i in 1..=m {
-                        let f = q.f_min + i as f64 * range / m as f64;
-                        add_particle(&mut s, q.log_likelihood(k, f), f);
-                    }
-                    s
-                })
-                .collect();
+            let mut scores = Scores::unscored(points.len(), q.f_min);
+            for (i, &k) in points.iter().enumerate() {
+                for step in 1..=m {
+                    let f = q.f_min + step as f64 * range / m as f64;
+                    scores.add_particle(i, q.log_likelihood(k, f), f);
+                }
+            }
             let report = PhaseReport {
                 points: points.len(),
                 particles: m * points.len(),
             };
-            (scored, report)
+            (scores, report)
         }
         Mode::Particles(ParticleSettings {
             sampling: Sampling::Random { count, .. },
@@ -573,33 +765,18 @@ fn evaluate(
             let draws = (count * points.len())
                 .div_ceil(surface_points)
                 .max(points.len().min(count));
-            let mut scored: Vec<Scored> = points
-                .iter()
-                .map(|_| Scored {
-                    mass: f64::NEG_INFINITY,
-                    best: f64::NEG_INFINITY,
-                    force: 0.0,
-                })
-                .collect();
+            let mut scores = Scores::unscored(points.len(), 0.0);
             for _ in 0..draws {
                 let slot = rng.below(points.len());
                 let f = rng.uniform_in(q.f_min, q.f_max);
-                add_particle(&mut scored[slot], q.log_likelihood(points[slot], f), f);
+                scores.add_particle(slot, q.log_likelihood(points[slot], f), f);
             }
             let report = PhaseReport {
                 points: points.len(),
                 particles: draws,
             };
-            (scored, report)
+            (scores, report)
         }
-    }
-}
-
-fn add_particle(s: &mut Scored, l: f64, f: f64) {
-    s.mass = log_add(s.mass, l);
-    if l > s.best {
-        s.best = l;
-        s.force = f;
     }
 }
 
@@ -621,20 +798,6 @@ const NEGLIGIBLE_LOG_MASS: f64 = -60.0;
 /// `e^x`, or 0 where that is negligible.
 fn exp_or_zero(x: f64) -> f64 {
     if x < NEGLIGIBLE_LOG_MASS { 0.0 } else { x.exp() }
-}
-
-/// `ln Σ e^xᵢ` without overflow; `-inf` for no terms.
-fn log_sum_exp(values: impl Iterator<Item = f64> + Clone) -> f64 {
-    let hi = values.clone().fold(f64::NEG_INFINITY, f64::max);
-    if hi == f64::NEG_INFINITY {
-        return hi;
-    }
-    // Terms 40 below the largest change the sum by less than 1e-17.
-    hi + values
-        .filter(|v| *v > hi - 40.0)
-        .map(|v| (v - hi).exp())
-        .sum::<f64>()
-        .ln()
 }
 
 #[cfg(test)]
@@ -691,7 +854,7 @@ mod tests {
                 f_max,
             };
             let f = q.best_force(0);
-            let exact = q.log_evidence(0, q.log_likelihood(0, f), q.log_likelihood(0, f));
+            let exact = q.log_evidence(0, q.log_likelihood(0, f));
             let numeric = numeric_log_evidence(a, b, c, f_min, f_max);
             assert!(
                 (exact - numeric).abs() < 1e-6 * numeric.abs().max(1.0),
@@ -709,7 +872,7 @@ mod tests {
             f_max: 2.0,
         };
         let f = q.best_force(0);
-        assert!((q.log_evidence(0, q.log_likelihood(0, f), 0.0) - (-0.5 * (10.0 - 12.0 + 8.0))).abs() < 1e-15);
+        assert!((q.log_evidence(0, q.log_likelihood(0, f)) - (-0.5 * (10.0 - 12.0 + 8.0))).abs() < 1e-15);
     }
 
     struct Setup {
@@ -761,6 +924,91 @@ mod tests {
     }
 
     const Q: [f64; 7] = [0.3, 0.6, -0.4, -1.2, 0.5, 0.9, 0.2];
+
+    #[test]
+    fn a_wide_peak_below_a_narrow_one_gets_its_evidence() {
+        // Point 0 fits perfectly but only in a narrow band of magnitudes
+        // (evidence ≈ -11.7); point 1's profile is 65 below, beyond the
+        // first cut, yet its wide peak leaves its evidence within 60 of
+        // point 0's: it must be scored exactly, not by its profile.
+        let (a, b) = ([1e8, 0.01], [1e8 * 15.0, 0.15]);
+        let c = 1e8 * 225.0;
+        let (c0, c1) = (c, 0.15 * 15.0 + 130.0);
+        let q = Quadratic {
+            a: &a,
+            b: &b,
+            c: 0.0,
+            per_point: Some((&[c0, c1], &[0.0, 0.0])),
+            f_min: 1.0,
+            f_max: 30.0,
+        };
+        let scores = q.exact_scores(&[0, 1], 2);
+        let profile = [q.log_likelihood(0, 15.0), q.log_likelihood(1, 15.0)];
+        assert!(profile[0].abs() < 1e-6 && (profile[1] + 65.0).abs() < 1e-9);
+        let evidence = [q.log_evidence(0, profile[0]), q.log_evidence(1, profile[1])];
+        assert!(evidence[1] - evidence[0] > -FAR_BELOW, "{evidence:?}");
+        assert!((evidence[1] - profile[1]).abs() > 0.1);
+        for (k, (mass, evidence)) in scores.mass.iter().zip(evidence).enumerate() {
+            assert!((mass - evidence).abs() < 1e-9, "point {k}: {mass} vs {evidence}");
+        }
+        assert_eq!(scores.candidates, Some(vec![0, 1]));
+    }
+
+    #[test]
+    fn skipping_far_points_matches_scoring_every_point() {
+        // Reference: every point's evidence in closed form, normalised
+        // directly, against the estimator that skips the far ones. Several
+        // σ, including ones where the evidence lies far below the profile.
+        let s = setup(&Q, 3000, None);
+        for (sigma, k, force) in [
+            (0.05, 2100, 12.0),
+            (0.5, 700, 4.0),
+            (0.002, 2900, 25.0),
+            (1e-5, 1500, 20.0),
+            (5.0, 10, 1.0),
+        ] {
+            let (_, tau) = push_at(&s, k, force);
+            let set = settings(sigma);
+            let post = estimate(&s.model, &tau, &set, None).unwrap();
+            let weights = vec![1.0 / (sigma * sigma); 7];
+            let (mut a, mut b) = (Vec::new(), Vec::new());
+            s.model.quadratic_forms(&weights, &tau, &mut a, &mut b);
+            let q = Quadratic {
+                a: &a,
+                b: &b,
+                c: weights.iter().zip(&tau).map(|(w, t)| w * t * t).sum(),
+                per_point: None,
+                f_min: set.force_min_newtons,
+                f_max: set.force_max_newtons,
+            };
+            let evidence: Vec<f64> = (0..a.len())
+                .map(|k| q.log_evidence(k, q.log_likelihood(k, q.best_force(k))))
+                .collect();
+            let top = evidence.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let sum: f64 = evidence.iter().map(|l| (l - top).exp()).sum();
+            for (k, l) in evidence.iter().enumerate() {
+                let reference = (l - top).exp() / sum;
+                assert!(
+                    (post.probability[k] - reference).abs() <= 1e-12 + 1e-9 * reference,
+                    "σ {sigma}, point {k}: {} vs {reference}",
+                    post.probability[k]
+                );
+                assert_eq!(
+                    post.support.contains(&k),
+                    post.probability[k] > 0.0,
+                    "σ {sigma}, point {k}"
+                );
+                // Within e^-60 of the best, the exact evidence itself.
+                if *l >= top - FAR_BELOW {
+                    assert!((post.log_likelihood[k] - l).abs() < 1e-9, "σ {sigma}, point {k}");
+                }
+            }
+            assert_eq!(
+                post.map_point,
+                evidence.iter().position(|l| l.total_cmp(&top).is_eq()).unwrap()
+            );
+        }
+    }
 
     #[test]
     fn noise_free_push_on_the_forearm_is_found() {

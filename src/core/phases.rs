@@ -140,14 +140,17 @@ impl PhaseHierarchy {
     }
 }
 
-/// Contiguous runs of equal links: `(link, index range)`.
+/// The run of each link in a surface's link array, grouped by link as
+/// [`Surface`] keeps it: `(link, index range)`.
 #[must_use]
 pub fn link_ranges(links: &[LinkId]) -> Vec<(LinkId, std::ops::Range<usize>)> {
     let mut out = Vec::new();
     let mut start = 0;
     while start < links.len() {
         let link = links[start];
-        let end = start + links[start..].iter().take_while(|l| **l == link).count();
+        // Each link's points form one run (the surface is grouped by
+        // link), so its end is found by bisection, not by a scan.
+        let end = start + links[start..].partition_point(|l| *l == link);
         out.push((link, start..end));
         start = end;
     }

@@ -8,6 +8,7 @@ use glam::DVec3;
 
 use crate::core::estimator::Posterior;
 use crate::core::kinematics::RobotPose;
+use crate::core::phases::link_ranges;
 use crate::core::robot::LinkId;
 use crate::core::special::chi_square_survival;
 use crate::core::surface::Surface;
@@ -163,21 +164,33 @@ pub fn summarize(posterior: &Posterior, surface: &Surface, pose: &RobotPose, joi
     } else {
         Verdict::Contact
     };
-    let mut per_link: Vec<LinkShare> = Vec::new();
-    for (k, &link) in surface.link.iter().enumerate() {
-        if per_link.last().is_none_or(|s| s.link != link) {
-            per_link.push(LinkShare {
-                link,
-                summed: 0.0,
-                max: 0.0,
-            });
-        }
-        if let Some(share) = per_link.last_mut() {
-            share.summed += posterior.probability[k];
-            share.max = share.max.max(posterior.display[k]);
+    // Every link gets a share, also those with no mass; only the support
+    // adds to them.
+    let mut per_link: Vec<LinkShare> = link_ranges(&surface.link)
+        .into_iter()
+        .map(|(link, _)| LinkShare {
+            link,
+            summed: 0.0,
+            max: 0.0,
+        })
+        .collect();
+    per_link.sort_by_key(|s| s.link);
+    per_link.dedup_by_key(|s| s.link);
+    for &k in &posterior.support {
+        let (Some(link), Some(&p), Some(&d)) = (
+            surface.link.get(k),
+            posterior.probability.get(k),
+            posterior.display.get(k),
+        ) else {
+            continue;
+        };
+        if let Ok(i) = per_link.binary_search_by_key(link, |s| s.link)
+            && let Some(share) = per_link.get_mut(i)
+        {
+            share.summed += p;
+            share.max = share.max.max(d);
         }
     }
-    per_link.sort_by_key(|s| s.link);
     let world = |k: usize| pose.point_to_world(surface.link[k], surface.point_in_link[k]);
     Summary {
         verdict,
@@ -195,20 +208,25 @@ pub fn summarize(posterior: &Posterior, surface: &Surface, pose: &RobotPose, joi
 pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level: f64) -> CredibleSet {
     // Points below 1e-18 of the largest hold less than 1e-12 together for
     // any surface we sample: they never enter a 90 % set, so skip sorting them.
-    let top = posterior.probability.iter().copied().fold(0.0, f64::max);
-    let mut order: Vec<usize> = (0..posterior.probability.len())
-        .filter(|&k| posterior.probability[k] > top * 1e-18)
+    let top = posterior
+        .support
+        .iter()
+        .map(|&k| posterior.probability[k])
+        .fold(0.0, f64::max);
+    // Sorting (probability, index) pairs reads no other array while
+    // comparing.
+    let mut order: Vec<(f64, usize)> = posterior
+        .support
+        .iter()
+        .map(|&k| (posterior.probability[k], k))
+        .filter(|&(p, _)| p > top * 1e-18)
         .collect();
-    order.sort_by(|&x, &y| {
-        posterior.probability[y]
-            .total_cmp(&posterior.probability[x])
-            .then(x.cmp(&y))
-    });
+    order.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
     let mut mass = 0.0;
     let mut points = Vec::new();
-    for k in order {
+    for (p, k) in order {
         points.push(k);
-        mass += posterior.probability[k];
+        mass += p;
         if mass >= level {
             break;
         }
@@ -232,8 +250,15 @@ fn clusters(
     pose: &RobotPose,
     world: impl Fn(usize) -> DVec3,
 ) -> Vec<Cluster> {
-    let top = posterior.display.iter().copied().fold(0.0, f64::max);
-    let mut probable: Vec<usize> = (0..surface.len())
+    let top = posterior
+        .support
+        .iter()
+        .map(|&k| posterior.display[k])
+        .fold(0.0, f64::max);
+    let mut probable: Vec<usize> = posterior
+        .support
+        .iter()
+        .copied()
         .filter(|&k| top > 0.0 && posterior.display[k] >= PROBABLE_FRACTION * top)
         .collect();
     probable.sort_by(|&x, &y| posterior.display[y].total_cmp(&posterior.display[x]).then(x.cmp(&y)));
