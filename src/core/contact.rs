@@ -5,7 +5,7 @@ use rayon::prelude::*;
 
 use crate::core::phases::link_ranges;
 use crate::core::surface::Surface;
-use crate::core::torque::{LinkTwist, TorqueModel};
+use crate::core::torque::TorqueModel;
 
 /// From this many points on, the per-point work is shared among threads
 /// (below, thread hand-off costs more than it saves).
@@ -34,13 +34,6 @@ pub struct PosedSurface<'a> {
     pub torque_model: &'a TorqueModel,
     /// The candidate points.
     pub surface: &'a Surface,
-}
-
-/// A twist with its joint's weights folded in.
-struct Weighted {
-    twist: LinkTwist,
-    w: f64,
-    wt: f64,
 }
 
 impl UnitTorqueSource for PosedSurface<'_> {
@@ -75,41 +68,40 @@ impl UnitTorqueSource for PosedSurface<'_> {
         a.resize(n, 0.0);
         b.clear();
         b.resize(n, 0.0);
-        // One link's points are contiguous: per link, per twist, a loop over
-        // the points that the compiler can vectorise.
-        let mut jobs: Vec<(std::ops::Range<usize>, Vec<Weighted>)> = Vec::new();
-        for (link, range) in link_ranges(&surface.link) {
-            let twists = self
-                .torque_model
-                .twists(link)
-                .iter()
-                .filter_map(|t| {
-                    let w = *weights.get(t.sensed_index)?;
-                    Some(Weighted {
-                        twist: *t,
-                        w,
-                        wt: w * tau.get(t.sensed_index)?,
-                    })
-                })
-                .collect();
-            jobs.push((range, twists));
-        }
-        let [mx, my, mz, nx, ny, nz] = &surface.push_lines;
-        let run = |range: std::ops::Range<usize>, twists: &[Weighted], a: &mut [f64], b: &mut [f64]| {
-            // Every slice exactly `len` long: the loop then has no bounds
-            // checks and vectorises.
-            let len = a.len().min(b.len()).min(range.len());
-            let (a, b) = (&mut a[..len], &mut b[..len]);
-            let at = range.start..range.start + len;
-            let (mx, my, mz) = (&mx[at.clone()], &my[at.clone()], &mz[at.clone()]);
-            let (nx, ny, nz) = (&nx[at.clone()], &ny[at.clone()], &nz[at]);
-            for t in twists {
-                let (w, v) = (t.twist.w, t.twist.v);
-                for k in 0..len {
-                    let u = w.x * mx[k] + w.y * my[k] + w.z * mz[k] + v.x * nx[k] + v.y * ny[k] + v.z * nz[k];
-                    a[k] += t.w * u * u;
-                    b[k] += t.wt * u;
+        // Per link (its points are contiguous): the triangular factor of its
+        // weighted twists and `β = Σ_j w_j τ_j (ω_j, v_j)`.
+        let jobs: Vec<_> = link_ranges(&surface.link)
+            .into_iter()
+            .map(|(link, range)| {
+                let mut rows = Vec::new();
+                let mut beta = [0.0; 6];
+                for t in self.torque_model.twists(link) {
+                    let (Some(&w), Some(&torque)) = (weights.get(t.sensed_index), tau.get(t.sensed_index)) else {
+                        continue;
+                    };
+                    let line = [t.w.x, t.w.y, t.w.z, t.v.x, t.v.y, t.v.z];
+                    rows.push(line.map(|x| x * w.sqrt()));
+                    for (bc, x) in beta.iter_mut().zip(line) {
+                        *bc += w * torque * x;
+                    }
                 }
+                (range, r_factor(&rows), beta)
+            })
+            .collect();
+        let lines = surface.push_lines.each_ref().map(Vec::as_slice);
+        let run = |range: std::ops::Range<usize>, r: &[[f64; 6]], beta: [f64; 6], a: &mut [f64], b: &mut [f64]| {
+            let lines = lines.map(|l| l.get(range.clone()).unwrap_or(&[]));
+            match r.len() {
+                0 => {
+                    a.fill(0.0);
+                    b.fill(0.0);
+                }
+                1 => forms_with::<1>(r, beta, lines, a, b),
+                2 => forms_with::<2>(r, beta, lines, a, b),
+                3 => forms_with::<3>(r, beta, lines, a, b),
+                4 => forms_with::<4>(r, beta, lines, a, b),
+                5 => forms_with::<5>(r, beta, lines, a, b),
+                _ => forms_with::<6>(r, beta, lines, a, b),
             }
         };
         if n >= PARALLEL_MIN_POINTS {
@@ -117,7 +109,7 @@ impl UnitTorqueSource for PosedSurface<'_> {
             let mut blocks = Vec::new();
             let mut a_rest: &mut [f64] = a;
             let mut b_rest: &mut [f64] = b;
-            for (range, twists) in &jobs {
+            for (range, r, beta) in &jobs {
                 let mut at = range.start;
                 while at < range.end {
                     let len = (range.end - at).min(4096);
@@ -125,19 +117,88 @@ impl UnitTorqueSource for PosedSurface<'_> {
                     let (b_block, b_tail) = std::mem::take(&mut b_rest).split_at_mut(len);
                     a_rest = a_tail;
                     b_rest = b_tail;
-                    blocks.push((at..at + len, twists.as_slice(), a_block, b_block));
+                    blocks.push((at..at + len, r.as_slice(), *beta, a_block, b_block));
                     at += len;
                 }
             }
             blocks
                 .into_par_iter()
-                .for_each(|(range, twists, a_block, b_block)| run(range, twists, a_block, b_block));
+                .for_each(|(range, r, beta, a_block, b_block)| run(range, r, beta, a_block, b_block));
         } else {
-            for (range, twists) in &jobs {
-                let (a_block, b_block) = (&mut a[range.clone()], &mut b[range.clone()]);
-                run(range.clone(), twists, a_block, b_block);
+            for (range, r, beta) in &jobs {
+                if let (Some(a_block), Some(b_block)) = (a.get_mut(range.clone()), b.get_mut(range.clone())) {
+                    run(range.clone(), r, *beta, a_block, b_block);
+                }
             }
         }
+    }
+}
+
+/// The triangular factor `R` of a link's weighted twists: `rows` are the
+/// twists `√w_j (ω_j, v_j)` (one per joint that moves the link), and
+/// `Σ_j (rowⱼ·l)² = |R l|²` for every push line `l`. `R` has at most six
+/// rows, row i zero before column i, so a point's `a` costs at most 21
+/// multiply-adds however many joints move its link.
+fn r_factor(rows: &[[f64; 6]]) -> Vec<[f64; 6]> {
+    // Householder reflections from the left: the orthogonal factor is not
+    // needed, only that it preserves lengths.
+    let mut m: Vec<[f64; 6]> = rows.to_vec();
+    let rank = m.len().min(6);
+    for col in 0..rank {
+        let norm = m[col..].iter().map(|r| r[col] * r[col]).sum::<f64>().sqrt();
+        if norm == 0.0 {
+            continue;
+        }
+        let alpha = if m[col][col] > 0.0 { -norm } else { norm };
+        // v = x - alpha e1 over rows col.., stored apart from m.
+        let mut v: Vec<f64> = m[col..].iter().map(|r| r[col]).collect();
+        v[0] -= alpha;
+        let vv: f64 = v.iter().map(|x| x * x).sum();
+        if vv == 0.0 {
+            continue;
+        }
+        for c in col..6 {
+            let dot: f64 = v.iter().zip(&m[col..]).map(|(vi, r)| vi * r[c]).sum();
+            let scale = 2.0 * dot / vv;
+            for (vi, r) in v.iter().zip(&mut m[col..]) {
+                r[c] -= scale * vi;
+            }
+        }
+        // Exact zeros below the diagonal (rounding leaves ~1e-17).
+        for r in &mut m[col + 1..] {
+            r[col] = 0.0;
+        }
+    }
+    m.truncate(rank);
+    m
+}
+
+/// Writes each point's `a = |R l|²` and `b = β·l` for the push lines `l`
+/// given as six arrays; `R` has `N` rows. Constant `N` unrolls the rows,
+/// and the loop over points vectorises.
+fn forms_with<const N: usize>(r: &[[f64; 6]], beta: [f64; 6], lines: [&[f64]; 6], a: &mut [f64], b: &mut [f64]) {
+    let mut rows = [[0.0; 6]; N];
+    for (dst, src) in rows.iter_mut().zip(r) {
+        *dst = *src;
+    }
+    let len = a
+        .len()
+        .min(b.len())
+        .min(lines.iter().map(|l| l.len()).min().unwrap_or(0));
+    let [mx, my, mz, nx, ny, nz] = lines.map(|l| &l[..len]);
+    let (a, b) = (&mut a[..len], &mut b[..len]);
+    for k in 0..len {
+        let l = [mx[k], my[k], mz[k], nx[k], ny[k], nz[k]];
+        let mut sum = 0.0;
+        for (i, row) in rows.iter().enumerate() {
+            let mut u = 0.0;
+            for c in i..6 {
+                u += row[c] * l[c];
+            }
+            sum += u * u;
+        }
+        a[k] = sum;
+        b[k] = beta[0] * l[0] + beta[1] * l[1] + beta[2] * l[2] + beta[3] * l[3] + beta[4] * l[4] + beta[5] * l[5];
     }
 }
 
@@ -335,6 +396,36 @@ mod tests {
         for k in 0..surface.len() {
             assert!((a1[k] - a2[k]).abs() <= 1e-12 * a1[k].abs().max(1.0));
             assert!((b1[k] - b2[k]).abs() <= 1e-12 * b1[k].abs().max(1.0));
+        }
+    }
+
+    #[test]
+    fn the_triangular_factor_keeps_every_squared_length() {
+        use crate::core::rng::Rng;
+        let mut rng = Rng::new(11);
+        let mut random_row = || std::array::from_fn::<f64, 6, _>(|_| rng.uniform_in(-2.0, 2.0));
+        let mut cases: Vec<Vec<[f64; 6]>> = (1..=8).map(|t| (0..t).map(|_| random_row()).collect()).collect();
+        // Rank-deficient: repeated, zero and parallel rows.
+        let r0 = random_row();
+        cases.push(vec![r0, r0, [0.0; 6], r0.map(|x| -3.0 * x)]);
+        cases.push(vec![[0.0; 6]; 3]);
+        let mut check_rng = Rng::new(12);
+        for rows in cases {
+            let r = r_factor(&rows);
+            assert_eq!(r.len(), rows.len().min(6));
+            for (i, row) in r.iter().enumerate() {
+                assert!(row[..i].iter().all(|x| *x == 0.0), "row {i} of {r:?}");
+            }
+            for _ in 0..20 {
+                let l: [f64; 6] = std::array::from_fn(|_| check_rng.uniform_in(-1.0, 1.0));
+                let dot = |row: &[f64; 6]| row.iter().zip(&l).map(|(x, y)| x * y).sum::<f64>();
+                let direct: f64 = rows.iter().map(|row| dot(row).powi(2)).sum();
+                let factored: f64 = r.iter().map(|row| dot(row).powi(2)).sum();
+                assert!(
+                    (direct - factored).abs() <= 1e-12 * direct.max(1.0),
+                    "{direct} vs {factored}"
+                );
+            }
         }
     }
 }
