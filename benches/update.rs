@@ -7,7 +7,7 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use proprioscope::core::builtin;
-use proprioscope::core::contact::ContactModel;
+use proprioscope::core::contact::{ContactModel, PosedSurface};
 use proprioscope::core::estimator::{EstimatorSettings, Mode, estimate};
 use proprioscope::core::kinematics::RobotPose;
 use proprioscope::core::pipeline::Estimator;
@@ -46,8 +46,16 @@ fn update(c: &mut Criterion) {
             b.iter(|| estimator.update(&robot, &positions, &tau).unwrap());
         },
     );
-    let model = ContactModel::new(&TorqueModel::new(&robot, &pose, &links), &estimator.surface);
+    let torque_model = TorqueModel::new(&robot, &pose, &links);
+    let posed = PosedSurface {
+        torque_model: &torque_model,
+        surface: &estimator.surface,
+    };
     c.bench_function("exact 5000 points: new measurement (posterior only)", |b| {
+        b.iter(|| estimate(&posed, &tau, &settings, None).unwrap());
+    });
+    let model = ContactModel::new(&torque_model, &estimator.surface);
+    c.bench_function("exact 5000 points: new measurement, stored unit torques", |b| {
         b.iter(|| estimate(&model, &tau, &settings, None).unwrap());
     });
 }
