@@ -61,6 +61,14 @@ pub enum SessionError {
         /// The system's reason.
         cause: std::io::Error,
     },
+    /// The file could not be written.
+    #[error("{path}: cannot write the session: {cause}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The system's reason.
+        cause: std::io::Error,
+    },
     /// Malformed JSON or CSV.
     #[error("{path}:{line}: {message}")]
     Parse {
@@ -104,16 +112,33 @@ struct SessionFile {
     robot: String,
     #[serde(default)]
     joints: Option<Vec<String>>,
-    frames: Vec<FrameFile>,
+    frames: Vec<serde_json::Value>,
 }
 
 #[derive(Deserialize)]
 struct FrameFile {
+    #[serde(default = "not_a_number")]
     t: f64,
+    // A missing array or a `null` value is read as missing values (NaN), so
+    // that the frame is reported by [`Session::check`] with its number and
+    // field rather than failing the whole file.
+    #[serde(default, deserialize_with = "numbers_or_null")]
     q: Vec<f64>,
+    #[serde(default, deserialize_with = "numbers_or_null")]
     tau: Vec<f64>,
     #[serde(default)]
     truth: TruthField,
+}
+
+fn not_a_number() -> f64 {
+    f64::NAN
+}
+
+fn numbers_or_null<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+    Ok(Vec::<Option<f64>>::deserialize(d)?
+        .into_iter()
+        .map(|v| v.unwrap_or(f64::NAN))
+        .collect())
 }
 
 /// A frame's `truth` as written: absent, `null`, or a contact.
@@ -147,11 +172,7 @@ impl Session {
             path: path.to_owned(),
             cause,
         })?;
-        let is_csv = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
-        let session = if is_csv {
+        let session = if is_csv(path) {
             Self::parse_csv(&text, path)?
         } else {
             Self::parse_json(&text, path)?
@@ -197,19 +218,30 @@ impl Session {
             frames: file
                 .frames
                 .into_iter()
-                .map(|f| Frame {
-                    t: f.t,
-                    q: f.q,
-                    tau: f.tau,
-                    truth: match f.truth {
-                        TruthField::Absent => Truth::Unknown,
-                        TruthField::Null => Truth::NoContact,
-                        TruthField::Contact(t) => Truth::Contact {
-                            link: t.link,
-                            point: t.point,
-                            force: t.force,
+                .map(|value| {
+                    // A frame that is not even a frame (a string, a wrong
+                    // truth) keeps its place as a frame with no values, so
+                    // that the check names it.
+                    let f = serde_json::from_value::<FrameFile>(value).unwrap_or(FrameFile {
+                        t: f64::NAN,
+                        q: Vec::new(),
+                        tau: Vec::new(),
+                        truth: TruthField::Absent,
+                    });
+                    Frame {
+                        t: f.t,
+                        q: f.q,
+                        tau: f.tau,
+                        truth: match f.truth {
+                            TruthField::Absent => Truth::Unknown,
+                            TruthField::Null => Truth::NoContact,
+                            TruthField::Contact(t) => Truth::Contact {
+                                link: t.link,
+                                point: t.point,
+                                force: t.force,
+                            },
                         },
-                    },
+                    }
                 })
                 .collect(),
         })
@@ -243,44 +275,37 @@ impl Session {
                 format!("header '{header}' is not 't,q1..qn,tau1..taun[,link,px,py,pz,fx,fy,fz]'"),
             ));
         }
+        // A row with a value that is not a number, or with too few or too
+        // many values, stays a frame (NaN where unreadable, its values
+        // counted as given) so that the check names it by frame and field.
+        let number = |cell: Option<&&str>| cell.and_then(|c| c.parse::<f64>().ok()).unwrap_or(f64::NAN);
         let mut frames = Vec::new();
-        for (i, line) in lines {
+        for (_, line) in lines {
             let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-            if cells.len() != columns.len() {
-                return Err(parse(
-                    i + 1,
-                    format!("{} values, the header has {}", cells.len(), columns.len()),
-                ));
-            }
-            let number = |k: usize| {
-                cells[k].parse::<f64>().map_err(|_| {
-                    parse(
-                        i + 1,
-                        format!("column '{}': '{}' is not a number", columns[k], cells[k]),
-                    )
-                })
+            let t = number(cells.first());
+            let q: Vec<f64> = (1..=n).map(|k| number(cells.get(k))).collect();
+            let values_given = cells.len().saturating_sub(1 + n);
+            let tau_given = if cells.len() == columns.len() {
+                n
+            } else if has_truth {
+                values_given.saturating_sub(truth_columns.len())
+            } else {
+                values_given
             };
-            let values = (0..=2 * n).map(number).collect::<Result<Vec<f64>, _>>()?;
-            let truth = if !has_truth {
+            let tau: Vec<f64> = (n + 1..n + 1 + tau_given).map(|k| number(cells.get(k))).collect();
+            let truth = if !has_truth || cells.len() != columns.len() {
                 Truth::Unknown
-            } else if cells[1 + 2 * n].is_empty() {
+            } else if cells.get(1 + 2 * n).is_none_or(|c| c.is_empty()) {
                 Truth::NoContact
             } else {
-                let v = (2 * n + 2..columns.len())
-                    .map(number)
-                    .collect::<Result<Vec<f64>, _>>()?;
+                let v: [f64; 6] = std::array::from_fn(|k| number(cells.get(2 * n + 2 + k)));
                 Truth::Contact {
-                    link: cells[1 + 2 * n].to_owned(),
+                    link: cells.get(1 + 2 * n).map(|c| (*c).to_owned()).unwrap_or_default(),
                     point: [v[0], v[1], v[2]],
                     force: [v[3], v[4], v[5]],
                 }
             };
-            frames.push(Frame {
-                t: values[0],
-                q: values[1..=n].to_vec(),
-                tau: values[n + 1..].to_vec(),
-                truth,
-            });
+            frames.push(Frame { t, q, tau, truth });
         }
         Ok(Self {
             path: path.to_owned(),
@@ -291,49 +316,262 @@ impl Session {
     }
 
     /// Every frame has finite values, `q` and `tau` of one length (the
-    /// number of `joints` when given), and times that do not go backwards.
+    /// number of `joints` when given), and times that do not go backwards;
+    /// the first frame that does not is the error.
     pub fn check(&self) -> Result<(), SessionError> {
-        let width = self
-            .joints
-            .as_ref()
-            .map(Vec::len)
-            .or_else(|| self.frames.first().map(|f| f.q.len()));
+        match self.problems().into_iter().next() {
+            Some(problem) => Err(problem.into_error(&self.path)),
+            None => Ok(()),
+        }
+    }
+
+    /// Every frame that breaks the rules of [`Session::check`], one report
+    /// each (a frame's time is compared with the last good frame's).
+    #[must_use]
+    pub fn problems(&self) -> Vec<FrameProblem> {
+        let width = self.joints.as_ref().map(Vec::len).or_else(|| {
+            // Without names, the width most frames have.
+            let mut counts: std::collections::BTreeMap<usize, usize> = std::collections::BTreeMap::new();
+            for f in &self.frames {
+                *counts.entry(f.q.len()).or_default() += 1;
+            }
+            counts
+                .into_iter()
+                .max_by_key(|&(width, count)| (count, width))
+                .map(|(w, _)| w)
+        });
         let mut last_t = f64::NEG_INFINITY;
+        let mut out = Vec::new();
         for (i, f) in self.frames.iter().enumerate() {
-            let bad = |field: String, message: String| SessionError::Frame {
-                path: self.path.clone(),
-                frame: i,
-                t: f.t,
-                field,
-                message,
-            };
-            if !f.t.is_finite() {
-                return Err(bad("t".to_owned(), "is not finite".to_owned()));
-            }
-            if f.t < last_t {
-                return Err(bad("t".to_owned(), format!("goes backwards from {last_t}")));
-            }
-            last_t = f.t;
-            for (name, values) in [("q", &f.q), ("tau", &f.tau)] {
-                if let Some(w) = width
-                    && values.len() != w
-                {
-                    return Err(bad(
-                        name.to_owned(),
-                        format!("{} values, expected {w} (one per joint)", values.len()),
-                    ));
-                }
-                if let Some(j) = values.iter().position(|v| !v.is_finite()) {
-                    return Err(bad(format!("{name}[{j}]"), format!("{} is not finite", values[j])));
-                }
-            }
-            if let Truth::Contact { point, force, .. } = &f.truth
-                && point.iter().chain(force).any(|v| !v.is_finite())
-            {
-                return Err(bad("truth".to_owned(), "point or force is not finite".to_owned()));
+            let problem = frame_problem(f, width, last_t);
+            match problem {
+                Some((field, message)) => out.push(FrameProblem {
+                    frame: i,
+                    t: f.t,
+                    field,
+                    message,
+                }),
+                None => last_t = f.t,
             }
         }
+        out
+    }
+
+    /// Drops the frames that break the rules and returns their reports;
+    /// the other frames keep their order.
+    pub fn remove_bad_frames(&mut self) -> Vec<FrameProblem> {
+        let problems = self.problems();
+        let mut bad = problems.iter().map(|p| p.frame).peekable();
+        let mut index = 0;
+        self.frames.retain(|_| {
+            let keep = bad.next_if_eq(&index).is_none();
+            index += 1;
+            keep
+        });
+        problems
+    }
+
+    /// Reads a session and skips its bad frames instead of failing: the
+    /// session without them, and one report per skipped frame (numbered as
+    /// in the file). A file cut short while being recorded is read up to
+    /// its last complete frame.
+    pub fn read_skipping_bad_frames(path: &Path) -> Result<(Self, Vec<FrameProblem>), SessionError> {
+        let text = std::fs::read_to_string(path).map_err(|cause| SessionError::Read {
+            path: path.to_owned(),
+            cause,
+        })?;
+        let mut session = if is_csv(path) {
+            Self::parse_csv(&text, path)?
+        } else {
+            match Self::parse_json(&text, path) {
+                Err(e) => match close_cut_recording(&text) {
+                    Some(closed) => Self::parse_json(&closed, path)?,
+                    None => return Err(e),
+                },
+                ok => ok?,
+            }
+        };
+        let problems = session.remove_bad_frames();
+        Ok((session, problems))
+    }
+}
+
+/// Whether `path` names a CSV file.
+fn is_csv(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
+}
+
+/// What is wrong with one frame, if anything.
+fn frame_problem(f: &Frame, width: Option<usize>, last_t: f64) -> Option<(String, String)> {
+    if !f.t.is_finite() {
+        return Some(("t".to_owned(), "is missing or not finite".to_owned()));
+    }
+    if f.t < last_t {
+        return Some(("t".to_owned(), format!("goes backwards from {last_t}")));
+    }
+    for (name, values) in [("q", &f.q), ("tau", &f.tau)] {
+        if let Some(w) = width
+            && values.len() != w
+        {
+            return Some((
+                name.to_owned(),
+                format!("{} values, expected {w} (one per joint)", values.len()),
+            ));
+        }
+        if let Some((j, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Some((format!("{name}[{j}]"), format!("{v} is missing or not finite")));
+        }
+    }
+    if let Truth::Contact { point, force, .. } = &f.truth
+        && point.iter().chain(force).any(|v| !v.is_finite())
+    {
+        return Some(("truth".to_owned(), "point or force is not finite".to_owned()));
+    }
+    None
+}
+
+/// A recording cut short (the program was killed while writing it): its
+/// header and every complete frame line, closed. `None` when the text is
+/// not such a recording.
+fn close_cut_recording(text: &str) -> Option<String> {
+    // The recorder writes the header on the first line and one frame per
+    // line after it; only the last line can be incomplete.
+    let lines: Vec<&str> = text.lines().collect();
+    let first = lines.first()?;
+    if !first.trim_end().ends_with("\"frames\":[") {
+        return None;
+    }
+    for keep in (1..=lines.len()).rev() {
+        let candidate = format!("{}\n]}}\n", lines[..keep].join("\n"));
+        if serde_json::from_str::<serde_json::Value>(&candidate).is_ok() {
+            return Some(candidate);
+        }
+    }
+    None
+}
+
+/// Writes a session while it happens, in the JSON form: the header on the
+/// first line, then one frame a line, each flushed to the operating system
+/// as it is written, so that a program killed mid-session loses no frame
+/// it has written (its file reads back with
+/// [`Session::read_skipping_bad_frames`]). [`Recorder::finish`] closes the
+/// JSON.
+#[derive(Debug)]
+pub struct Recorder {
+    out: std::io::BufWriter<std::fs::File>,
+    path: PathBuf,
+    frames: usize,
+}
+
+impl Recorder {
+    /// Creates (or truncates) `path` and writes the header: the robot as a
+    /// session names it and the sensed joints' names in column order.
+    pub fn create(path: &Path, robot: &str, joints: &[String]) -> Result<Self, SessionError> {
+        let write_error = |cause| SessionError::Write {
+            path: path.to_owned(),
+            cause,
+        };
+        let file = std::fs::File::create(path).map_err(write_error)?;
+        let mut recorder = Self {
+            out: std::io::BufWriter::new(file),
+            path: path.to_owned(),
+            frames: 0,
+        };
+        let header = serde_json::json!({
+            "format": "contact-session",
+            "version": 1,
+            "robot": robot,
+            "joints": joints,
+            "recorded_by": "proprioscope",
+        });
+        // The header object without its closing brace, then the frames.
+        let text = header.to_string();
+        let open = text.strip_suffix('}').unwrap_or(&text);
+        recorder.write_line(&format!("{open},\"frames\":["))?;
+        Ok(recorder)
+    }
+
+    /// Appends a frame and hands it to the operating system.
+    pub fn write(&mut self, frame: &Frame) -> Result<(), SessionError> {
+        let mut value = serde_json::json!({ "t": frame.t, "q": frame.q, "tau": frame.tau });
+        match &frame.truth {
+            Truth::Unknown => {}
+            Truth::NoContact => value["truth"] = serde_json::Value::Null,
+            Truth::Contact { link, point, force } => {
+                value["truth"] = serde_json::json!({ "link": link, "point": point, "force": force });
+            }
+        }
+        let separator = if self.frames == 0 { "" } else { "," };
+        self.write_line(&format!("{separator}{value}"))?;
+        self.frames += 1;
         Ok(())
+    }
+
+    /// Frames written so far.
+    #[must_use]
+    pub fn frames(&self) -> usize {
+        self.frames
+    }
+
+    /// The file being written.
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Closes the JSON; returns the number of frames.
+    pub fn finish(mut self) -> Result<usize, SessionError> {
+        self.write_line("]}")?;
+        Ok(self.frames)
+    }
+
+    fn write_line(&mut self, line: &str) -> Result<(), SessionError> {
+        use std::io::Write as _;
+        writeln!(self.out, "{line}")
+            .and_then(|()| self.out.flush())
+            .map_err(|cause| SessionError::Write {
+                path: self.path.clone(),
+                cause,
+            })
+    }
+}
+
+/// A frame that breaks the rules of the format.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameProblem {
+    /// Frame number in the file (0-based).
+    pub frame: usize,
+    /// Its time stamp (NaN when unreadable).
+    pub t: f64,
+    /// The field (`t`, `q`, `tau[3]`, `truth`).
+    pub field: String,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl FrameProblem {
+    /// As an error of the file at `path`.
+    #[must_use]
+    pub fn into_error(self, path: &Path) -> SessionError {
+        SessionError::Frame {
+            path: path.to_owned(),
+            frame: self.frame,
+            t: self.t,
+            field: self.field,
+            message: self.message,
+        }
+    }
+}
+
+impl std::fmt::Display for FrameProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "frame {} (t = {}): {}: {}",
+            self.frame, self.t, self.field, self.message
+        )
     }
 }
 
@@ -399,5 +637,97 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("h.csv:1") && e.contains("header"), "{e}");
+    }
+
+    fn scripted_frames() -> Vec<Frame> {
+        (0..40)
+            .map(|i| {
+                let x = f64::from(i);
+                Frame {
+                    t: 0.1 * x,
+                    q: vec![0.1 * x.sin(), -0.3 + 1e-3 * x, std::f64::consts::PI / 3.0],
+                    tau: vec![0.123_456_789 * x, -2.0 / 3.0, 1e-17 * x],
+                    truth: match i % 3 {
+                        0 => Truth::Unknown,
+                        1 => Truth::NoContact,
+                        _ => Truth::Contact {
+                            link: "link_2".to_owned(),
+                            point: [0.1, -0.2 * x, 1.0 / 7.0],
+                            force: [3.0, 0.0, -x],
+                        },
+                    },
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn recorded_frames_read_back_identical() {
+        let dir = std::env::temp_dir().join(format!("proprioscope-rec-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("round-trip.json");
+        let joints = vec!["a".to_owned(), "b".to_owned(), "c".to_owned()];
+        let mut recorder = Recorder::create(&path, "simple6", &joints).unwrap();
+        let frames = scripted_frames();
+        for f in &frames {
+            recorder.write(f).unwrap();
+        }
+        assert_eq!(recorder.finish().unwrap(), frames.len());
+        let back = Session::read(&path).unwrap();
+        assert_eq!(back.frames, frames);
+        assert_eq!(back.robot.as_deref(), Some("simple6"));
+        assert_eq!(back.joints.as_ref(), Some(&joints));
+    }
+
+    #[test]
+    fn a_recording_cut_short_reads_up_to_its_last_whole_frame() {
+        let dir = std::env::temp_dir().join(format!("proprioscope-cut-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("cut.json");
+        let joints = ["a", "b", "c"].map(str::to_owned);
+        let mut recorder = Recorder::create(&path, "simple6", &joints).unwrap();
+        let frames = scripted_frames();
+        for f in &frames[..10] {
+            recorder.write(f).unwrap();
+        }
+        drop(recorder);
+        // Half of an eleventh frame, as a kill mid-write would leave it.
+        let mut text = std::fs::read_to_string(&path).unwrap();
+        text.push_str(",{\"t\":1.0,\"q\":[0.0,");
+        std::fs::write(&path, &text).unwrap();
+        assert!(Session::read(&path).is_err());
+        let (back, problems) = Session::read_skipping_bad_frames(&path).unwrap();
+        assert_eq!(back.frames, frames[..10]);
+        assert!(problems.is_empty());
+    }
+
+    #[test]
+    fn bad_frames_are_skipped_and_reported() {
+        let text = r#"{"format": "contact-session", "version": 1, "robot": "lwr4plus",
+          "frames": [
+            {"t": 0.0, "q": [0, 0], "tau": [0.1, 0.2]},
+            {"t": 0.1, "q": [0, 0], "tau": [0.1, null]},
+            {"t": 0.2, "q": [0, 0], "tau": [0.1, 0.2, 0.3]},
+            {"t": 0.3, "q": [0, 0], "tau": [0.1, 0.2]},
+            {"t": 0.25, "q": [0, 0], "tau": [0.1, 0.2]},
+            {"t": 0.4, "q": [0], "tau": [0.1, 0.2]},
+            {"q": [0, 0], "tau": [0.1, 0.2]},
+            {"t": 0.5, "q": [0, 0], "tau": [0.1, 0.2]}
+          ]}"#;
+        let mut s = Session::parse_json(text, Path::new("s.json")).unwrap();
+        let problems = s.remove_bad_frames();
+        let named: Vec<(usize, &str)> = problems.iter().map(|p| (p.frame, p.field.as_str())).collect();
+        assert_eq!(named, [(1, "tau[1]"), (2, "tau"), (4, "t"), (5, "q"), (6, "t")]);
+        assert!(problems[1].message.contains("3 values, expected 2"), "{}", problems[1]);
+        assert!(problems[2].message.contains("backwards"), "{}", problems[2]);
+        let times: Vec<f64> = s.frames.iter().map(|f| f.t).collect();
+        assert_eq!(times, [0.0, 0.3, 0.5]);
+        // The same in CSV: a word, a missing and an extra value.
+        let csv = "t,q1,q2,tau1,tau2\n0.0,0,0,0.1,0.2\n0.1,0,0,0.1,x\n0.2,0,0,0.1\n0.3,0,0,0.1,0.2,0.3\n0.4,0,0,0,0\n";
+        let mut s = Session::parse_csv(csv, Path::new("s.csv")).unwrap();
+        let problems = s.remove_bad_frames();
+        let named: Vec<(usize, &str)> = problems.iter().map(|p| (p.frame, p.field.as_str())).collect();
+        assert_eq!(named, [(1, "tau[1]"), (2, "tau"), (3, "tau")]);
+        assert_eq!(s.frames.len(), 2);
     }
 }
