@@ -33,16 +33,28 @@ enum Command {
     /// Joint torques of a push: from a scene file, or from --robot, --q,
     /// --link, --point and --force (world frame, SI).
     Torques(TorquesArgs),
-    /// Opens the desktop app on a scene file, a URDF or a built-in robot.
+    /// Opens the desktop app on a scene file, a URDF, a built-in robot or
+    /// a recorded session (JSON or CSV), replayed on a timeline.
     View {
-        /// A scene (`.json`), a URDF, or `lwr4plus` / `simple6`.
+        /// A scene (`.json`), a URDF, `lwr4plus` / `simple6`, or a session.
         target: String,
+        /// The robot of a session (overrides the session's; a CSV session
+        /// needs one): a built-in name or a URDF.
+        #[arg(long)]
+        robot: Option<String>,
+        /// Extra folder for `package://` URIs (repeatable).
+        #[arg(long = "package-path")]
+        package_paths: Vec<PathBuf>,
     },
     /// Renders the full app for a scene headless (no window or display
     /// needed) and writes a PNG.
     Screenshot {
-        /// A scene (`.json`), a URDF, or a built-in robot name; none: the default scene.
+        /// A scene (`.json`), a URDF, a built-in robot name or a session;
+        /// none: the default scene.
         target: Option<String>,
+        /// The robot of a session (see `view`).
+        #[arg(long)]
+        robot: Option<String>,
         /// The PNG to write.
         #[arg(long)]
         out: PathBuf,
@@ -73,6 +85,21 @@ enum Command {
         /// Override the scene's surface resolution.
         #[arg(long)]
         points: Option<usize>,
+    },
+    /// Records a scripted interactive session (the built-in LWR waving,
+    /// pushed on its forearm) as the app's recorder does, until killed or
+    /// for `--seconds`: the crash-safety test's subject.
+    #[command(hide = true)]
+    RecordDemo {
+        /// The session file to write.
+        #[arg(long)]
+        out: PathBuf,
+        /// Frames per second.
+        #[arg(long, default_value_t = 50.0)]
+        rate: f64,
+        /// Stop after this long (default: run until killed).
+        #[arg(long)]
+        seconds: Option<f64>,
     },
     /// Regenerates the shipped assets (`assets/lwr4plus.glb`) from the
     /// built-in robot's primitives.
@@ -136,14 +163,20 @@ fn main() -> Result<()> {
         Some(Command::RobotInfo { robot, package_paths }) => robot_info(&robot, package_paths),
         Some(Command::Surface { scene, points }) => surface(&scene, points),
         Some(Command::ExportAssets { root }) => export_assets(&root),
-        Some(Command::View { target }) => run_app(Some(&target)),
+        Some(Command::View {
+            target,
+            robot,
+            package_paths,
+        }) => run_app(Some(&target), robot.as_deref(), &package_paths),
         Some(Command::Screenshot {
             target,
+            robot,
             out,
             width,
             height,
-        }) => screenshot(target.as_deref(), &out, [width, height]),
-        None => run_app(None),
+        }) => screenshot(target.as_deref(), robot.as_deref(), &out, [width, height]),
+        Some(Command::RecordDemo { out, rate, seconds }) => record_demo(&out, rate, seconds),
+        None => run_app(None, None, &[]),
     }
 }
 
@@ -360,8 +393,8 @@ fn surface(path: &Path, points: Option<usize>) -> Result<()> {
 }
 
 /// Renders the app headless into a PNG.
-fn screenshot(target: Option<&str>, out: &Path, size: [u32; 2]) -> Result<()> {
-    let start = proprioscope::app::open_target(target)?;
+fn screenshot(target: Option<&str>, robot: Option<&str>, out: &Path, size: [u32; 2]) -> Result<()> {
+    let start = proprioscope::app::open_target_with(target, robot, &[])?;
     let image = proprioscope::app::render_headless(start, [size[0] as f32, size[1] as f32])
         .map_err(|e| anyhow::anyhow!("rendering the app headless: {e}"))?;
     if let Some(folder) = out.parent() {
@@ -373,9 +406,9 @@ fn screenshot(target: Option<&str>, out: &Path, size: [u32; 2]) -> Result<()> {
 }
 
 /// Opens the app: on the built-in LWR with a push, or on `target`.
-fn run_app(target: Option<&str>) -> Result<()> {
+fn run_app(target: Option<&str>, robot: Option<&str>, package_paths: &[PathBuf]) -> Result<()> {
     use proprioscope::app::ProprioscopeApp;
-    let start = proprioscope::app::open_target(target)?;
+    let start = proprioscope::app::open_target_with(target, robot, package_paths)?;
     let options = eframe::NativeOptions {
         viewport: eframe::egui::ViewportBuilder::default()
             .with_inner_size([1400.0, 900.0])
@@ -398,5 +431,63 @@ fn export_assets(root: &Path) -> Result<()> {
     }
     std::fs::write(&path, &bytes).with_context(|| format!("writing {}", path.display()))?;
     println!("wrote {} ({} bytes)", path.display(), bytes.len());
+    Ok(())
+}
+
+/// Records the scripted session of `record-demo`.
+fn record_demo(out: &Path, rate: f64, seconds: Option<f64>) -> Result<()> {
+    use proprioscope::app::{EstimatorChoice, Model, Push, ViewOptions};
+    use proprioscope::io::session::Recorder;
+    if !(rate.is_finite() && rate > 0.0) {
+        bail!("--rate {rate}: give a positive number of frames per second");
+    }
+    let robot = proprioscope::core::builtin::lwr4plus_generated()?;
+    let link = robot.link_id("lwr_5_link")?;
+    let joints: Vec<String> = robot.sensed().iter().map(|&j| robot.joints[j].name.clone()).collect();
+    let mut model = Model {
+        q: vec![0.0; joints.len()],
+        push: Some(Push {
+            link,
+            point_in_link: DVec3::new(0.06, 0.0, 0.1),
+            inward_normal_in_link: DVec3::new(-1.0, 0.0, 0.0),
+            force_newtons: 12.0,
+        }),
+        sigma: vec![0.1; joints.len()],
+        surface_points: 1000,
+        candidate_links: robot.default_candidate_links(),
+        noise_sigma: 0.05,
+        noise_seed: 1,
+        force_range_newtons: (1.0, 30.0),
+        estimator: EstimatorChoice::default(),
+        view: ViewOptions::default(),
+        replay: None,
+        robot: std::sync::Arc::new(robot),
+    };
+    let mut recorder = Recorder::create(out, "lwr4plus", &joints)?;
+    let started = std::time::Instant::now();
+    // Tell a watching test when the first frame is on disk.
+    let mut announced = false;
+    for i in 0u32.. {
+        let t = f64::from(i) / rate;
+        if seconds.is_some_and(|s| t > s) {
+            break;
+        }
+        let wait = t - started.elapsed().as_secs_f64();
+        if wait > 0.0 {
+            std::thread::sleep(std::time::Duration::from_secs_f64(wait));
+        }
+        for (j, q) in model.q.iter_mut().enumerate() {
+            *q = 0.5 * (t + 0.3 * j as f64).sin();
+        }
+        model.noise_seed = u64::from(i);
+        recorder.write(&proprioscope::app::timeline::interactive_frame(&model, t))?;
+        if !announced {
+            println!("recording {}", out.display());
+            std::io::Write::flush(&mut std::io::stdout())?;
+            announced = true;
+        }
+    }
+    let frames = recorder.finish()?;
+    println!("wrote {frames} frames to {}", out.display());
     Ok(())
 }

@@ -2,6 +2,8 @@
 //! click to push, the torques it causes and the live posterior heatmap.
 //! The only place where egui, `render` and `io` meet.
 
+pub mod session;
+pub mod timeline;
 pub mod worker;
 
 /// Renders the app headless (Mesa's software Vulkan or a GPU, no window):
@@ -35,15 +37,59 @@ pub struct AppStart {
     pub push: Option<Push>,
     /// Estimator and sensor settings.
     pub settings: StartSettings,
+    /// A session to open once the app runs (loaded in the background).
+    pub session: Option<timeline::SessionTarget>,
+    /// Folders for `package://` URIs.
+    pub package_paths: Vec<std::path::PathBuf>,
+}
+
+/// Whether `path` is a recorded session: a CSV file, or JSON that says it
+/// is a `contact-session`.
+#[must_use]
+pub fn is_session_file(path: &std::path::Path) -> bool {
+    use std::io::Read as _;
+    let extension = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    match extension.as_deref() {
+        Some("csv") => true,
+        Some("json") => {
+            let mut head = [0u8; 512];
+            let read = std::fs::File::open(path)
+                .and_then(|mut f| f.read(&mut head))
+                .unwrap_or(0);
+            String::from_utf8_lossy(head.get(..read).unwrap_or_default()).contains("contact-session")
+        }
+        _ => false,
+    }
 }
 
 /// The default scene (`None`), a scene file (`.json`, with its push and
 /// settings), a URDF or a built-in robot name.
 pub fn open_target(target: Option<&str>) -> anyhow::Result<AppStart> {
+    open_target_with(target, None, &[])
+}
+
+/// [`open_target`], where `target` may also be a recorded session (opened
+/// on the default scene, then loaded in the background), with a robot
+/// override for sessions and folders for `package://` URIs.
+pub fn open_target_with(
+    target: Option<&str>,
+    robot: Option<&str>,
+    package_paths: &[std::path::PathBuf],
+) -> anyhow::Result<AppStart> {
     use crate::io::builtin::load_robot;
     use crate::io::scene::{Scene, Sigma};
     use crate::io::urdf::UrdfOptions;
     use std::path::Path;
+    if let Some(t) = target
+        && is_session_file(Path::new(t))
+    {
+        let mut start = open_target_with(None, None, package_paths)?;
+        start.session = Some(timeline::SessionTarget {
+            path: t.into(),
+            robot: robot.map(str::to_owned),
+        });
+        return Ok(start);
+    }
     Ok(match target {
         None => {
             let robot = load_robot("lwr4plus", Path::new("."), &UrdfOptions::default())?;
@@ -54,6 +100,8 @@ pub fn open_target(target: Option<&str>) -> anyhow::Result<AppStart> {
                 q,
                 push,
                 settings: StartSettings::default(),
+                session: None,
+                package_paths: package_paths.to_vec(),
             }
         }
         Some(t) if t.to_ascii_lowercase().ends_with(".json") => {
@@ -98,10 +146,16 @@ pub fn open_target(target: Option<&str>) -> anyhow::Result<AppStart> {
                 robot: loaded.robot,
                 push,
                 settings,
+                session: None,
+                package_paths: package_paths.to_vec(),
             }
         }
         Some(t) => {
-            let robot = load_robot(t, Path::new("."), &UrdfOptions::default())?;
+            let options = UrdfOptions {
+                package_paths: package_paths.to_vec(),
+                ..UrdfOptions::default()
+            };
+            let robot = load_robot(t, Path::new("."), &options)?;
             let q = vec![0.0; robot.sensed().len()];
             AppStart {
                 robot_spec: t.to_owned(),
@@ -109,6 +163,8 @@ pub fn open_target(target: Option<&str>) -> anyhow::Result<AppStart> {
                 q,
                 push: None,
                 settings: StartSettings::default(),
+                session: None,
+                package_paths: package_paths.to_vec(),
             }
         }
     })
@@ -225,7 +281,30 @@ pub struct Model {
     pub estimator: EstimatorChoice,
     /// How the posterior is shown (changing it re-runs nothing).
     pub view: ViewOptions,
+    /// A recorded session being replayed: its current frame sets `q`, the
+    /// measured torques and the true contact (shown as the push).
+    pub replay: Option<Replay>,
 }
+
+/// A session on the timeline.
+#[derive(Debug, Clone)]
+pub struct Replay {
+    /// The session (good frames only).
+    pub session: Arc<session::SessionData>,
+    /// The frame shown (index into the good frames).
+    pub frame: usize,
+    /// Playing (else paused).
+    pub playing: bool,
+    /// Playback speed, 0.1–10× real time.
+    pub speed: f64,
+    /// Start over at the end.
+    pub looping: bool,
+    /// Session time the playback has reached, s.
+    pub clock_secs: f64,
+}
+
+/// Slowest and fastest playback.
+pub const SPEED_RANGE: (f64, f64) = (0.1, 10.0);
 
 /// The estimator's mode as the panel offers it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -319,6 +398,7 @@ struct EstimateInputs {
     noise: (f64, u64),
     estimator: EstimatorChoice,
     force_range_newtons: (f64, f64),
+    frame: Option<usize>,
 }
 
 /// Estimator and sensor settings to start the app with.
@@ -382,6 +462,18 @@ pub enum Command {
     SetForceRange(f64, f64),
     /// Set how the heatmap is drawn.
     SetView(ViewOptions),
+    /// Show a session frame (index into its good frames).
+    SetFrame(usize),
+    /// Move this many frames (negative: back).
+    StepFrames(i64),
+    /// Play (true) or pause.
+    Play(bool),
+    /// Set the playback speed (clamped to [`SPEED_RANGE`]).
+    SetSpeed(f64),
+    /// Loop at the end (true) or stop.
+    SetLoop(bool),
+    /// Advance playback by this much wall-clock time, s.
+    Tick(f64),
 }
 
 impl Model {
@@ -443,8 +535,115 @@ impl Model {
                 self.force_range_newtons = (lo, hi.max(lo));
             }
             Command::SetView(view) => self.view = view,
+            Command::SetFrame(i) => self.show_frame(i),
+            Command::StepFrames(by) => {
+                if let Some(r) = &self.replay {
+                    let last = r.session.frames.len().saturating_sub(1);
+                    let target = i64::try_from(r.frame).unwrap_or(0).saturating_add(by).max(0);
+                    self.show_frame(usize::try_from(target).unwrap_or(0).min(last));
+                }
+            }
+            Command::Play(on) => {
+                let at_end = self
+                    .replay
+                    .as_ref()
+                    .is_some_and(|r| r.frame + 1 >= r.session.frames.len());
+                if on && at_end {
+                    self.show_frame(0);
+                }
+                if let Some(r) = &mut self.replay {
+                    r.playing = on;
+                }
+            }
+            Command::SetSpeed(speed) => {
+                if let Some(r) = &mut self.replay {
+                    r.speed = speed.clamp(SPEED_RANGE.0, SPEED_RANGE.1);
+                }
+            }
+            Command::SetLoop(on) => {
+                if let Some(r) = &mut self.replay {
+                    r.looping = on;
+                }
+            }
+            Command::Tick(dt_secs) => self.tick(dt_secs),
         }
         before != self.estimate_inputs()
+    }
+
+    /// Shows session frame `i` (clamped to the last): its `q`, and its true
+    /// contact as the push.
+    fn show_frame(&mut self, i: usize) {
+        let Some(replay) = &mut self.replay else {
+            return;
+        };
+        let i = i.min(replay.session.frames.len().saturating_sub(1));
+        let Some(frame) = replay.session.frames.get(i) else {
+            return;
+        };
+        replay.frame = i;
+        replay.clock_secs = frame.t;
+        if frame.q.len() == self.q.len() {
+            self.q.clone_from(&frame.q);
+        }
+        let truth = frame.truth.clone();
+        let positions = self.joint_positions();
+        let pose = RobotPose::new(&self.robot, &positions);
+        self.push = match truth {
+            crate::io::session::Truth::Contact { link, point, force } => {
+                self.robot.link_id(&link).ok().and_then(|link| {
+                    let link_from_world = pose.world_from_link.get(link)?.inverse();
+                    let force = DVec3::from_array(force);
+                    Some(Push {
+                        link,
+                        point_in_link: link_from_world.transform_point3(DVec3::from_array(point)),
+                        inward_normal_in_link: link_from_world.transform_vector3(force.try_normalize()?),
+                        force_newtons: force.length(),
+                    })
+                })
+            }
+            _ => None,
+        };
+    }
+
+    /// Advances playback by `dt_secs` of wall-clock time.
+    fn tick(&mut self, dt_secs: f64) {
+        let Some(replay) = &mut self.replay else {
+            return;
+        };
+        if !replay.playing {
+            return;
+        }
+        let frames = &replay.session.frames;
+        let (Some(first), Some(last)) = (frames.first().map(|f| f.t), frames.last().map(|f| f.t)) else {
+            return;
+        };
+        let mut clock = replay.clock_secs + dt_secs.max(0.0) * replay.speed;
+        if clock > last {
+            if replay.looping {
+                clock = first;
+            } else {
+                clock = last;
+                replay.playing = false;
+            }
+        }
+        let target = replay.session.frame_at(clock);
+        let changed = target != replay.frame;
+        if changed {
+            self.show_frame(target);
+        }
+        if let Some(replay) = &mut self.replay {
+            replay.clock_secs = clock;
+        }
+    }
+
+    /// The torques the sensors read: the session frame's, or the push's
+    /// with the sensor noise.
+    #[must_use]
+    pub fn measured_torques(&self, pose: &RobotPose) -> Vec<f64> {
+        if let Some(frame) = self.replay.as_ref().and_then(|r| r.session.frames.get(r.frame)) {
+            return frame.tau.clone();
+        }
+        with_sensor_noise(&self.applied_torques(pose), self.noise_sigma, self.noise_seed)
     }
 
     /// What the estimate depends on (view options excluded).
@@ -458,6 +657,7 @@ impl Model {
             noise: (self.noise_sigma, self.noise_seed),
             estimator: self.estimator,
             force_range_newtons: self.force_range_newtons,
+            frame: self.replay.as_ref().map(|r| r.frame),
         }
     }
 
@@ -542,6 +742,16 @@ pub struct ProprioscopeApp {
     /// What the view texture last showed: it is redrawn only when this changes.
     drawn: Option<ViewKey>,
     status: String,
+    ctx: egui::Context,
+    session_worker: session::SessionWorker,
+    /// Background estimates of the session's frames (`None`: not yet).
+    pub session_estimates: Vec<Option<session::FrameEstimate>>,
+    session_generation: u64,
+    session_key: Option<timeline::SessionKey>,
+    loader: Option<session::Loader>,
+    recording: Option<timeline::Recording>,
+    /// Folders for `package://` URIs when opening URDFs and sessions.
+    pub package_paths: Vec<std::path::PathBuf>,
 }
 
 impl ProprioscopeApp {
@@ -575,6 +785,7 @@ impl ProprioscopeApp {
                 force_range_newtons: settings.force_range_newtons,
                 estimator: EstimatorChoice::default(),
                 view: ViewOptions::default(),
+                replay: None,
             },
             camera: OrbitCamera::default(),
             picker,
@@ -590,6 +801,17 @@ impl ProprioscopeApp {
             pose_seed: 0,
             drawn: None,
             status: String::new(),
+            session_worker: session::SessionWorker::spawn({
+                let ctx = cc.egui_ctx.clone();
+                move || ctx.request_repaint()
+            }),
+            ctx: cc.egui_ctx.clone(),
+            session_estimates: Vec::new(),
+            session_generation: 0,
+            session_key: None,
+            loader: None,
+            recording: None,
+            package_paths: Vec::new(),
         };
         app.request_estimate();
         app
@@ -601,13 +823,21 @@ impl ProprioscopeApp {
         let spec = start.robot_spec.clone();
         let mut app = Self::new(cc, start.robot, start.q, start.push, start.settings);
         app.robot_spec = spec;
+        app.package_paths = start.package_paths;
+        if let Some(session) = start.session {
+            app.open_session(&session.path, session.robot);
+        }
         app
     }
 
     /// Opens a scene, URDF or built-in robot; on failure shows the error
     /// and keeps the current scene.
     pub fn open(&mut self, target: &str) {
-        match open_target(Some(target)) {
+        if is_session_file(std::path::Path::new(target)) {
+            self.open_session(std::path::Path::new(target), None);
+            return;
+        }
+        match open_target_with(Some(target), None, &self.package_paths) {
             Ok(start) => {
                 self.picker = Picker::new(&start.robot);
                 let view = self.model.view;
@@ -629,6 +859,7 @@ impl ProprioscopeApp {
                     force_range_newtons: start.settings.force_range_newtons,
                     estimator: EstimatorChoice::default(),
                     view,
+                    replay: None,
                 };
                 self.robot_spec = start.robot_spec;
                 self.error = None;
@@ -742,6 +973,7 @@ impl ProprioscopeApp {
                     }
                 }
             });
+            self.session_menu_ui(ui);
             ui.menu_button("Robot", |ui| {
                 for name in crate::core::builtin::BUILTIN_NAMES {
                     if ui.button(name).clicked() {
@@ -792,11 +1024,7 @@ impl ProprioscopeApp {
     fn request_estimate(&mut self) {
         let positions = self.model.joint_positions();
         let pose = RobotPose::new(&self.model.robot, &positions);
-        let tau = with_sensor_noise(
-            &self.model.applied_torques(&pose),
-            self.model.noise_sigma,
-            self.model.noise_seed,
-        );
+        let tau = self.model.measured_torques(&pose);
         self.generation += 1;
         self.worker.request(Request {
             generation: self.generation,
@@ -837,7 +1065,7 @@ impl ProprioscopeApp {
     /// The newest estimate for the current model has arrived.
     #[must_use]
     pub fn is_up_to_date(&self) -> bool {
-        self.outcome.as_ref().is_some_and(|o| o.generation == self.generation)
+        self.outcome.as_ref().is_some_and(|o| o.generation == self.generation) && self.session_settled()
     }
 
     fn robot_panel_ui(&mut self, ui: &mut egui::Ui) -> Vec<Command> {
@@ -1206,11 +1434,7 @@ impl ProprioscopeApp {
             contact.point_world,
             contact.force_world,
         );
-        let measured = with_sensor_noise(
-            &self.model.applied_torques(&update.pose),
-            self.model.noise_sigma,
-            self.model.noise_seed,
-        );
+        let measured = self.model.measured_torques(&update.pose);
         let mut text = format!(
             "{}: P = {:.2e}, best push {:.1} N\njoint   produces   measured",
             self.model.robot.links[contact.link].name, contact.probability, contact.force_newtons
@@ -1259,7 +1483,7 @@ impl ProprioscopeApp {
         let positions = self.model.joint_positions();
         let pose = RobotPose::new(&self.model.robot, &positions);
         let applied = self.model.applied_torques(&pose);
-        let measured = with_sensor_noise(&applied, self.model.noise_sigma, self.model.noise_seed);
+        let measured = self.model.measured_torques(&pose);
         let explained: Option<Vec<f64>> = self.outcome.as_ref().and_then(|o| o.update.as_ref().ok()).map(|u| {
             let m = u.summary.map;
             joint_torques(&self.model.robot, &pose, m.link, m.point_world, m.force_world)
@@ -1496,10 +1720,25 @@ impl eframe::App for ProprioscopeApp {
         } else {
             "estimating…".to_owned()
         };
-        let mut commands = Vec::new();
+        self.poll_loader();
+        self.update_session_estimates();
+        let mut commands = self.playback_keys(ui.ctx());
         egui::Panel::top("menu").show(ui, |ui| self.menu_ui(ui));
+        // Below the menu and across the whole width: a session's timeline.
+        if self.model.replay.is_some() {
+            egui::Panel::bottom("timeline")
+                .resizable(true)
+                .min_size(260.0)
+                .default_size(300.0)
+                .show(ui, |ui| commands.extend(self.timeline_ui(ui)));
+        }
         egui::Panel::left("robot").show(ui, |ui| commands.extend(self.robot_panel_ui(ui)));
-        egui::Panel::right("estimator").show(ui, |ui| commands.extend(self.estimator_panel_ui(ui)));
+        egui::Panel::right("estimator").show(ui, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| {
+                commands.extend(self.estimator_panel_ui(ui));
+                self.session_summary_ui(ui);
+            });
+        });
         egui::Panel::bottom("torques").resizable(true).show(ui, |ui| {
             ui.label("Joint torques [N·m]: applied, measured, explained by the estimate (faded: the joint cannot sense the push)");
             self.torques_ui(ui);
@@ -1508,6 +1747,8 @@ impl eframe::App for ProprioscopeApp {
         for command in commands {
             self.apply(command);
         }
+        let ctx = ui.ctx().clone();
+        self.record_tick(&ctx);
     }
 }
 
@@ -1529,6 +1770,7 @@ mod tests {
             force_range_newtons: (1.0, 30.0),
             estimator: EstimatorChoice::default(),
             view: ViewOptions::default(),
+            replay: None,
             robot: Arc::new(robot),
         }
     }

@@ -1,20 +1,18 @@
 //! `proprioscope estimate SESSION`: estimates every frame of a recorded session.
 
 use std::io::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context as _, Result, bail};
-use glam::DVec3;
+use anyhow::{Context as _, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use proprioscope::app::session::{FrameEstimate, frame_outcome, session_robot};
 use proprioscope::core::metrics::{FrameOutcome, Metrics, metrics, metrics_by_sensing_joints, percentile};
 use proprioscope::core::pipeline::{Estimator, Update};
 use proprioscope::core::robot::Robot;
 use proprioscope::core::summary::Verdict;
 use proprioscope::core::surface::SurfaceRequest;
-use proprioscope::io::builtin::load_robot;
 use proprioscope::io::session::{Session, Truth};
-use proprioscope::io::urdf::{MeshSelection, UrdfOptions};
 
 use super::EstimatorArgs;
 
@@ -35,36 +33,6 @@ pub struct EstimateArgs {
     /// Estimator options.
     #[command(flatten)]
     pub estimator: EstimatorArgs,
-}
-
-/// Loads the session's robot with its sensed joints set.
-pub fn session_robot(
-    session: &Session,
-    robot: Option<&str>,
-    package_paths: &[PathBuf],
-    links: &[String],
-) -> Result<Robot> {
-    let (spec, base) = match (robot, &session.robot) {
-        (Some(r), _) => (r.to_owned(), PathBuf::from(".")),
-        (None, Some(r)) => (r.clone(), session.path.parent().unwrap_or(Path::new(".")).to_owned()),
-        (None, None) => bail!("{}: the session names no robot: give --robot", session.path.display()),
-    };
-    let meshes = if links.is_empty() {
-        MeshSelection::All
-    } else {
-        MeshSelection::Links(links.to_vec())
-    };
-    let options = UrdfOptions {
-        package_paths: package_paths.to_vec(),
-        meshes,
-    };
-    let mut robot = load_robot(&spec, &base, &options)?;
-    if let Some(joints) = &session.joints {
-        robot
-            .set_sensed(joints)
-            .with_context(|| format!("{}: field 'joints'", session.path.display()))?;
-    }
-    Ok(robot)
 }
 
 /// Runs the command.
@@ -126,7 +94,7 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
                 Verdict::NoContact => 1,
                 Verdict::PoorFit => 2,
             }] += 1;
-            let outcome = outcome(&robot, &update, &frame.truth);
+            let outcome = frame_outcome(&robot, &FrameEstimate::of(&update, ms), &frame.truth);
             if let Some(o) = outcome {
                 outcomes.push(o);
             }
@@ -161,27 +129,6 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
         print_metrics(&outcomes);
     }
     Ok(())
-}
-
-/// The estimate beside the truth, for frames with a known contact.
-pub fn outcome(robot: &Robot, update: &Update, truth: &Truth) -> Option<FrameOutcome> {
-    let Truth::Contact { link, point, force } = truth else {
-        return None;
-    };
-    let map = &update.summary.map;
-    let sensing_joints = robot.link_id(link).map_or(0, |l| {
-        let path = robot.path_joints(l);
-        robot.sensed().iter().filter(|j| path.contains(j)).count()
-    });
-    Some(FrameOutcome {
-        sensing_joints,
-        p_max: update.posterior.display[map.point],
-        estimated_point: map.point_world,
-        estimated_force: map.force_world,
-        true_point: DVec3::from_array(*point),
-        true_force: DVec3::from_array(*force),
-        link_correct: robot.links[map.link].name == *link,
-    })
 }
 
 fn frame_json(

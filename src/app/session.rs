@@ -1,0 +1,452 @@
+//! Recorded sessions in the app: loading and estimating every frame in the
+//! background, the timeline with plots linked to it, the session's metrics,
+//! and recording the interactive mode.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, Sender, channel};
+use std::time::Instant;
+
+use anyhow::{Context as _, Result, bail};
+use glam::DVec3;
+
+use crate::core::estimator::EstimatorSettings;
+use crate::core::metrics::{FrameOutcome, Metrics, metrics, metrics_by_sensing_joints};
+use crate::core::pipeline::{Estimator, Update};
+use crate::core::robot::{LinkId, Robot};
+use crate::core::summary::Verdict;
+use crate::core::surface::SurfaceRequest;
+use crate::io::builtin::load_robot;
+use crate::io::session::{Frame, FrameProblem, Session, Truth};
+use crate::io::urdf::{MeshSelection, UrdfOptions};
+
+/// The robot of a session: `robot` when given (a built-in name or a URDF
+/// path), else the one the session names (relative to its file). Only the
+/// meshes of `links` are loaded when some are named; the session's joint
+/// names pick the sensed joints.
+pub fn session_robot(
+    session: &Session,
+    robot: Option<&str>,
+    package_paths: &[PathBuf],
+    links: &[String],
+) -> Result<Robot> {
+    let (spec, base) = match (robot, &session.robot) {
+        (Some(r), _) => (r.to_owned(), PathBuf::from(".")),
+        (None, Some(r)) => (r.clone(), session.path.parent().unwrap_or(Path::new(".")).to_owned()),
+        (None, None) => bail!(
+            "{}: the session names no robot (a CSV session): give one with --robot",
+            session.path.display()
+        ),
+    };
+    let meshes = if links.is_empty() {
+        MeshSelection::All
+    } else {
+        MeshSelection::Links(links.to_vec())
+    };
+    let options = UrdfOptions {
+        package_paths: package_paths.to_vec(),
+        meshes,
+    };
+    let mut robot = load_robot(&spec, &base, &options)?;
+    if let Some(joints) = &session.joints {
+        robot
+            .set_sensed(joints)
+            .with_context(|| format!("{}: field 'joints'", session.path.display()))?;
+    }
+    Ok(robot)
+}
+
+/// The errors of an estimate against a frame's truth (`None` without a
+/// known contact).
+#[must_use]
+pub fn frame_outcome(robot: &Robot, estimate: &FrameEstimate, truth: &Truth) -> Option<FrameOutcome> {
+    let Truth::Contact { link, point, force } = truth else {
+        return None;
+    };
+    let sensing_joints = robot.link_id(link).map_or(0, |l| {
+        let path = robot.path_joints(l);
+        robot.sensed().iter().filter(|j| path.contains(j)).count()
+    });
+    Some(FrameOutcome {
+        sensing_joints,
+        p_max: estimate.p_max,
+        estimated_point: estimate.point_world,
+        estimated_force: estimate.force_world,
+        true_point: DVec3::from_array(*point),
+        true_force: DVec3::from_array(*force),
+        link_correct: robot.links.get(estimate.link).is_some_and(|l| l.name == *link),
+    })
+}
+
+/// What the timeline keeps of one frame's estimate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameEstimate {
+    /// The reading.
+    pub verdict: Verdict,
+    /// Link of the most probable contact.
+    pub link: LinkId,
+    /// Its point, world frame, m.
+    pub point_world: DVec3,
+    /// Its force, world frame, N.
+    pub force_world: DVec3,
+    /// Its posterior mass.
+    pub probability: f64,
+    /// Its heatmap value (the best particle's share in particle mode).
+    pub p_max: f64,
+    /// Time the update took, ms.
+    pub update_ms: f64,
+}
+
+impl FrameEstimate {
+    /// The compact form of an update.
+    #[must_use]
+    pub fn of(update: &Update, update_ms: f64) -> Self {
+        let map = &update.summary.map;
+        Self {
+            verdict: update.summary.verdict,
+            link: map.link,
+            point_world: map.point_world,
+            force_world: map.force_world,
+            probability: map.probability,
+            p_max: update.posterior.display.get(map.point).copied().unwrap_or(0.0),
+            update_ms,
+        }
+    }
+}
+
+/// A session opened in the app: its good frames, and the bad ones skipped.
+#[derive(Debug, Clone)]
+pub struct SessionData {
+    /// The file.
+    pub path: PathBuf,
+    /// The frames that passed the checks, in file order.
+    pub frames: Vec<Frame>,
+    /// For each kept frame, its number in the file.
+    pub file_frames: Vec<usize>,
+    /// The frames skipped, with what is wrong with each.
+    pub problems: Vec<FrameProblem>,
+}
+
+impl SessionData {
+    /// The kept frame shown at session time `t` (the last at or before it).
+    #[must_use]
+    pub fn frame_at(&self, t: f64) -> usize {
+        self.frames.partition_point(|f| f.t <= t).saturating_sub(1)
+    }
+
+    /// The kept frame nearest to session time `t`.
+    #[must_use]
+    pub fn nearest_frame(&self, t: f64) -> usize {
+        let after = self.frames.partition_point(|f| f.t < t);
+        match (after.checked_sub(1), self.frames.get(after)) {
+            (Some(before), Some(next)) => {
+                let before_t = self.frames.get(before).map_or(f64::NEG_INFINITY, |f| f.t);
+                if t - before_t <= next.t - t { before } else { after }
+            }
+            (Some(before), None) => before,
+            (None, _) => 0,
+        }
+    }
+}
+
+/// A loaded session, its robot, and how that robot is named (a built-in
+/// name or a URDF path usable from the working directory).
+pub type Loaded = (SessionData, Robot, String);
+
+/// Reads a session, skipping its bad frames, with its robot (`robot`
+/// overrides the session's; a CSV session needs one).
+pub fn load_session(path: &Path, robot: Option<&str>, package_paths: &[PathBuf]) -> Result<Loaded> {
+    let (session, problems) = Session::read_skipping_bad_frames(path)?;
+    let spec = match (robot, &session.robot) {
+        (Some(r), _) => r.to_owned(),
+        (None, Some(r)) if crate::io::builtin::is_builtin(r) => r.clone(),
+        (None, Some(r)) => path.parent().unwrap_or(Path::new(".")).join(r).display().to_string(),
+        (None, None) => String::new(),
+    };
+    let robot = session_robot(&session, robot, package_paths, &[])?;
+    let joints = robot.sensed().len();
+    if let Some(frame) = session.frames.first()
+        && frame.q.len() != joints
+    {
+        bail!(
+            "{}: frames have {} joint values but {} has {joints} sensed joints",
+            path.display(),
+            frame.q.len(),
+            robot.name
+        );
+    }
+    let bad: std::collections::BTreeSet<usize> = problems.iter().map(|p| p.frame).collect();
+    let file_frames = (0..session.frames.len() + problems.len())
+        .filter(|i| !bad.contains(i))
+        .collect();
+    Ok((
+        SessionData {
+            path: path.to_owned(),
+            frames: session.frames,
+            file_frames,
+            problems,
+        },
+        robot,
+        spec,
+    ))
+}
+
+/// Loads a session on a thread of its own.
+pub struct Loader {
+    result: Receiver<Result<Loaded, String>>,
+    /// What is being loaded.
+    pub path: PathBuf,
+    /// When it started.
+    pub started: Instant,
+}
+
+impl Loader {
+    /// Starts loading; `wake` is called when done.
+    pub fn spawn(
+        path: PathBuf,
+        robot: Option<String>,
+        package_paths: Vec<PathBuf>,
+        wake: impl Fn() + Send + 'static,
+    ) -> Self {
+        let (tx, result) = channel();
+        let thread_path = path.clone();
+        std::thread::spawn(move || {
+            let loaded = load_session(&thread_path, robot.as_deref(), &package_paths).map_err(|e| format!("{e:#}"));
+            let _ = tx.send(loaded);
+            wake();
+        });
+        Self {
+            result,
+            path,
+            started: Instant::now(),
+        }
+    }
+
+    /// The result, once there.
+    #[must_use]
+    pub fn poll(&self) -> Option<Result<Loaded, String>> {
+        self.result.try_recv().ok()
+    }
+}
+
+/// Everything the background estimation of a session depends on.
+#[derive(Debug, Clone)]
+pub struct EstimateJob {
+    /// Supersedes every smaller one.
+    pub generation: u64,
+    /// The robot.
+    pub robot: Arc<Robot>,
+    /// The session.
+    pub session: Arc<SessionData>,
+    /// Candidate surface.
+    pub surface: SurfaceRequest,
+    /// Estimator settings.
+    pub settings: EstimatorSettings,
+    /// Phase sizes, with phases.
+    pub phase_sizes: Option<[usize; 2]>,
+    /// The frame to start from (the one on screen); the rest follow in
+    /// order, wrapping around.
+    pub first: usize,
+}
+
+/// One frame estimated in the background.
+#[derive(Debug, Clone)]
+pub struct Estimated {
+    /// The job's generation.
+    pub generation: u64,
+    /// Kept-frame index.
+    pub frame: usize,
+    /// The estimate, or why there is none.
+    pub estimate: Result<FrameEstimate, String>,
+}
+
+/// Estimates every frame of a session on a thread of its own; a new job
+/// replaces the one under way.
+pub struct SessionWorker {
+    jobs: Sender<EstimateJob>,
+    results: Receiver<Estimated>,
+}
+
+impl SessionWorker {
+    /// Starts the thread; `wake` is called when results are waiting.
+    pub fn spawn(wake: impl Fn() + Send + 'static) -> Self {
+        let (jobs, inbox) = channel::<EstimateJob>();
+        let (outbox, results) = channel::<Estimated>();
+        std::thread::spawn(move || {
+            let mut next: Option<EstimateJob> = None;
+            loop {
+                let job = match next.take() {
+                    Some(job) => job,
+                    None => match inbox.recv() {
+                        Ok(job) => job,
+                        Err(_) => return,
+                    },
+                };
+                let estimator =
+                    match Estimator::new(&job.robot, &job.surface, job.settings.clone(), job.phase_sizes, None) {
+                        Ok(e) => e,
+                        Err(e) => {
+                            let _ = outbox.send(Estimated {
+                                generation: job.generation,
+                                frame: job.first,
+                                estimate: Err(e.to_string()),
+                            });
+                            wake();
+                            continue;
+                        }
+                    };
+                let frames = &job.session.frames;
+                let mut last_wake = Instant::now();
+                for step in 0..frames.len() {
+                    if let Some(newer) = inbox.try_iter().last() {
+                        next = Some(newer);
+                        break;
+                    }
+                    let index = (job.first + step) % frames.len();
+                    let Some(frame) = frames.get(index) else {
+                        continue;
+                    };
+                    let estimate = job
+                        .robot
+                        .joint_positions(&frame.q, &[])
+                        .map_err(|e| e.to_string())
+                        .and_then(|positions| {
+                            let t0 = Instant::now();
+                            estimator
+                                .update(&job.robot, &positions, &frame.tau)
+                                .map(|u| FrameEstimate::of(&u, t0.elapsed().as_secs_f64() * 1e3))
+                                .map_err(|e| e.to_string())
+                        });
+                    let sent = outbox.send(Estimated {
+                        generation: job.generation,
+                        frame: index,
+                        estimate,
+                    });
+                    if sent.is_err() {
+                        return;
+                    }
+                    // Wake the UI a few times a second, not per frame.
+                    if step == 0 || last_wake.elapsed().as_secs_f64() > 0.1 {
+                        wake();
+                        last_wake = Instant::now();
+                    }
+                }
+                wake();
+            }
+        });
+        Self { jobs, results }
+    }
+
+    /// Starts a job (superseding the one under way).
+    pub fn start(&self, job: EstimateJob) {
+        let _ = self.jobs.send(job);
+    }
+
+    /// Everything estimated since the last call.
+    pub fn drain(&self) -> impl Iterator<Item = Estimated> + '_ {
+        self.results.try_iter()
+    }
+}
+
+/// The metrics of the frames with a known contact and an estimate: over
+/// all of them, then by the number of joints that sense the touched link.
+#[must_use]
+pub fn session_metrics(
+    robot: &Robot,
+    session: &SessionData,
+    estimates: &[Option<FrameEstimate>],
+) -> Option<(Metrics, Vec<(usize, Metrics)>)> {
+    let outcomes: Vec<FrameOutcome> = session
+        .frames
+        .iter()
+        .zip(estimates)
+        .filter_map(|(f, e)| frame_outcome(robot, e.as_ref()?, &f.truth))
+        .collect();
+    if outcomes.is_empty() {
+        return None;
+    }
+    Some((metrics(&outcomes), metrics_by_sensing_joints(&outcomes)))
+}
+
+/// Metrics as JSON, for export.
+#[must_use]
+pub fn metrics_json(all: &Metrics, by_joints: &[(usize, Metrics)]) -> serde_json::Value {
+    let one = |m: &Metrics| {
+        serde_json::json!({
+            "frames": m.frames,
+            "position_error_median_m": m.position_median_m,
+            "position_error_p90_m": m.position_p90_m,
+            "force_error_median_newtons": m.force_median_newtons,
+            "force_error_p90_newtons": m.force_p90_newtons,
+            "link_accuracy": m.link_accuracy,
+            "eps_r_m": m.eps_r_m,
+            "eps_f_newtons": m.eps_f_newtons,
+            "sigma_r_m": m.sigma_r_m,
+        })
+    };
+    serde_json::json!({
+        "all": one(all),
+        "by_sensing_joints": by_joints
+            .iter()
+            .map(|(k, m)| {
+                let mut v = one(m);
+                v["sensing_joints"] = serde_json::json!(k);
+                v
+            })
+            .collect::<Vec<_>>(),
+    })
+}
+
+/// At most `max` of `points`, evenly strided (plots of long sessions).
+#[must_use]
+pub fn thin(points: Vec<[f64; 2]>, max: usize) -> Vec<[f64; 2]> {
+    let stride = points.len().div_ceil(max.max(1)).max(1);
+    if stride == 1 {
+        return points;
+    }
+    points.into_iter().step_by(stride).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn data(times: &[f64]) -> SessionData {
+        SessionData {
+            path: PathBuf::from("s.json"),
+            frames: times
+                .iter()
+                .map(|&t| Frame {
+                    t,
+                    q: vec![],
+                    tau: vec![],
+                    truth: Truth::Unknown,
+                })
+                .collect(),
+            file_frames: (0..times.len()).collect(),
+            problems: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn frames_are_found_by_time() {
+        let d = data(&[0.0, 0.1, 0.1, 0.5, 1.0]);
+        assert_eq!(d.frame_at(-1.0), 0);
+        assert_eq!(d.frame_at(0.05), 0);
+        assert_eq!(d.frame_at(0.1), 2);
+        assert_eq!(d.frame_at(0.7), 3);
+        assert_eq!(d.frame_at(5.0), 4);
+        assert_eq!(d.nearest_frame(0.2), 1);
+        assert_eq!(d.nearest_frame(0.4), 3);
+        assert_eq!(d.nearest_frame(9.0), 4);
+        assert_eq!(d.nearest_frame(-9.0), 0);
+    }
+
+    #[test]
+    fn thinning_keeps_at_most_the_asked_number() {
+        let points: Vec<[f64; 2]> = (0..10_001).map(|i| [f64::from(i), 0.0]).collect();
+        let thinned = thin(points, 1000);
+        assert!(thinned.len() <= 1000 && thinned.len() > 900, "{}", thinned.len());
+        assert_eq!(thinned.first(), Some(&[0.0, 0.0]));
+    }
+}

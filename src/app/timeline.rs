@@ -1,0 +1,633 @@
+//! The session replay's UI: timeline, linked plots, session summary, and
+//! the recorder of the interactive mode.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use eframe::egui;
+
+use super::session::{self, EstimateJob, FrameEstimate, Loader, SessionData};
+use super::{Command, Model, ProprioscopeApp, Replay, SPEED_RANGE, per_joint};
+use crate::core::kinematics::RobotPose;
+use crate::core::picking::Picker;
+use crate::core::robot::{LinkId, Robot};
+use crate::core::summary::Verdict;
+use crate::core::surface::SurfaceRequest;
+use crate::io::session::{Frame, Recorder, Truth};
+
+/// While recording, a frame at least this often even when nothing moves.
+pub const RECORD_RATE_HZ: f64 = 10.0;
+
+/// Most points a plot line draws (long sessions are thinned).
+const PLOT_POINTS: usize = 1500;
+
+/// What the background estimation of a session depends on.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct SessionKey {
+    session: usize,
+    sigma: Vec<f64>,
+    surface_points: usize,
+    candidate_links: Vec<LinkId>,
+    estimator: super::EstimatorChoice,
+    force_range_newtons: (f64, f64),
+}
+
+/// A recording under way.
+pub(super) struct Recording {
+    recorder: Recorder,
+    started: Instant,
+    /// What the last frame showed, and when it was written.
+    last: Option<(Vec<f64>, Option<super::Push>, Instant)>,
+}
+
+impl ProprioscopeApp {
+    /// Starts opening a session (JSON or CSV) in the background; `robot`
+    /// overrides the session's (a CSV session without one uses the current
+    /// robot). On failure the error is shown and the current scene kept.
+    pub fn open_session(&mut self, path: &Path, robot: Option<String>) {
+        let is_csv = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+        let robot = robot.or_else(|| is_csv.then(|| self.robot_spec.clone()));
+        let ctx = self.ctx.clone();
+        self.loader = Some(Loader::spawn(
+            path.to_owned(),
+            robot,
+            self.package_paths.clone(),
+            move || ctx.request_repaint(),
+        ));
+    }
+
+    /// Installs a loaded session (or shows why it could not be loaded).
+    pub(super) fn poll_loader(&mut self) {
+        let Some(result) = self.loader.as_ref().and_then(Loader::poll) else {
+            return;
+        };
+        let path = self.loader.take().map(|l| l.path).unwrap_or_default();
+        match result {
+            Ok((data, robot, spec)) => self.install_session(data, robot, spec),
+            Err(e) => self.error = Some(format!("could not open session {}: {e}", path.display())),
+        }
+    }
+
+    fn install_session(&mut self, data: SessionData, robot: Robot, spec: String) {
+        self.picker = Picker::new(&robot);
+        let joints = robot.sensed().len();
+        let candidate_links = robot.default_candidate_links();
+        let q = data.frames.first().map_or_else(|| vec![0.0; joints], |f| f.q.clone());
+        let old = &self.model;
+        self.model = Model {
+            robot: Arc::new(robot),
+            q,
+            push: None,
+            sigma: per_joint(&[old.sigma.iter().copied().fold(0.0, f64::max)], joints),
+            surface_points: old.surface_points,
+            candidate_links,
+            noise_sigma: old.noise_sigma,
+            noise_seed: old.noise_seed,
+            force_range_newtons: old.force_range_newtons,
+            estimator: old.estimator,
+            view: old.view,
+            replay: Some(Replay {
+                session: Arc::new(data),
+                frame: 0,
+                playing: false,
+                speed: 1.0,
+                looping: false,
+                clock_secs: 0.0,
+            }),
+        };
+        self.robot_spec = spec;
+        self.error = None;
+        self.session_key = None;
+        self.session_estimates.clear();
+        self.model.apply(Command::SetFrame(0));
+        self.request_estimate();
+    }
+
+    /// Leaves the session; the robot stays where the frame put it.
+    pub fn close_session(&mut self) {
+        self.model.replay = None;
+        self.session_key = None;
+        self.session_estimates.clear();
+        self.request_estimate();
+    }
+
+    /// (Re)starts the background estimation when the session or the
+    /// settings changed, and collects what it has done.
+    pub(super) fn update_session_estimates(&mut self) {
+        let Some(replay) = &self.model.replay else {
+            return;
+        };
+        let m = &self.model;
+        let key = SessionKey {
+            session: Arc::as_ptr(&replay.session) as usize,
+            sigma: m.sigma.clone(),
+            surface_points: m.surface_points,
+            candidate_links: m.candidate_links.clone(),
+            estimator: m.estimator,
+            force_range_newtons: m.force_range_newtons,
+        };
+        if self.session_key.as_ref() != Some(&key) {
+            self.session_generation += 1;
+            self.session_estimates = vec![None; replay.session.frames.len()];
+            self.session_worker.start(EstimateJob {
+                generation: self.session_generation,
+                robot: m.robot.clone(),
+                session: replay.session.clone(),
+                surface: SurfaceRequest {
+                    links: m.candidate_links.clone(),
+                    total_points: m.surface_points,
+                    seed: 0,
+                },
+                settings: m.estimator_settings(),
+                phase_sizes: m.estimator.phases.then_some(m.estimator.phase_sizes),
+                first: replay.frame,
+            });
+            self.session_key = Some(key);
+        }
+        for done in self.session_worker.drain() {
+            if done.generation != self.session_generation {
+                continue;
+            }
+            match done.estimate {
+                Ok(e) => {
+                    if let Some(slot) = self.session_estimates.get_mut(done.frame) {
+                        *slot = Some(e);
+                    }
+                }
+                Err(e) => self.error = Some(format!("session frame {}: {e}", done.frame)),
+            }
+        }
+    }
+
+    /// Frames estimated in the background so far.
+    #[must_use]
+    pub fn session_estimated(&self) -> usize {
+        self.session_estimates.iter().filter(|e| e.is_some()).count()
+    }
+
+    /// Whether nothing is loading and every session frame is estimated.
+    pub(super) fn session_settled(&self) -> bool {
+        self.loader.is_none()
+            && (self.model.replay.is_none()
+                || (self.session_key.is_some() && self.session_estimates.iter().all(Option::is_some)))
+    }
+
+    /// Space plays or pauses, the arrow keys step, unless a text field or
+    /// slider has the keyboard.
+    pub(super) fn playback_keys(&self, ctx: &egui::Context) -> Vec<Command> {
+        let Some(replay) = &self.model.replay else {
+            return Vec::new();
+        };
+        if ctx.memory(|m| m.focused().is_some()) {
+            return Vec::new();
+        }
+        let mut commands = Vec::new();
+        ctx.input(|i| {
+            if i.key_pressed(egui::Key::Space) {
+                commands.push(Command::Play(!replay.playing));
+            }
+            if i.key_pressed(egui::Key::ArrowLeft) {
+                commands.push(Command::StepFrames(-1));
+            }
+            if i.key_pressed(egui::Key::ArrowRight) {
+                commands.push(Command::StepFrames(1));
+            }
+        });
+        if replay.playing {
+            let dt = ctx.input(|i| f64::from(i.stable_dt)).min(0.1);
+            commands.push(Command::Tick(dt));
+            ctx.request_repaint();
+        }
+        commands
+    }
+
+    /// The timeline: transport, speed, loop, scrubbing, estimation
+    /// progress, and the plots.
+    pub(super) fn timeline_ui(&self, ui: &mut egui::Ui) -> Vec<Command> {
+        let mut commands = Vec::new();
+        let Some(replay) = &self.model.replay else {
+            return commands;
+        };
+        let frames = &replay.session.frames;
+        let last = frames.len().saturating_sub(1);
+        ui.horizontal(|ui| {
+            if ui.button("|<").on_hover_text("first frame").clicked() {
+                commands.push(Command::SetFrame(0));
+            }
+            if ui.button("<").on_hover_text("previous frame (←)").clicked() {
+                commands.push(Command::StepFrames(-1));
+            }
+            let label = if replay.playing { "Pause" } else { "Play" };
+            if ui.button(label).on_hover_text("space").clicked() {
+                commands.push(Command::Play(!replay.playing));
+            }
+            if ui.button(">").on_hover_text("next frame (→)").clicked() {
+                commands.push(Command::StepFrames(1));
+            }
+            if ui.button(">|").on_hover_text("last frame").clicked() {
+                commands.push(Command::SetFrame(last));
+            }
+            let mut speed = replay.speed;
+            if ui
+                .add(
+                    egui::Slider::new(&mut speed, SPEED_RANGE.0..=SPEED_RANGE.1)
+                        .logarithmic(true)
+                        .suffix("×")
+                        .text("speed"),
+                )
+                .changed()
+            {
+                commands.push(Command::SetSpeed(speed));
+            }
+            let mut looping = replay.looping;
+            if ui.checkbox(&mut looping, "loop").changed() {
+                commands.push(Command::SetLoop(looping));
+            }
+            if let Some(frame) = frames.get(replay.frame) {
+                let file_frame = replay.session.file_frames.get(replay.frame).copied().unwrap_or(0);
+                ui.label(format!(
+                    "t = {:.3} s, frame {} of {} (file frame {file_frame})",
+                    frame.t,
+                    replay.frame + 1,
+                    frames.len()
+                ));
+            }
+        });
+        let mut frame = replay.frame;
+        ui.spacing_mut().slider_width = (ui.available_width() - 80.0).max(100.0);
+        if ui.add(egui::Slider::new(&mut frame, 0..=last).text("frame")).changed() {
+            commands.push(Command::SetFrame(frame));
+        }
+        let done = self.session_estimated();
+        if done < frames.len() {
+            ui.add(
+                egui::ProgressBar::new(done as f32 / frames.len().max(1) as f32)
+                    .text(format!("estimating the session: {done} of {} frames", frames.len())),
+            );
+        }
+        if let Some(t) = self.session_plots_ui(ui, replay) {
+            commands.push(Command::SetFrame(replay.session.nearest_frame(t)));
+        }
+        commands
+    }
+
+    /// Four plots over session time, sharing the x axis, with the current
+    /// frame marked; returns the time clicked.
+    fn session_plots_ui(&self, ui: &mut egui::Ui, replay: &Replay) -> Option<f64> {
+        let frames = &replay.session.frames;
+        let now = frames.get(replay.frame).map_or(0.0, |f| f.t);
+        let stride = frames.len().div_ceil(PLOT_POINTS).max(1);
+        let robot = &self.model.robot;
+        let estimates = &self.session_estimates;
+        let sampled = || {
+            frames
+                .iter()
+                .zip(estimates.iter().chain(std::iter::repeat(&None)))
+                .step_by(stride)
+        };
+        let torque_lines: Vec<(String, Vec<[f64; 2]>)> = (0..robot.sensed().len())
+            .map(|j| {
+                let name = format!("τ{}", j + 1);
+                (
+                    name,
+                    sampled().filter_map(|(f, _)| Some([f.t, *f.tau.get(j)?])).collect(),
+                )
+            })
+            .collect();
+        let truth_force = |f: &Frame| match &f.truth {
+            Truth::Contact { force, .. } => Some(glam::DVec3::from_array(*force).length()),
+            Truth::NoContact => Some(0.0),
+            Truth::Unknown => None,
+        };
+        let estimated_force = |e: &FrameEstimate| {
+            if e.verdict == Verdict::NoContact {
+                0.0
+            } else {
+                e.force_world.length()
+            }
+        };
+        let force_lines = vec![
+            (
+                "estimated".to_owned(),
+                sampled()
+                    .filter_map(|(f, e)| Some([f.t, estimated_force(e.as_ref()?)]))
+                    .collect(),
+            ),
+            (
+                "true".to_owned(),
+                sampled().filter_map(|(f, _)| Some([f.t, truth_force(f)?])).collect(),
+            ),
+        ];
+        let error_lines = vec![(
+            "position error".to_owned(),
+            sampled()
+                .filter_map(|(f, e)| {
+                    let outcome = session::frame_outcome(robot, e.as_ref()?, &f.truth)?;
+                    Some([f.t, outcome.estimated_point.distance(outcome.true_point) * 1e3])
+                })
+                .collect(),
+        )];
+        let probability_lines = vec![(
+            "MAP probability".to_owned(),
+            sampled()
+                .filter_map(|(f, e)| Some([f.t, e.as_ref()?.probability]))
+                .collect(),
+        )];
+        let height = (ui.available_height() - 24.0).max(150.0);
+        let mut clicked = None;
+        ui.columns(4, |columns| {
+            let plots = [
+                ("plot-torques", "measured torque [N·m]", torque_lines),
+                ("plot-force", "force [N]: estimated, true", force_lines),
+                ("plot-error", "position error [mm]", error_lines),
+                ("plot-probability", "MAP probability", probability_lines),
+            ];
+            for (ui, (id, title, lines)) in columns.iter_mut().zip(plots) {
+                ui.label(title);
+                if let Some(t) = linked_plot_ui(ui, id, lines, now, height) {
+                    clicked = Some(t);
+                }
+            }
+        });
+        clicked
+    }
+
+    /// The session's file, skipped frames, progress and metrics, with export.
+    pub(super) fn session_summary_ui(&mut self, ui: &mut egui::Ui) {
+        let Some(replay) = &self.model.replay else {
+            return;
+        };
+        let session = replay.session.clone();
+        ui.separator();
+        ui.heading("Session");
+        ui.label(format!(
+            "{}: {} frames played, {} skipped",
+            session
+                .path
+                .file_name()
+                .map(|n| n.to_string_lossy())
+                .unwrap_or_default(),
+            session.frames.len(),
+            session.problems.len()
+        ));
+        if !session.problems.is_empty() {
+            egui::CollapsingHeader::new(format!("Skipped frames ({})", session.problems.len()))
+                .default_open(true)
+                .show(ui, |ui| {
+                    for p in session.problems.iter().take(50) {
+                        ui.colored_label(egui::Color32::LIGHT_RED, p.to_string());
+                    }
+                    if session.problems.len() > 50 {
+                        ui.label(format!("… and {} more", session.problems.len() - 50));
+                    }
+                });
+        }
+        let done = self.session_estimated();
+        let total = session.frames.len();
+        if done < total {
+            ui.label(format!("metrics when every frame is estimated ({done} of {total})"));
+            return;
+        }
+        let Some((all, by_joints)) = session::session_metrics(&self.model.robot, &session, &self.session_estimates)
+        else {
+            ui.label("no frame has a known contact: no errors to report");
+            return;
+        };
+        egui::Grid::new("session-metrics").striped(true).show(ui, |ui| {
+            ui.label("sensing joints");
+            ui.label("frames");
+            ui.label("pos. median / p90 [mm]");
+            ui.label("force median / p90 [N]");
+            ui.label("link right");
+            ui.label("ε_r [mm], ε_F [N], σ_r [mm]");
+            ui.end_row();
+            let rows =
+                std::iter::once(("all".to_owned(), &all)).chain(by_joints.iter().map(|(k, m)| (k.to_string(), m)));
+            for (label, m) in rows {
+                ui.label(label);
+                ui.label(m.frames.to_string());
+                ui.label(format!(
+                    "{:.1} / {:.1}",
+                    m.position_median_m * 1e3,
+                    m.position_p90_m * 1e3
+                ));
+                ui.label(format!("{:.2} / {:.2}", m.force_median_newtons, m.force_p90_newtons));
+                ui.label(format!("{:.0} %", m.link_accuracy * 100.0));
+                ui.label(format!(
+                    "{:.1}, {:.2}, {:.1}",
+                    m.eps_r_m * 1e3,
+                    m.eps_f_newtons,
+                    m.sigma_r_m * 1e3
+                ));
+                ui.end_row();
+            }
+        });
+        if ui.button("Export metrics as JSON…").clicked()
+            && let Some(path) = rfd::FileDialog::new().add_filter("JSON", &["json"]).save_file()
+        {
+            self.export_metrics(&path);
+        }
+    }
+
+    /// Writes the session's metrics as JSON.
+    pub fn export_metrics(&mut self, path: &Path) {
+        let Some(replay) = &self.model.replay else {
+            return;
+        };
+        let Some((all, by_joints)) =
+            session::session_metrics(&self.model.robot, &replay.session, &self.session_estimates)
+        else {
+            self.error = Some("no metrics to export: no frame has a known contact and an estimate".to_owned());
+            return;
+        };
+        let mut json = session::metrics_json(&all, &by_joints);
+        json["session"] = serde_json::json!(replay.session.path.display().to_string());
+        json["skipped_frames"] = serde_json::json!(replay.session.problems.len());
+        let result = serde_json::to_string_pretty(&json)
+            .map_err(|e| e.to_string())
+            .and_then(|text| std::fs::write(path, text).map_err(|e| e.to_string()));
+        self.error = result
+            .err()
+            .map(|e| format!("could not export to {}: {e}", path.display()));
+    }
+
+    /// Starts recording the interactive mode into `path` (JSON).
+    pub fn start_recording(&mut self, path: &Path) {
+        let joints: Vec<String> = self
+            .model
+            .robot
+            .sensed()
+            .iter()
+            .map(|&j| self.model.robot.joints[j].name.clone())
+            .collect();
+        // A URDF is named by its absolute path: the recording may live anywhere.
+        let robot = if crate::io::builtin::is_builtin(&self.robot_spec) {
+            self.robot_spec.clone()
+        } else {
+            std::fs::canonicalize(&self.robot_spec)
+                .map_or_else(|_| self.robot_spec.clone(), |p| p.display().to_string())
+        };
+        match Recorder::create(path, &robot, &joints) {
+            Ok(recorder) => {
+                self.recording = Some(Recording {
+                    recorder,
+                    started: Instant::now(),
+                    last: None,
+                });
+                self.error = None;
+            }
+            Err(e) => self.error = Some(e.to_string()),
+        }
+    }
+
+    /// Stops recording and closes the file; the frames written.
+    pub fn stop_recording(&mut self) -> Option<usize> {
+        let recording = self.recording.take()?;
+        match recording.recorder.finish() {
+            Ok(frames) => Some(frames),
+            Err(e) => {
+                self.error = Some(e.to_string());
+                None
+            }
+        }
+    }
+
+    /// Frames recorded so far, when recording.
+    #[must_use]
+    pub fn recorded_frames(&self) -> Option<usize> {
+        self.recording.as_ref().map(|r| r.recorder.frames())
+    }
+
+    /// Writes a frame when the pose or push changed, or at the steady rate.
+    pub(super) fn record_tick(&mut self, ctx: &egui::Context) {
+        let Some(recording) = &mut self.recording else {
+            return;
+        };
+        let model = &self.model;
+        let now = Instant::now();
+        let due = recording.last.as_ref().is_none_or(|(q, push, at)| {
+            *q != model.q || *push != model.push || now.duration_since(*at).as_secs_f64() >= 1.0 / RECORD_RATE_HZ
+        });
+        ctx.request_repaint_after(std::time::Duration::from_secs_f64(1.0 / RECORD_RATE_HZ));
+        if !due {
+            return;
+        }
+        let frame = interactive_frame(model, now.duration_since(recording.started).as_secs_f64());
+        if let Err(e) = recording.recorder.write(&frame) {
+            self.error = Some(e.to_string());
+            self.recording = None;
+            return;
+        }
+        recording.last = Some((model.q.clone(), model.push, now));
+    }
+
+    /// The Session menu.
+    pub(super) fn session_menu_ui(&mut self, ui: &mut egui::Ui) {
+        ui.menu_button("Session", |ui| {
+            if ui.button("Open session…").clicked() {
+                ui.close();
+                if let Some(path) = rfd::FileDialog::new()
+                    .add_filter("session", &["json", "csv"])
+                    .pick_file()
+                {
+                    self.open_session(&path, None);
+                }
+            }
+            if self.model.replay.is_some() && ui.button("Close session").clicked() {
+                ui.close();
+                self.close_session();
+            }
+            ui.separator();
+            if self.recording.is_some() {
+                if ui.button("Stop recording").clicked() {
+                    ui.close();
+                    self.stop_recording();
+                }
+            } else if ui.button("Record…").clicked() {
+                ui.close();
+                if let Some(path) = rfd::FileDialog::new()
+                    .add_filter("session", &["json"])
+                    .set_file_name("recording.session.json")
+                    .save_file()
+                {
+                    self.start_recording(&path);
+                }
+            }
+        });
+        if let Some(frames) = self.recorded_frames() {
+            ui.colored_label(egui::Color32::from_rgb(230, 70, 70), format!("REC {frames} frames"));
+        }
+        if let Some(loader) = &self.loader {
+            ui.add(egui::Spinner::new());
+            ui.label(format!(
+                "loading {} ({:.0} s)",
+                loader.path.display(),
+                loader.started.elapsed().as_secs_f64()
+            ));
+        }
+    }
+}
+
+/// The frame the recorder writes for the interactive mode at time `t`.
+#[must_use]
+pub fn interactive_frame(model: &Model, t: f64) -> Frame {
+    let positions = model.joint_positions();
+    let pose = RobotPose::new(&model.robot, &positions);
+    Frame {
+        t,
+        q: model.q.clone(),
+        tau: model.measured_torques(&pose),
+        truth: match model.push_world(&pose) {
+            Some((link, point, force)) => Truth::Contact {
+                link: model.robot.links[link].name.clone(),
+                point: point.to_array(),
+                force: force.to_array(),
+            },
+            None => Truth::NoContact,
+        },
+    }
+}
+
+/// One plot over session time, linked to the others, with a line at
+/// `now`; returns the time clicked.
+fn linked_plot_ui(
+    ui: &mut egui::Ui,
+    id: &str,
+    lines: Vec<(String, Vec<[f64; 2]>)>,
+    now: f64,
+    height: f32,
+) -> Option<f64> {
+    use egui_plot::{Legend, Line, Plot, VLine};
+    let response = Plot::new(id)
+        .height(height)
+        .link_axis(egui::Id::unique("session-time"), [true, false])
+        .link_cursor(egui::Id::unique("session-time"), [true, false])
+        .legend(
+            Legend::default()
+                .position(egui_plot::Corner::LeftTop)
+                .background_alpha(0.5),
+        )
+        .show(ui, |plot| {
+            for (name, points) in lines {
+                plot.line(Line::new(name, points));
+            }
+            // Unnamed: the cursor stays out of the legend.
+            plot.vline(VLine::new("", now).color(egui::Color32::from_rgb(240, 200, 60)));
+            plot.pointer_coordinate()
+        });
+    if response.response.clicked() {
+        response.inner.map(|p| p.x)
+    } else {
+        None
+    }
+}
+
+/// `PathBuf` of a session given on the command line, with its robot.
+#[derive(Debug, Clone)]
+pub struct SessionTarget {
+    /// The session file.
+    pub path: PathBuf,
+    /// Robot override.
+    pub robot: Option<String>,
+}
