@@ -436,7 +436,7 @@ mod tests {
         assert_eq!(d.frame_at(0.1), 2);
         assert_eq!(d.frame_at(0.7), 3);
         assert_eq!(d.frame_at(5.0), 4);
-        assert_eq!(d.nearest_frame(0.2), 1);
+        assert_eq!(d.nearest_frame(0.2), 2);
         assert_eq!(d.nearest_frame(0.4), 3);
         assert_eq!(d.nearest_frame(9.0), 4);
         assert_eq!(d.nearest_frame(-9.0), 0);
