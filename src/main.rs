@@ -55,6 +55,9 @@ enum Command {
         /// The robot of a session (see `view`).
         #[arg(long)]
         robot: Option<String>,
+        /// The session frame to show (0-based, among its good frames).
+        #[arg(long)]
+        frame: Option<usize>,
         /// The PNG to write.
         #[arg(long)]
         out: PathBuf,
@@ -171,10 +174,11 @@ fn main() -> Result<()> {
         Some(Command::Screenshot {
             target,
             robot,
+            frame,
             out,
             width,
             height,
-        }) => screenshot(target.as_deref(), robot.as_deref(), &out, [width, height]),
+        }) => screenshot(target.as_deref(), robot.as_deref(), frame, &out, [width, height]),
         Some(Command::RecordDemo { out, rate, seconds }) => record_demo(&out, rate, seconds),
         None => run_app(None, None, &[]),
     }
@@ -393,8 +397,19 @@ fn surface(path: &Path, points: Option<usize>) -> Result<()> {
 }
 
 /// Renders the app headless into a PNG.
-fn screenshot(target: Option<&str>, robot: Option<&str>, out: &Path, size: [u32; 2]) -> Result<()> {
-    let start = proprioscope::app::open_target_with(target, robot, &[])?;
+fn screenshot(
+    target: Option<&str>,
+    robot: Option<&str>,
+    frame: Option<usize>,
+    out: &Path,
+    size: [u32; 2],
+) -> Result<()> {
+    let mut start = proprioscope::app::open_target_with(target, robot, &[])?;
+    if let Some(session) = &mut start.session {
+        session.frame = frame;
+    } else if frame.is_some() {
+        bail!("--frame needs a session to show");
+    }
     let image = proprioscope::app::render_headless(start, [size[0] as f32, size[1] as f32])
         .map_err(|e| anyhow::anyhow!("rendering the app headless: {e}"))?;
     if let Some(folder) = out.parent() {

@@ -267,3 +267,217 @@ fn a_scene_with_sigma_per_joint_opens_with_it() {
     settle(&mut harness);
     assert_eq!(harness.state().model.sigma, vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]);
 }
+
+/// A recorded session (the hidden `record-demo` command: the built-in LWR
+/// waving, pushed on link 5), `seconds` long at 20 frames a second.
+fn demo_session(name: &str, seconds: f64) -> std::path::PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .args([
+            "record-demo",
+            "--rate",
+            "20",
+            "--seconds",
+            &seconds.to_string(),
+            "--out",
+        ])
+        .arg(&path)
+        .stdout(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    path
+}
+
+fn session_harness(path: &Path) -> Harness<'static, ProprioscopeApp> {
+    let mut harness =
+        proprioscope::app::headless_harness(open_target(Some(path.to_str().unwrap())).unwrap(), [1400.0, 900.0]);
+    settle(&mut harness);
+    assert!(harness.state().model.replay.is_some(), "{:?}", harness.state().error);
+    harness
+}
+
+#[test]
+fn pressing_play_advances_the_frame() {
+    let path = demo_session("play.session.json", 1.0);
+    let mut harness = session_harness(&path);
+    assert_eq!(harness.state().model.replay.as_ref().unwrap().frame, 0);
+    harness.get_by_label("Play").click();
+    // A few frames of the harness (each up to 0.1 s of playback).
+    harness.run_steps(3);
+    let replay = harness.state().model.replay.clone().unwrap();
+    assert!(replay.playing);
+    assert!(replay.frame > 0, "still at frame 0");
+    // The arm follows the frame.
+    assert_eq!(harness.state().model.q, replay.session.frames[replay.frame].q);
+    // Space pauses, the right arrow steps one frame.
+    harness.key_press(egui::Key::Space);
+    harness.run_steps(2);
+    let paused = harness.state().model.replay.clone().unwrap();
+    assert!(!paused.playing);
+    harness.key_press(egui::Key::ArrowRight);
+    harness.run_steps(2);
+    assert_eq!(harness.state().model.replay.as_ref().unwrap().frame, paused.frame + 1);
+}
+
+#[test]
+fn dragging_the_timeline_changes_q() {
+    let path = demo_session("drag.session.json", 1.0);
+    let mut harness = session_harness(&path);
+    let q0 = harness.state().model.q.clone();
+    let rect = harness
+        .get_by_role_and_label(egui::accesskit::Role::Slider, "frame")
+        .rect();
+    let from = egui::pos2(rect.left() + 2.0, rect.center().y);
+    let to = egui::pos2(rect.left() + 0.6 * rect.width(), rect.center().y);
+    harness.hover_at(from);
+    harness.drag_at(from);
+    harness.run_steps(1);
+    harness.hover_at(to);
+    harness.run_steps(1);
+    harness.drop_at(to);
+    harness.run_steps(2);
+    let app = harness.state();
+    let replay = app.model.replay.as_ref().unwrap();
+    assert!(replay.frame > 5, "frame {}", replay.frame);
+    assert_eq!(app.model.q, replay.session.frames[replay.frame].q);
+    assert_ne!(app.model.q, q0);
+    // The torques the estimator is given are the frame's.
+    let pose = proprioscope::core::kinematics::RobotPose::new(&app.model.robot, &app.model.joint_positions());
+    assert_eq!(
+        app.model.measured_torques(&pose),
+        replay.session.frames[replay.frame].tau
+    );
+}
+
+#[test]
+fn a_session_with_three_bad_frames_lists_them_and_plays_the_rest() {
+    let path = demo_session("bad.session.json", 0.5);
+    // Frame lines follow the header line: break frames 2, 4 and 7.
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    // Frame 2: its first torque becomes null (a missing value).
+    let at = lines[3].find("\"tau\":[").unwrap() + "\"tau\":[".len();
+    let comma = at + lines[3][at..].find(',').unwrap();
+    lines[3] = format!("{}null{}", &lines[3][..at], &lines[3][comma..]);
+    // Frame 4: one torque too many; frame 7: time goes backwards.
+    lines[5] = lines[5].replacen("\"tau\":[", "\"tau\":[0.5,", 1);
+    lines[8] = lines[8].replacen("\"t\":", "\"t\":-1.0,\"was\":", 1);
+    let bad = path.with_file_name("three-bad.session.json");
+    std::fs::write(&bad, lines.join("\n")).unwrap();
+    let mut harness = session_harness(&bad);
+    let replay = harness.state().model.replay.clone().unwrap();
+    let problems: Vec<(usize, String)> = replay
+        .session
+        .problems
+        .iter()
+        .map(|p| (p.frame, p.field.clone()))
+        .collect();
+    assert_eq!(
+        problems,
+        [(2, "tau[0]".to_owned()), (4, "tau".to_owned()), (7, "t".to_owned())]
+    );
+    assert_eq!(replay.session.frames.len(), 8);
+    // Listed in the session panel, by frame and field.
+    for p in &replay.session.problems {
+        harness.get_by_label_contains(&format!("frame {} (t = ", p.frame));
+    }
+    harness.get_by_label("Play").click();
+    harness.run_steps(30);
+    assert!(harness.state().model.replay.as_ref().unwrap().frame > 0);
+}
+
+#[test]
+fn the_app_records_what_the_estimate_command_reads_back() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("recorded-in-app.session.json");
+    let mut harness = app_harness();
+    settle(&mut harness);
+    harness.state_mut().start_recording(&path);
+    let script = [0.1, 0.2, 0.3, -0.4, 0.5];
+    for &q0 in &script {
+        harness.state_mut().apply(proprioscope::app::Command::SetJoint(0, q0));
+        harness.run_steps(2);
+    }
+    let written = harness.state_mut().stop_recording().unwrap();
+    assert!(written >= script.len(), "{written}");
+    let session = proprioscope::io::session::Session::read(&path).unwrap();
+    assert_eq!(session.frames.len(), written);
+    // Every scripted pose is there, in order, with the torques the app
+    // measured for it, bit for bit.
+    let mut at = 0;
+    for &q0 in &script {
+        at += session.frames[at..]
+            .iter()
+            .position(|f| f.q[0].to_bits() == q0.to_bits())
+            .unwrap();
+        let frame = &session.frames[at];
+        let mut model = harness.state().model.clone();
+        model.apply(proprioscope::app::Command::SetJoint(0, q0));
+        let pose = proprioscope::core::kinematics::RobotPose::new(&model.robot, &model.joint_positions());
+        assert_eq!(frame.tau, model.measured_torques(&pose));
+        assert!(matches!(frame.truth, proprioscope::io::session::Truth::Contact { .. }));
+    }
+}
+
+#[test]
+fn the_timeline_estimates_equal_the_estimate_command() {
+    let path = demo_session("same.session.json", 0.5);
+    let out = path.with_file_name("same.jsonl");
+    // The app's defaults: σ 0.1 N·m, 5000 points, 1–30 N, exact.
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .arg("estimate")
+        .arg(&path)
+        .args(["--sigma", "0.1", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let cli: Vec<serde_json::Value> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let harness = session_harness(&path);
+    let app = harness.state();
+    assert_eq!(app.session_estimates.len(), cli.len());
+    for (i, (e, c)) in app.session_estimates.iter().zip(&cli).enumerate() {
+        let e = e.unwrap();
+        assert_eq!(c["link"], app.model.robot.links[e.link].name.as_str(), "frame {i}");
+        for (k, (x, y)) in e
+            .point_world
+            .to_array()
+            .iter()
+            .zip(c["point"].as_array().unwrap())
+            .enumerate()
+        {
+            assert!((x - y.as_f64().unwrap()).abs() < 1e-12, "frame {i} point[{k}]");
+        }
+        for (k, (x, y)) in e
+            .force_world
+            .to_array()
+            .iter()
+            .zip(c["force"].as_array().unwrap())
+            .enumerate()
+        {
+            assert!((x - y.as_f64().unwrap()).abs() < 1e-12, "frame {i} force[{k}]");
+        }
+    }
+}
+
+/// A replayed session (the demo recording: deterministic frames) against
+/// its snapshot: timeline, plots and session panel.
+#[test]
+fn session_replay_matches_its_snapshot() {
+    let options = egui_kittest::SnapshotOptions::new()
+        .threshold(2.0)
+        .max_failed_pixels(4000);
+    let path = demo_session("snapshot.session.json", 1.0);
+    let mut harness = session_harness(&path);
+    harness.state_mut().apply(proprioscope::app::Command::SetFrame(10));
+    settle(&mut harness);
+    harness.snapshot_options("session", &options);
+}

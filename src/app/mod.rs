@@ -87,6 +87,7 @@ pub fn open_target_with(
         start.session = Some(timeline::SessionTarget {
             path: t.into(),
             robot: robot.map(str::to_owned),
+            frame: None,
         });
         return Ok(start);
     }
@@ -752,6 +753,8 @@ pub struct ProprioscopeApp {
     recording: Option<timeline::Recording>,
     /// Folders for `package://` URIs when opening URDFs and sessions.
     pub package_paths: Vec<std::path::PathBuf>,
+    /// The frame a session being loaded opens on.
+    first_frame: Option<usize>,
 }
 
 impl ProprioscopeApp {
@@ -812,6 +815,7 @@ impl ProprioscopeApp {
             loader: None,
             recording: None,
             package_paths: Vec::new(),
+            first_frame: None,
         };
         app.request_estimate();
         app
@@ -825,6 +829,7 @@ impl ProprioscopeApp {
         app.robot_spec = spec;
         app.package_paths = start.package_paths;
         if let Some(session) = start.session {
+            app.first_frame = session.frame;
             app.open_session(&session.path, session.robot);
         }
         app

@@ -100,7 +100,8 @@ impl ProprioscopeApp {
         self.error = None;
         self.session_key = None;
         self.session_estimates.clear();
-        self.model.apply(Command::SetFrame(0));
+        let first = self.first_frame.take().unwrap_or(0);
+        self.model.apply(Command::SetFrame(first));
         self.request_estimate();
     }
 
@@ -630,4 +631,6 @@ pub struct SessionTarget {
     pub path: PathBuf,
     /// Robot override.
     pub robot: Option<String>,
+    /// The frame to show first (index into the good frames).
+    pub frame: Option<usize>,
 }
