@@ -481,3 +481,17 @@ fn session_replay_matches_its_snapshot() {
     settle(&mut harness);
     harness.snapshot_options("session", &options);
 }
+
+#[test]
+fn session_metrics_export_as_json() {
+    let path = demo_session("metrics.session.json", 0.5);
+    let mut harness = session_harness(&path);
+    let out = path.with_file_name("metrics.json");
+    harness.state_mut().export_metrics(&out);
+    assert_eq!(harness.state().error, None);
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(json["all"]["frames"], 11);
+    assert_eq!(json["by_sensing_joints"][0]["sensing_joints"], 5);
+    let median = json["all"]["position_error_median_m"].as_f64().unwrap();
+    assert!(median.is_finite() && median >= 0.0, "{json}");
+}

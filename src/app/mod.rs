@@ -755,6 +755,8 @@ pub struct ProprioscopeApp {
     pub package_paths: Vec<std::path::PathBuf>,
     /// The frame a session being loaded opens on.
     first_frame: Option<usize>,
+    /// The session's metrics, with the estimation run they belong to.
+    session_metrics: Option<((u64, usize), Option<timeline::SessionMetrics>)>,
 }
 
 impl ProprioscopeApp {
@@ -816,6 +818,7 @@ impl ProprioscopeApp {
             recording: None,
             package_paths: Vec::new(),
             first_frame: None,
+            session_metrics: None,
         };
         app.request_estimate();
         app

@@ -33,6 +33,12 @@ pub(super) struct SessionKey {
     force_range_newtons: (f64, f64),
 }
 
+/// Metrics over all frames, and by the number of sensing joints.
+pub(super) type SessionMetrics = (
+    crate::core::metrics::Metrics,
+    Vec<(usize, crate::core::metrics::Metrics)>,
+);
+
 /// A recording under way.
 pub(super) struct Recording {
     recorder: Recorder,
@@ -390,8 +396,7 @@ impl ProprioscopeApp {
             ui.label(format!("metrics when every frame is estimated ({done} of {total})"));
             return;
         }
-        let Some((all, by_joints)) = session::session_metrics(&self.model.robot, &session, &self.session_estimates)
-        else {
+        let Some((all, by_joints)) = self.cached_session_metrics() else {
             ui.label("no frame has a known contact: no errors to report");
             return;
         };
@@ -431,15 +436,25 @@ impl ProprioscopeApp {
         }
     }
 
+    /// The metrics of the frames estimated so far, computed again only
+    /// when more are (a long session's take milliseconds).
+    fn cached_session_metrics(&mut self) -> Option<SessionMetrics> {
+        let replay = self.model.replay.as_ref()?;
+        let key = (self.session_generation, self.session_estimated());
+        if self.session_metrics.as_ref().is_none_or(|(k, _)| *k != key) {
+            let computed = session::session_metrics(&self.model.robot, &replay.session, &self.session_estimates);
+            self.session_metrics = Some((key, computed));
+        }
+        self.session_metrics.as_ref().and_then(|(_, m)| m.clone())
+    }
+
     /// Writes the session's metrics as JSON.
     pub fn export_metrics(&mut self, path: &Path) {
-        let Some(replay) = &self.model.replay else {
+        let Some((all, by_joints)) = self.cached_session_metrics() else {
+            self.error = Some("no metrics to export: no frame has a known contact and an estimate".to_owned());
             return;
         };
-        let Some((all, by_joints)) =
-            session::session_metrics(&self.model.robot, &replay.session, &self.session_estimates)
-        else {
-            self.error = Some("no metrics to export: no frame has a known contact and an estimate".to_owned());
+        let Some(replay) = &self.model.replay else {
             return;
         };
         let mut json = session::metrics_json(&all, &by_joints);
