@@ -465,23 +465,11 @@ fn the_timeline_estimates_equal_the_estimate_command() {
     for (i, (e, c)) in app.session_estimates.iter().zip(&cli).enumerate() {
         let e = e.unwrap();
         assert_eq!(c["link"], app.model.robot.links[e.link].name.as_str(), "frame {i}");
-        for (k, (x, y)) in e
-            .point_world
-            .to_array()
-            .iter()
-            .zip(c["point"].as_array().unwrap())
-            .enumerate()
-        {
-            assert!((x - y.as_f64().unwrap()).abs() < 1e-12, "frame {i} point[{k}]");
-        }
-        for (k, (x, y)) in e
-            .force_world
-            .to_array()
-            .iter()
-            .zip(c["force"].as_array().unwrap())
-            .enumerate()
-        {
-            assert!((x - y.as_f64().unwrap()).abs() < 1e-12, "frame {i} force[{k}]");
+        for (field, ours) in [("point", e.point_world), ("force", e.force_world)] {
+            let theirs = c[field].as_array().unwrap();
+            for (k, (x, y)) in ours.to_array().iter().zip(theirs).enumerate() {
+                assert!((x - y.as_f64().unwrap()).abs() < 1e-12, "frame {i} {field}[{k}]");
+            }
         }
     }
 }
