@@ -501,3 +501,34 @@ fn session_metrics_export_as_json() {
     let median = json["all"]["position_error_median_m"].as_f64().unwrap();
     assert!(median.is_finite() && median >= 0.0, "{json}");
 }
+
+#[test]
+fn a_package_folder_added_in_the_app_resolves_package_uris() {
+    // The mesh lives in a folder unrelated to the URDF's: only a package
+    // folder finds it.
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-package");
+    let (robot_dir, packages) = (dir.join("robot"), dir.join("elsewhere"));
+    std::fs::create_dir_all(&robot_dir).unwrap();
+    std::fs::create_dir_all(packages.join("tet_pkg/meshes")).unwrap();
+    let stl = "solid t\nfacet normal 0 0 -1\nouter loop\nvertex 0 0 0\nvertex 0 0.1 0\nvertex 0.1 0 0\nendloop\nendfacet\n\
+               facet normal 0 -1 0\nouter loop\nvertex 0 0 0\nvertex 0.1 0 0\nvertex 0 0 0.1\nendloop\nendfacet\n\
+               facet normal -1 0 0\nouter loop\nvertex 0 0 0\nvertex 0 0 0.1\nvertex 0 0.1 0\nendloop\nendfacet\n\
+               facet normal 1 1 1\nouter loop\nvertex 0.1 0 0\nvertex 0 0.1 0\nvertex 0 0 0.1\nendloop\nendfacet\nendsolid t\n";
+    std::fs::write(packages.join("tet_pkg/meshes/tet.stl"), stl).unwrap();
+    let urdf = robot_dir.join("tet.urdf");
+    std::fs::write(
+        &urdf,
+        r#"<robot name="tet"><link name="base"/><link name="arm"><visual><geometry><mesh filename="package://tet_pkg/meshes/tet.stl"/></geometry></visual></link>
+        <joint name="j1" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>"#,
+    )
+    .unwrap();
+    let mut harness = app_harness();
+    settle(&mut harness);
+    harness.state_mut().open(urdf.to_str().unwrap());
+    let error = harness.state().error.clone().unwrap();
+    assert!(error.contains("tet.stl"), "{error}");
+    harness.state_mut().package_paths.push(packages);
+    harness.state_mut().open(urdf.to_str().unwrap());
+    assert_eq!(harness.state().error, None);
+    assert_eq!(harness.state().model.robot.name, "tet");
+}

@@ -963,6 +963,16 @@ impl ProprioscopeApp {
                         self.open(&path.display().to_string());
                     }
                 }
+                if ui
+                    .button("Add package folder…")
+                    .on_hover_text("a folder where package:// mesh URIs of URDFs are looked up")
+                    .clicked()
+                {
+                    ui.close();
+                    if let Some(folder) = rfd::FileDialog::new().pick_folder() {
+                        self.package_paths.push(folder);
+                    }
+                }
                 if ui.button("Save scene…").clicked() {
                     ui.close();
                     if let Some(path) = rfd::FileDialog::new().add_filter("scene", &["json"]).save_file() {
