@@ -155,8 +155,14 @@ pub type Loaded = (SessionData, Robot, String);
 
 /// Reads a session, skipping its bad frames, with its robot (`robot`
 /// overrides the session's; a CSV session needs one).
-pub fn load_session(path: &Path, robot: Option<&str>, package_paths: &[PathBuf]) -> Result<Loaded> {
-    let (session, problems) = Session::read_skipping_bad_frames(path)?;
+pub fn load_session(
+    path: &Path,
+    robot: Option<&str>,
+    package_paths: &[PathBuf],
+    progress: &dyn Fn(f64),
+) -> Result<Loaded> {
+    // The file is most of the work; the robot the last step.
+    let (session, problems) = Session::read_skipping_bad_frames_with_progress(path, &|f| progress(0.9 * f))?;
     let spec = match (robot, &session.robot) {
         (Some(r), _) => r.to_owned(),
         (None, Some(r)) if crate::io::builtin::is_builtin(r) => r.clone(),
@@ -198,6 +204,8 @@ pub struct Loader {
     pub path: PathBuf,
     /// When it started.
     pub started: Instant,
+    /// How far it is, 0 to 1 (an `f64`'s bits).
+    progress: Arc<std::sync::atomic::AtomicU64>,
 }
 
 impl Loader {
@@ -210,8 +218,12 @@ impl Loader {
     ) -> Self {
         let (tx, result) = channel();
         let thread_path = path.clone();
+        let progress = Arc::new(std::sync::atomic::AtomicU64::new(0));
+        let shared = progress.clone();
         std::thread::spawn(move || {
-            let loaded = load_session(&thread_path, robot.as_deref(), &package_paths).map_err(|e| format!("{e:#}"));
+            let report = |f: f64| shared.store(f.to_bits(), std::sync::atomic::Ordering::Relaxed);
+            let loaded =
+                load_session(&thread_path, robot.as_deref(), &package_paths, &report).map_err(|e| format!("{e:#}"));
             let _ = tx.send(loaded);
             wake();
         });
@@ -219,7 +231,14 @@ impl Loader {
             result,
             path,
             started: Instant::now(),
+            progress,
         }
+    }
+
+    /// How far loading is, 0 to 1.
+    #[must_use]
+    pub fn progress(&self) -> f64 {
+        f64::from_bits(self.progress.load(std::sync::atomic::Ordering::Relaxed))
     }
 
     /// The result, once there.

@@ -576,11 +576,17 @@ impl ProprioscopeApp {
         }
         if let Some(loader) = &self.loader {
             ui.add(egui::Spinner::new());
-            ui.label(format!(
-                "loading {} ({:.0} s)",
-                loader.path.display(),
-                loader.started.elapsed().as_secs_f64()
-            ));
+            ui.add(
+                egui::ProgressBar::new(loader.progress() as f32)
+                    .desired_width(320.0)
+                    .text(format!(
+                        "loading {} ({:.0} s)",
+                        loader.path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default(),
+                        loader.started.elapsed().as_secs_f64()
+                    )),
+            );
+            // The bar moves while nothing else asks for a frame.
+            ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
         }
     }
 }

@@ -376,10 +376,35 @@ impl Session {
     /// in the file). A file cut short while being recorded is read up to
     /// its last complete frame.
     pub fn read_skipping_bad_frames(path: &Path) -> Result<(Self, Vec<FrameProblem>), SessionError> {
-        let text = std::fs::read_to_string(path).map_err(|cause| SessionError::Read {
+        Self::read_skipping_bad_frames_with_progress(path, &|_| {})
+    }
+
+    /// [`Session::read_skipping_bad_frames`], telling `progress` how far it
+    /// is (0 to 1: reading the file to 0.3, parsing to 0.9, checking the
+    /// frames to 1).
+    pub fn read_skipping_bad_frames_with_progress(
+        path: &Path,
+        progress: &dyn Fn(f64),
+    ) -> Result<(Self, Vec<FrameProblem>), SessionError> {
+        use std::io::Read as _;
+        let read_error = |cause| SessionError::Read {
             path: path.to_owned(),
             cause,
-        })?;
+        };
+        let mut file = std::fs::File::open(path).map_err(read_error)?;
+        let total = file.metadata().map_or(0, |m| m.len()).max(1);
+        let mut bytes = Vec::with_capacity(usize::try_from(total).unwrap_or(0));
+        let mut chunk = vec![0u8; 1 << 20];
+        loop {
+            let n = file.read(&mut chunk).map_err(read_error)?;
+            if n == 0 {
+                break;
+            }
+            bytes.extend_from_slice(chunk.get(..n).unwrap_or_default());
+            progress(0.3 * bytes.len() as f64 / total as f64);
+        }
+        let text = String::from_utf8(bytes)
+            .map_err(|e| read_error(std::io::Error::new(std::io::ErrorKind::InvalidData, e)))?;
         let mut session = if is_csv(path) {
             Self::parse_csv(&text, path)?
         } else {
@@ -391,7 +416,9 @@ impl Session {
                 ok => ok?,
             }
         };
+        progress(0.9);
         let problems = session.remove_bad_frames();
+        progress(1.0);
         Ok((session, problems))
     }
 }
@@ -675,6 +702,16 @@ mod tests {
         assert_eq!(recorder.finish().unwrap(), frames.len());
         let back = Session::read(&path).unwrap();
         assert_eq!(back.frames, frames);
+        // Loading reports its progress, rising to 1.
+        let seen = std::sync::Mutex::new(Vec::new());
+        let (again, problems) =
+            Session::read_skipping_bad_frames_with_progress(&path, &|f| seen.lock().unwrap().push(f)).unwrap();
+        assert_eq!((again.frames, problems.len()), (frames, 0));
+        let seen = seen.into_inner().unwrap();
+        assert!(
+            seen.windows(2).all(|w| w[0] <= w[1]) && seen.last() == Some(&1.0),
+            "{seen:?}"
+        );
         assert_eq!(back.robot.as_deref(), Some("simple6"));
         assert_eq!(back.joints.as_ref(), Some(&joints));
     }
