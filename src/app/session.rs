@@ -9,6 +9,7 @@ use std::time::Instant;
 
 use anyhow::{Context as _, Result, bail};
 use glam::DVec3;
+use rayon::prelude::*;
 
 use crate::core::estimator::EstimatorSettings;
 use crate::core::metrics::{FrameOutcome, Metrics, metrics, metrics_by_sensing_joints};
@@ -279,6 +280,9 @@ pub struct Estimated {
     pub estimate: Result<FrameEstimate, String>,
 }
 
+/// Frames estimated together (in parallel) between looks for a newer job.
+const BATCH_FRAMES: usize = 32;
+
 /// Estimates every frame of a session on a thread of its own; a new job
 /// replaces the one under way.
 pub struct SessionWorker {
@@ -315,39 +319,46 @@ impl SessionWorker {
                         }
                     };
                 let frames = &job.session.frames;
-                let mut last_wake = Instant::now();
-                for step in 0..frames.len() {
-                    if let Some(newer) = inbox.try_iter().last() {
-                        next = Some(newer);
-                        break;
-                    }
-                    let index = (job.first + step) % frames.len();
-                    let Some(frame) = frames.get(index) else {
-                        continue;
-                    };
-                    let estimate = job
-                        .robot
-                        .joint_positions(&frame.q, &[])
-                        .map_err(|e| e.to_string())
-                        .and_then(|positions| {
+                let estimate_frame = |index: usize| -> Estimated {
+                    let estimate = frames.get(index).map_or_else(
+                        || Err(format!("no frame {index}")),
+                        |frame| {
+                            let positions = job.robot.joint_positions(&frame.q, &[]).map_err(|e| e.to_string())?;
                             let t0 = Instant::now();
                             estimator
                                 .update(&job.robot, &positions, &frame.tau)
                                 .map(|u| FrameEstimate::of(&u, t0.elapsed().as_secs_f64() * 1e3))
                                 .map_err(|e| e.to_string())
-                        });
-                    let sent = outbox.send(Estimated {
+                        },
+                    );
+                    Estimated {
                         generation: job.generation,
                         frame: index,
                         estimate,
-                    });
-                    if sent.is_err() {
-                        return;
                     }
-                    // Wake the UI a few times a second, not per frame.
-                    if step == 0 || last_wake.elapsed().as_secs_f64() > 0.1 {
+                };
+                // Frames in order from the one on screen, a batch at a time
+                // shared among threads; a newer job is looked for between
+                // batches.
+                let order: Vec<usize> = (0..frames.len())
+                    .map(|step| (job.first + step) % frames.len())
+                    .collect();
+                let mut last_wake: Option<Instant> = None;
+                for batch in order.chunks(BATCH_FRAMES) {
+                    if let Some(newer) = inbox.try_iter().last() {
+                        next = Some(newer);
+                        break;
+                    }
+                    let done: Vec<Estimated> = batch.par_iter().map(|&i| estimate_frame(i)).collect();
+                    for estimated in done {
+                        if outbox.send(estimated).is_err() {
+                            return;
+                        }
+                    }
+                    // Wake the UI a few times a second, not per batch.
+                    if last_wake.is_none_or(|at| at.elapsed().as_secs_f64() > 0.1) {
                         wake();
-                        last_wake = Instant::now();
+                        last_wake = Some(Instant::now());
                     }
                 }
                 wake();
