@@ -235,6 +235,42 @@ fn a_session_going_back_in_time_is_refused_naming_the_frame() {
     );
 }
 
+#[test]
+fn skip_bad_frames_estimates_the_rest_with_their_file_numbers() {
+    // Frame 1 goes back in time; a third frame repeats frame 0 later.
+    let text = SESSION.replace(r#""t": 0.1"#, r#""t": -0.1"#).replace(
+        r#""truth": null}
+  ]"#,
+        r#""truth": null},
+    {"t": 0.2, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.09516, -0.53783, 0.09516, 0.01017, 0, 0, 0]}
+  ]"#,
+    );
+    let session = temp("skip.session.json", &text);
+    let out = session.with_extension("jsonl");
+    let (ok, _, stderr) = run(&[
+        "estimate",
+        session.to_str().unwrap(),
+        "--skip-bad-frames",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(
+        stderr.contains("skipped frame 1") && stderr.contains("backwards"),
+        "{stderr}"
+    );
+    let frames: Vec<u64> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            serde_json::from_str::<serde_json::Value>(l).unwrap()["frame"]
+                .as_u64()
+                .unwrap()
+        })
+        .collect();
+    assert_eq!(frames, [0, 2]);
+}
+
 /// The JSON and CSV forms of the example session give the same estimates.
 #[test]
 #[ignore = "needs ../shared"]

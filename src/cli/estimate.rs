@@ -30,6 +30,12 @@ pub struct EstimateArgs {
     /// Write one JSON line per frame here.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Skip frames with a missing or non-finite value, a wrong number of
+    /// values or a time going backwards (each reported on stderr) instead
+    /// of stopping at the first; a recording cut short is read up to its
+    /// last whole frame. Output frames keep their numbers in the file.
+    #[arg(long)]
+    pub skip_bad_frames: bool,
     /// Estimator options.
     #[command(flatten)]
     pub estimator: EstimatorArgs,
@@ -37,7 +43,21 @@ pub struct EstimateArgs {
 
 /// Runs the command.
 pub fn run(args: &EstimateArgs) -> Result<()> {
-    let session = Session::read(&args.session)?;
+    let (session, file_frames) = if args.skip_bad_frames {
+        let (session, problems) = Session::read_skipping_bad_frames(&args.session)?;
+        for p in &problems {
+            eprintln!("{}: skipped {p}", args.session.display());
+        }
+        let bad: std::collections::BTreeSet<usize> = problems.iter().map(|p| p.frame).collect();
+        let kept: Vec<usize> = (0..session.frames.len() + problems.len())
+            .filter(|i| !bad.contains(i))
+            .collect();
+        (session, kept)
+    } else {
+        let session = Session::read(&args.session)?;
+        let all: Vec<usize> = (0..session.frames.len()).collect();
+        (session, all)
+    };
     let robot = session_robot(
         &session,
         args.robot.as_deref(),
@@ -80,7 +100,7 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
     let mut times_ms = Vec::new();
     let mut verdicts = [0usize; 3];
     args.estimator.with_threads(|| -> Result<()> {
-        for (i, frame) in session.frames.iter().enumerate() {
+        for (frame, &i) in session.frames.iter().zip(&file_frames) {
             let frame_error = || format!("{}: frame {i} (t = {})", session.path.display(), frame.t);
             let positions = robot.joint_positions(&frame.q, &[]).with_context(frame_error)?;
             let t0 = Instant::now();
