@@ -182,10 +182,7 @@ pub fn load_session(
             robot.name
         );
     }
-    let bad: std::collections::BTreeSet<usize> = problems.iter().map(|p| p.frame).collect();
-    let file_frames = (0..session.frames.len() + problems.len())
-        .filter(|i| !bad.contains(i))
-        .collect();
+    let file_frames = crate::io::session::kept_frame_numbers(session.frames.len(), &problems);
     Ok((
         SessionData {
             path: path.to_owned(),

@@ -12,7 +12,7 @@ use proprioscope::core::pipeline::{Estimator, Update};
 use proprioscope::core::robot::Robot;
 use proprioscope::core::summary::Verdict;
 use proprioscope::core::surface::SurfaceRequest;
-use proprioscope::io::session::{Session, Truth};
+use proprioscope::io::session::{Session, Truth, kept_frame_numbers};
 
 use super::EstimatorArgs;
 
@@ -41,23 +41,26 @@ pub struct EstimateArgs {
     pub estimator: EstimatorArgs,
 }
 
-/// Runs the command.
-pub fn run(args: &EstimateArgs) -> Result<()> {
-    let (session, file_frames) = if args.skip_bad_frames {
+/// The session, strictly or skipping bad frames; with each kept frame's
+/// number in the file.
+fn read_session(args: &EstimateArgs) -> Result<(Session, Vec<usize>)> {
+    Ok(if args.skip_bad_frames {
         let (session, problems) = Session::read_skipping_bad_frames(&args.session)?;
         for p in &problems {
             eprintln!("{}: skipped {p}", args.session.display());
         }
-        let bad: std::collections::BTreeSet<usize> = problems.iter().map(|p| p.frame).collect();
-        let kept: Vec<usize> = (0..session.frames.len() + problems.len())
-            .filter(|i| !bad.contains(i))
-            .collect();
+        let kept = kept_frame_numbers(session.frames.len(), &problems);
         (session, kept)
     } else {
         let session = Session::read(&args.session)?;
         let all: Vec<usize> = (0..session.frames.len()).collect();
         (session, all)
-    };
+    })
+}
+
+/// Runs the command.
+pub fn run(args: &EstimateArgs) -> Result<()> {
+    let (session, file_frames) = read_session(args)?;
     let robot = session_robot(
         &session,
         args.robot.as_deref(),

@@ -423,6 +423,14 @@ impl Session {
     }
 }
 
+/// The file's frame number of each of the `kept` frames left after
+/// skipping those in `problems`.
+#[must_use]
+pub fn kept_frame_numbers(kept: usize, problems: &[FrameProblem]) -> Vec<usize> {
+    let bad: std::collections::BTreeSet<usize> = problems.iter().map(|p| p.frame).collect();
+    (0..kept + problems.len()).filter(|i| !bad.contains(i)).collect()
+}
+
 /// Whether `path` names a CSV file.
 fn is_csv(path: &Path) -> bool {
     path.extension()
