@@ -1498,6 +1498,12 @@ impl ProprioscopeApp {
 
     fn torques_ui(&mut self, ui: &mut egui::Ui) {
         use egui_plot::{Bar, BarChart, Legend, Plot};
+        // In a session the push shown is the recorded true contact.
+        let applied_name = if self.model.replay.is_some() {
+            "true contact"
+        } else {
+            "applied"
+        };
         let positions = self.model.joint_positions();
         let pose = RobotPose::new(&self.model.robot, &positions);
         let applied = self.model.applied_torques(&pose);
@@ -1530,7 +1536,12 @@ impl ProprioscopeApp {
             .height(ui.available_height().max(120.0))
             .show(ui, |plot| {
                 let series = [
-                    ("applied", Some(&applied), -0.27, egui::Color32::from_rgb(90, 140, 230)),
+                    (
+                        applied_name,
+                        Some(&applied),
+                        -0.27,
+                        egui::Color32::from_rgb(90, 140, 230),
+                    ),
                     ("measured", Some(&measured), 0.0, egui::Color32::from_rgb(230, 160, 60)),
                     (
                         "explained by the estimate",
@@ -1758,7 +1769,11 @@ impl eframe::App for ProprioscopeApp {
             });
         });
         egui::Panel::bottom("torques").resizable(true).show(ui, |ui| {
-            ui.label("Joint torques [N·m]: applied, measured, explained by the estimate (faded: the joint cannot sense the push)");
+            ui.label(if self.model.replay.is_some() {
+                "Joint torques [N·m]: of the true contact, measured (the frame's), explained by the estimate (faded: the joint cannot sense the contact)"
+            } else {
+                "Joint torques [N·m]: applied, measured, explained by the estimate (faded: the joint cannot sense the push)"
+            });
             self.torques_ui(ui);
         });
         egui::CentralPanel::default().show(ui, |ui| commands.extend(self.view_ui(ui, frame)));
