@@ -309,3 +309,12 @@ fn json_and_csv_sessions_give_the_same_estimates() {
     assert_eq!(a.len(), 40);
     assert_eq!(a, b);
 }
+
+#[test]
+fn a_screenshot_of_a_session_that_cannot_be_read_fails_naming_it() {
+    let missing = std::env::temp_dir().join("proprioscope-no-such-session.csv");
+    let out = std::env::temp_dir().join("proprioscope-no-such-session.png");
+    let (ok, _, stderr) = run(&["screenshot", missing.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(!ok && stderr.contains("proprioscope-no-such-session.csv"), "{stderr}");
+    assert!(!out.exists());
+}

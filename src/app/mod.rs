@@ -12,6 +12,11 @@ pub mod worker;
 pub fn render_headless(start: AppStart, size: [f32; 2]) -> Result<image::RgbaImage, String> {
     let mut harness = headless_harness(start, size);
     settle(&mut harness)?;
+    // A session that failed to load in the background is an error here,
+    // not a picture of the scene it would have replaced.
+    if let Some(error) = &harness.state().error {
+        return Err(error.clone());
+    }
     harness.render()
 }
 
