@@ -560,3 +560,46 @@ fn changing_sigma_re_estimates_the_session_in_the_background() {
         assert!(a < b, "frame {i}: MAP probability {b} -> {a}");
     }
 }
+
+#[test]
+fn sessions_with_no_good_frame_or_the_wrong_robot_do_not_break_the_app() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
+    std::fs::create_dir_all(&dir).unwrap();
+    // Every frame bad: it opens, lists them, and the timeline is empty.
+    let all_bad = dir.join("all-bad.session.json");
+    std::fs::write(
+        &all_bad,
+        r#"{"format": "contact-session", "version": 1, "robot": "lwr4plus", "frames": [
+            {"t": 0.0, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0, 0, 0, 0, 0, 0, null]},
+            {"t": 0.1, "q": [0, 0, 0], "tau": [0, 0, 0, 0, 0, 0, 0]}]}"#,
+    )
+    .unwrap();
+    let mut harness = session_harness(&all_bad);
+    let replay = harness.state().model.replay.clone().unwrap();
+    assert!(replay.session.frames.is_empty());
+    assert_eq!(replay.session.problems.len(), 2);
+    harness.key_press(egui::Key::Space);
+    harness.key_press(egui::Key::ArrowRight);
+    harness.run_steps(3);
+    // Three joints of a seven-joint robot: refused, the session stays.
+    let wrong = dir.join("three-joints.csv");
+    std::fs::write(&wrong, "t,q1,q2,q3,tau1,tau2,tau3\n0.0,0,0,0,0.1,0.2,0.3\n").unwrap();
+    harness.state_mut().open_session(&wrong, Some("lwr4plus".to_owned()));
+    settle(&mut harness);
+    let error = harness.state().error.clone().unwrap();
+    assert!(
+        error.contains("three-joints.csv") && error.contains("3 joint values"),
+        "{error}"
+    );
+    assert!(
+        harness
+            .state()
+            .model
+            .replay
+            .as_ref()
+            .unwrap()
+            .session
+            .path
+            .ends_with("all-bad.session.json")
+    );
+}
