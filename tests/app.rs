@@ -603,3 +603,28 @@ fn sessions_with_no_good_frame_or_the_wrong_robot_do_not_break_the_app() {
             .ends_with("all-bad.session.json")
     );
 }
+
+#[test]
+fn stepping_back_to_a_visited_frame_shows_its_estimate_at_once() {
+    let path = demo_session("visited.session.json", 0.5);
+    let mut harness = session_harness(&path);
+    let first = harness.state().outcome.clone().unwrap();
+    harness.key_press(egui::Key::ArrowRight);
+    harness.run_steps(2);
+    settle(&mut harness);
+    assert_eq!(harness.state().visited_hits, 0);
+    harness.key_press(egui::Key::ArrowLeft);
+    harness.run_steps(1);
+    let app = harness.state();
+    assert_eq!(app.visited_hits, 1);
+    assert!(app.is_up_to_date());
+    let shown = app.outcome.as_ref().unwrap().update.as_ref().unwrap();
+    assert_eq!(shown.posterior, first.update.as_ref().unwrap().posterior);
+    // A new σ is a new estimate, not a kept one.
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Slider, "σ [N·m]")
+        .set_value_accesskit(0.3);
+    harness.run_steps(2);
+    settle(&mut harness);
+    assert_eq!(harness.state().visited_hits, 1);
+}

@@ -106,6 +106,7 @@ impl ProprioscopeApp {
         self.error = None;
         self.session_key = None;
         self.session_estimates.clear();
+        self.visited.clear();
         let first = self.first_frame.take().unwrap_or(0);
         self.model.apply(Command::SetFrame(first));
         self.request_estimate();
@@ -114,6 +115,7 @@ impl ProprioscopeApp {
     /// Leaves the session; the robot stays where the frame put it.
     pub fn close_session(&mut self) {
         self.model.replay = None;
+        self.visited.clear();
         self.session_key = None;
         self.session_estimates.clear();
         self.request_estimate();
