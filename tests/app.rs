@@ -537,23 +537,15 @@ fn a_package_folder_added_in_the_app_resolves_package_uris() {
 fn changing_sigma_re_estimates_the_session_in_the_background() {
     let path = demo_session("resigma.session.json", 0.5);
     let mut harness = session_harness(&path);
-    let before: Vec<f64> = harness
-        .state()
-        .session_estimates
-        .iter()
-        .map(|e| e.unwrap().probability)
-        .collect();
+    let map_probabilities =
+        |app: &ProprioscopeApp| -> Vec<f64> { app.session_estimates.iter().map(|e| e.unwrap().probability).collect() };
+    let before = map_probabilities(harness.state());
     harness
         .get_by_role_and_label(egui::accesskit::Role::Slider, "σ [N·m]")
         .set_value_accesskit(0.5);
     harness.run_steps(2);
     settle(&mut harness);
-    let after: Vec<f64> = harness
-        .state()
-        .session_estimates
-        .iter()
-        .map(|e| e.unwrap().probability)
-        .collect();
+    let after = map_probabilities(harness.state());
     assert_eq!(after.len(), before.len());
     // A broader likelihood spreads every frame's posterior.
     for (i, (b, a)) in before.iter().zip(&after).enumerate() {
