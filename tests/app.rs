@@ -408,7 +408,7 @@ fn a_session_with_three_bad_frames_lists_them_and_plays_the_rest() {
 }
 
 #[test]
-fn the_app_records_what_the_estimate_command_reads_back() {
+fn the_app_records_a_session_that_reads_back_bit_for_bit() {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("recorded-in-app.session.json");

@@ -757,6 +757,8 @@ pub struct ProprioscopeApp {
     session_worker: session::SessionWorker,
     /// Background estimates of the session's frames (`None`: not yet).
     pub session_estimates: Vec<Option<session::FrameEstimate>>,
+    /// How many of them are there (counted as they arrive, not per frame).
+    session_done: usize,
     session_generation: u64,
     session_key: Option<timeline::SessionKey>,
     loader: Option<session::Loader>,
@@ -828,6 +830,7 @@ impl ProprioscopeApp {
             }),
             ctx: cc.egui_ctx.clone(),
             session_estimates: Vec::new(),
+            session_done: 0,
             session_generation: 0,
             session_key: None,
             loader: None,

@@ -52,8 +52,7 @@ impl ProprioscopeApp {
     /// overrides the session's (a CSV session without one uses the current
     /// robot). On failure the error is shown and the current scene kept.
     pub fn open_session(&mut self, path: &Path, robot: Option<String>) {
-        let is_csv = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
-        let robot = robot.or_else(|| is_csv.then(|| self.robot_spec.clone()));
+        let robot = robot.or_else(|| crate::io::session::is_csv(path).then(|| self.robot_spec.clone()));
         let ctx = self.ctx.clone();
         self.loader = Some(Loader::spawn(
             path.to_owned(),
@@ -106,6 +105,7 @@ impl ProprioscopeApp {
         self.error = None;
         self.session_key = None;
         self.session_estimates.clear();
+        self.session_done = 0;
         self.visited.clear();
         let first = self.first_frame.take().unwrap_or(0);
         self.model.apply(Command::SetFrame(first));
@@ -118,6 +118,7 @@ impl ProprioscopeApp {
         self.visited.clear();
         self.session_key = None;
         self.session_estimates.clear();
+        self.session_done = 0;
         self.request_estimate();
     }
 
@@ -139,6 +140,7 @@ impl ProprioscopeApp {
         if self.session_key.as_ref() != Some(&key) {
             self.session_generation += 1;
             self.session_estimates = vec![None; replay.session.frames.len()];
+            self.session_done = 0;
             self.session_worker.start(EstimateJob {
                 generation: self.session_generation,
                 robot: m.robot.clone(),
@@ -161,6 +163,7 @@ impl ProprioscopeApp {
             match done.estimate {
                 Ok(e) => {
                     if let Some(slot) = self.session_estimates.get_mut(done.frame) {
+                        self.session_done += usize::from(slot.is_none());
                         *slot = Some(e);
                     }
                 }
@@ -172,14 +175,14 @@ impl ProprioscopeApp {
     /// Frames estimated in the background so far.
     #[must_use]
     pub fn session_estimated(&self) -> usize {
-        self.session_estimates.iter().filter(|e| e.is_some()).count()
+        self.session_done
     }
 
     /// Whether nothing is loading and every session frame is estimated.
     pub(super) fn session_settled(&self) -> bool {
         self.loader.is_none()
             && (self.model.replay.is_none()
-                || (self.session_key.is_some() && self.session_estimates.iter().all(Option::is_some)))
+                || (self.session_key.is_some() && self.session_done == self.session_estimates.len()))
     }
 
     /// Space plays or pauses, the arrow keys step, unless a text field or

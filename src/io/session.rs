@@ -431,8 +431,9 @@ pub fn kept_frame_numbers(kept: usize, problems: &[FrameProblem]) -> Vec<usize> 
     (0..kept + problems.len()).filter(|i| !bad.contains(i)).collect()
 }
 
-/// Whether `path` names a CSV file.
-fn is_csv(path: &Path) -> bool {
+/// Whether `path` names a CSV file (the form that names no robot).
+#[must_use]
+pub fn is_csv(path: &Path) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
