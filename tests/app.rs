@@ -620,3 +620,27 @@ fn stepping_back_to_a_visited_frame_shows_its_estimate_at_once() {
     settle(&mut harness);
     assert_eq!(harness.state().visited_hits, 1);
 }
+
+/// Switching robots from the menu right after an estimate arrived: the old
+/// robot's estimate must never be drawn with the new robot's links (it
+/// indexed past simple6's links and aborted the app).
+#[test]
+fn switching_robots_from_the_menu_never_draws_the_old_estimate() {
+    let mut harness = app_harness();
+    settle(&mut harness);
+    for name in ["simple6", "lwr4plus", "simple6"] {
+        harness.get_by_label("Robot").click();
+        harness.run_steps(2);
+        harness.get_by_label(name).click();
+        // Frames drawn before the new estimate arrives must not use the old one.
+        harness.run_steps(3);
+        let app = harness.state();
+        assert_eq!(app.model.robot.name, name);
+        if let Some(outcome) = app.current_outcome() {
+            let update = outcome.update.as_ref().unwrap();
+            assert!(update.summary.map.link < app.model.robot.links.len());
+        }
+        settle(&mut harness);
+        assert!(harness.state().current_outcome().is_some());
+    }
+}

@@ -869,7 +869,6 @@ impl ProprioscopeApp {
         }
         match open_target_with(Some(target), None, &self.package_paths) {
             Ok(start) => {
-                self.picker = Picker::new(&start.robot);
                 let view = self.model.view;
                 let candidate_links = start
                     .settings
@@ -877,7 +876,7 @@ impl ProprioscopeApp {
                     .clone()
                     .unwrap_or_else(|| start.robot.default_candidate_links());
                 let joints = start.robot.sensed().len();
-                self.model = Model {
+                let model = Model {
                     robot: Arc::new(start.robot),
                     q: start.q,
                     push: start.push,
@@ -891,10 +890,7 @@ impl ProprioscopeApp {
                     view,
                     replay: None,
                 };
-                self.robot_spec = start.robot_spec;
-                self.error = None;
-                self.visited.clear();
-                self.request_estimate();
+                self.replace_model(model, start.robot_spec);
             }
             Err(e) => self.error = Some(format!("could not open {target}: {e:#}")),
         }
@@ -1119,7 +1115,37 @@ impl ProprioscopeApp {
     /// The newest estimate for the current model has arrived.
     #[must_use]
     pub fn is_up_to_date(&self) -> bool {
-        self.outcome.as_ref().is_some_and(|o| o.generation == self.generation) && self.session_settled()
+        self.current_outcome().is_some_and(|o| o.generation == self.generation) && self.session_settled()
+    }
+
+    /// The estimate shown: the latest one, if it was made for the current
+    /// robot (anything drawn from an estimate reads it through here).
+    #[must_use]
+    pub fn current_outcome(&self) -> Option<&Outcome> {
+        self.outcome
+            .as_ref()
+            .filter(|o| Arc::ptr_eq(&o.robot, &self.model.robot))
+    }
+
+    /// Replaces the whole model, robot included: the one place where a
+    /// robot changes. Everything derived from the previous robot (its
+    /// estimate, the frames estimated, the picker, the hovered joint, the
+    /// drawn view) is dropped or rebuilt here, and a new estimate asked for.
+    pub(crate) fn replace_model(&mut self, model: Model, robot_spec: String) {
+        self.picker = Picker::new(&model.robot);
+        self.model = model;
+        self.robot_spec = robot_spec;
+        self.outcome = None;
+        self.pending = None;
+        self.visited.clear();
+        self.hovered_joint = None;
+        self.drawn = None;
+        self.session_key = None;
+        self.session_estimates.clear();
+        self.session_done = 0;
+        self.session_metrics = None;
+        self.error = None;
+        self.request_estimate();
     }
 
     fn robot_panel_ui(&mut self, ui: &mut egui::Ui) -> Vec<Command> {
@@ -1245,7 +1271,7 @@ impl ProprioscopeApp {
 
     /// What the latest estimate says.
     fn summary_ui(&self, ui: &mut egui::Ui) {
-        match &self.outcome {
+        match self.current_outcome() {
             Some(o) => match &o.update {
                 Ok(u) => {
                     let s = &u.summary;
@@ -1396,7 +1422,7 @@ impl ProprioscopeApp {
         let key = ViewKey {
             inputs: self.model.estimate_inputs(),
             view: self.model.view,
-            generation: self.outcome.as_ref().map(|o| o.generation),
+            generation: self.current_outcome().map(|o| o.generation),
             hovered_joint: self.hovered_joint,
             camera: self.camera,
             size,
@@ -1464,7 +1490,7 @@ impl ProprioscopeApp {
     /// What the candidate under the pointer would explain: its force and
     /// the torques it produces beside the measured ones.
     fn candidate_tooltip(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<String> {
-        let outcome = self.outcome.as_ref()?;
+        let outcome = self.current_outcome()?;
         let update = outcome.update.as_ref().ok()?;
         let surface = &outcome.estimator.surface;
         let size = Vec2::new(rect.width(), rect.height());
@@ -1544,7 +1570,7 @@ impl ProprioscopeApp {
         let pose = RobotPose::new(&self.model.robot, &positions);
         let applied = self.model.applied_torques(&pose);
         let measured = self.model.measured_torques(&pose);
-        let explained: Option<Vec<f64>> = self.outcome.as_ref().and_then(|o| o.update.as_ref().ok()).map(|u| {
+        let explained: Option<Vec<f64>> = self.current_outcome().and_then(|o| o.update.as_ref().ok()).map(|u| {
             let m = u.summary.map;
             joint_torques(&self.model.robot, &pose, m.link, m.point_world, m.force_world)
         });
@@ -1627,8 +1653,7 @@ impl ProprioscopeApp {
         let pose = RobotPose::new(&self.model.robot, &positions);
         let mut frame = Frame::default();
         let heat = self
-            .outcome
-            .as_ref()
+            .current_outcome()
             .and_then(|o| o.update.as_ref().ok().map(|u| (o, u)));
         let top = heat.map_or(f64::NEG_INFINITY, |(_, u)| {
             u.posterior
@@ -1777,7 +1802,13 @@ impl ProprioscopeApp {
 
 impl eframe::App for ProprioscopeApp {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
-        if let Some(outcome) = self.worker.latest() {
+        // An estimate of another robot (still in flight when the robot
+        // changed) is dropped: its links are not this robot's.
+        if let Some(outcome) = self
+            .worker
+            .latest()
+            .filter(|o| Arc::ptr_eq(&o.robot, &self.model.robot))
+        {
             if self.model.replay.is_some()
                 && let Some((_, inputs)) = self.pending.take_if(|(g, _)| *g == outcome.generation)
             {

@@ -10,7 +10,6 @@ use eframe::egui;
 use super::session::{self, EstimateJob, FrameEstimate, Loader, SessionData};
 use super::{Command, Model, ProprioscopeApp, Replay, SPEED_RANGE, per_joint};
 use crate::core::kinematics::RobotPose;
-use crate::core::picking::Picker;
 use crate::core::robot::{LinkId, Robot};
 use crate::core::summary::Verdict;
 use crate::core::surface::SurfaceRequest;
@@ -75,12 +74,11 @@ impl ProprioscopeApp {
     }
 
     fn install_session(&mut self, data: SessionData, robot: Robot, spec: String) {
-        self.picker = Picker::new(&robot);
         let joints = robot.sensed().len();
         let candidate_links = robot.default_candidate_links();
         let q = data.frames.first().map_or_else(|| vec![0.0; joints], |f| f.q.clone());
         let old = &self.model;
-        self.model = Model {
+        let model = Model {
             robot: Arc::new(robot),
             q,
             push: None,
@@ -101,15 +99,10 @@ impl ProprioscopeApp {
                 clock_secs: 0.0,
             }),
         };
-        self.robot_spec = spec;
-        self.error = None;
-        self.session_key = None;
-        self.session_estimates.clear();
-        self.session_done = 0;
-        self.visited.clear();
         let first = self.first_frame.take().unwrap_or(0);
-        self.model.apply(Command::SetFrame(first));
-        self.request_estimate();
+        let mut model = model;
+        model.apply(Command::SetFrame(first));
+        self.replace_model(model, spec);
     }
 
     /// Leaves the session; the robot stays where the frame put it.

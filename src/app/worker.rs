@@ -14,7 +14,9 @@ use crate::render::scene::{VertexSamples, nearest_samples};
 /// The sampled surface kept between requests: which robot, links and
 /// resolution it was made for.
 struct Cached {
-    robot: usize,
+    /// Held (not only its address) so that a later robot can never be
+    /// mistaken for this one by landing at the same address.
+    robot: Arc<Robot>,
     links: Vec<LinkId>,
     points: usize,
     phase_sizes: Option<[usize; 2]>,
@@ -47,6 +49,9 @@ pub struct Request {
 pub struct Outcome {
     /// The request's generation.
     pub generation: u64,
+    /// The robot it was computed for: an outcome is shown only while this
+    /// is the model's robot.
+    pub robot: Arc<Robot>,
     /// The estimator it used (surface included).
     pub estimator: Arc<Estimator>,
     /// Per link and mesh vertex, the nearest surface sample (for the heatmap).
@@ -75,9 +80,8 @@ impl Worker {
                 while let Ok(newer) = inbox.try_recv() {
                     request = newer;
                 }
-                let robot_key = Arc::as_ptr(&request.robot) as usize;
                 let reuse = cache.as_ref().is_some_and(|c| {
-                    c.robot == robot_key
+                    Arc::ptr_eq(&c.robot, &request.robot)
                         && c.links == request.surface.links
                         && c.points == request.surface.total_points
                         && c.phase_sizes == request.phase_sizes
@@ -93,7 +97,7 @@ impl Worker {
                         Ok(estimator) => {
                             let nearest = nearest_samples(&request.robot, &estimator.surface);
                             cache = Some(Cached {
-                                robot: robot_key,
+                                robot: request.robot.clone(),
                                 links: request.surface.links.clone(),
                                 points: request.surface.total_points,
                                 phase_sizes: request.phase_sizes,
@@ -110,6 +114,7 @@ impl Worker {
                             };
                             let _ = outbox.send(Outcome {
                                 generation: request.generation,
+                                robot: request.robot.clone(),
                                 estimator: Arc::new(empty),
                                 nearest: Arc::new(Vec::new()),
                                 update: Err(e.to_string()),
@@ -136,6 +141,7 @@ impl Worker {
                 if outbox
                     .send(Outcome {
                         generation: request.generation,
+                        robot: request.robot.clone(),
                         estimator: estimator.clone(),
                         nearest: nearest.clone(),
                         update,
