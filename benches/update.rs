@@ -23,14 +23,14 @@ fn update(c: &mut Criterion) {
         force_max_newtons: 30.0,
         mode: Mode::Exact,
         phase_alpha: None,
-        resolution_m: 0.0,
+        patches: true,
     };
     let request = SurfaceRequest {
         links: links.clone(),
         total_points: 5000,
         seed: 0,
     };
-    let estimator = Estimator::new(&robot, &request, settings.clone(), None, None).unwrap();
+    let estimator = Estimator::new(&robot, &request, settings.clone(), None).unwrap();
     let q = [0.3, 0.6, -0.4, -1.2, 0.5, 0.9, 0.2];
     let positions = robot.joint_positions(&q, &[]).unwrap();
     let pose = RobotPose::new(&robot, &positions);

@@ -696,7 +696,7 @@ impl Model {
                 }),
             },
             phase_alpha: e.phases.then_some(e.alpha),
-            resolution_m: 0.0,
+            patches: true,
         }
     }
 
@@ -1037,16 +1037,14 @@ impl ProprioscopeApp {
         let push = robot.link_id("lwr_3_link").ok().and_then(|l3| {
             let centre = pose.point_to_world(l3, DVec3::new(0.0, 0.0, 0.1));
             let origin = centre + DVec3::new(1.0, 0.6, 0.1);
-            picker
-                .pick(robot, &pose, origin, centre - origin, &[l3])
-                .map(|hit| Push {
-                    link: hit.link,
-                    point_in_link: hit.point_in_link,
-                    inward_normal_in_link: pose.world_from_link[hit.link]
-                        .inverse()
-                        .transform_vector3(hit.inward_normal_world),
-                    force_newtons: 15.0,
-                })
+            picker.pick(&pose, origin, centre - origin, &[l3]).map(|hit| Push {
+                link: hit.link,
+                point_in_link: hit.point_in_link,
+                inward_normal_in_link: pose.world_from_link[hit.link]
+                    .inverse()
+                    .transform_vector3(hit.inward_normal_world),
+                force_newtons: 15.0,
+            })
         });
         (q, push)
     }
@@ -1106,9 +1104,7 @@ impl ProprioscopeApp {
         let size = Vec2::new(rect.width(), rect.height());
         let pixel = self.camera.project(centre.as_vec3(), size)?;
         let (origin, dir) = self.camera.ray(pixel, size);
-        let hit = self
-            .picker
-            .pick(&self.model.robot, &pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
+        let hit = self.picker.pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
         (hit.link == link).then(|| rect.min + egui::vec2(pixel.x, pixel.y))
     }
 
@@ -1496,9 +1492,7 @@ impl ProprioscopeApp {
         let size = Vec2::new(rect.width(), rect.height());
         let local = pos - rect.min;
         let (origin, dir) = self.camera.ray(Vec2::new(local.x, local.y), size);
-        let hit = self
-            .picker
-            .pick(&self.model.robot, &update.pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
+        let hit = self.picker.pick(&update.pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
         let k = (0..surface.len())
             .filter(|&k| surface.link[k] == hit.link)
             .min_by(|&a, &b| {
@@ -1769,7 +1763,7 @@ impl ProprioscopeApp {
             let positions = self.model.joint_positions();
             let pose = RobotPose::new(&self.model.robot, &positions);
             self.picker
-                .pick(&self.model.robot, &pose, origin.as_dvec3(), dir.as_dvec3(), &[])
+                .pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])
                 .map(|hit| (hit, pose))
         };
         if let Some(pos) = response.hover_pos()

@@ -302,19 +302,18 @@ impl SessionWorker {
                         Err(_) => return,
                     },
                 };
-                let estimator =
-                    match Estimator::new(&job.robot, &job.surface, job.settings.clone(), job.phase_sizes, None) {
-                        Ok(e) => e,
-                        Err(e) => {
-                            let _ = outbox.send(Estimated {
-                                generation: job.generation,
-                                frame: job.first,
-                                estimate: Err(e.to_string()),
-                            });
-                            wake();
-                            continue;
-                        }
-                    };
+                let estimator = match Estimator::new(&job.robot, &job.surface, job.settings.clone(), job.phase_sizes) {
+                    Ok(e) => e,
+                    Err(e) => {
+                        let _ = outbox.send(Estimated {
+                            generation: job.generation,
+                            frame: job.first,
+                            estimate: Err(e.to_string()),
+                        });
+                        wake();
+                        continue;
+                    }
+                };
                 let frames = &job.session.frames;
                 let estimate_frame = |index: usize| -> Estimated {
                     let estimate = frames.get(index).map_or_else(

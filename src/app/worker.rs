@@ -92,7 +92,6 @@ impl Worker {
                         &request.surface,
                         request.settings.clone(),
                         request.phase_sizes,
-                        None,
                     ) {
                         Ok(estimator) => {
                             let nearest = nearest_samples(&request.robot, &estimator.surface);

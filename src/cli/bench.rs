@@ -39,9 +39,21 @@ pub struct BenchArgs {
     /// A few small configurations only.
     #[arg(long)]
     pub quick: bool,
-    /// Where to write the plot of update time against error (PNG).
-    #[arg(long, default_value = "screenshots/bench.png")]
-    pub plot: PathBuf,
+    /// Recorded sessions to time frame by frame and to estimate at each
+    /// surface seed (repeatable; sessions with no-contact frames show the
+    /// 99th percentile that matters).
+    #[arg(long)]
+    pub session: Vec<PathBuf>,
+    /// Surface seeds for the sessions.
+    #[arg(long, value_delimiter = ',', default_value = "0,1,2,3,4")]
+    pub seeds: Vec<u64>,
+    /// Only the sessions (no random contacts).
+    #[arg(long)]
+    pub sessions_only: bool,
+    /// Where to write the plot of update time against error (PNG); none
+    /// is written unless asked for (or with --readme, which links it).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
     /// Replace the text between `<!-- bench:begin -->` and
     /// `<!-- bench:end -->` in this file with the table and the plot.
     #[arg(long)]
@@ -197,14 +209,14 @@ fn run_config(robot: &Robot, config: &Config, contacts: &[Contact], seed: u64) -
         force_max_newtons: 30.0,
         mode: config.mode,
         phase_alpha: config.phases.then_some(0.5),
-        resolution_m: 0.0,
+        patches: true,
     };
     let request = SurfaceRequest {
         links: robot.default_candidate_links(),
         total_points: config.surface_points,
         seed,
     };
-    let estimator = Estimator::new(robot, &request, settings, config.phases.then_some([200, 1000]), None)?;
+    let estimator = Estimator::new(robot, &request, settings, config.phases.then_some([200, 1000]))?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(config.threads).build()?;
     pool.install(|| -> Result<(f64, Metrics)> {
         let mut times = Vec::with_capacity(contacts.len());
@@ -240,6 +252,15 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         robots.push(load_robot(&urdf.to_string_lossy(), Path::new("."), &options)?);
     }
     let mut rows = Vec::new();
+    let mut out = String::new();
+    for path in &args.session {
+        out.push_str(&session_table(path, args)?);
+        out.push('\n');
+    }
+    if args.sessions_only {
+        println!("{out}");
+        return Ok(());
+    }
     for robot in &robots {
         let contacts = contacts(robot, args.contacts, args.noise, args.seed)?;
         for config in configs(args.quick) {
@@ -253,10 +274,16 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             });
         }
     }
-    let table = table(&rows, args);
+    let table = format!("{out}{}", table(&rows, args));
     println!("{table}");
-    plot(&rows, &args.plot, &args.font)?;
-    eprintln!("wrote {}", args.plot.display());
+    let plot_path = args
+        .plot
+        .clone()
+        .or_else(|| args.readme.as_ref().map(|_| PathBuf::from("screenshots/bench.png")));
+    if let Some(path) = &plot_path {
+        plot(&rows, path, &args.font)?;
+        eprintln!("wrote {}", path.display());
+    }
     if let Some(readme) = &args.readme {
         let text = std::fs::read_to_string(readme).with_context(|| format!("reading {}", readme.display()))?;
         let (begin, end) = ("<!-- bench:begin -->", "<!-- bench:end -->");
@@ -265,13 +292,127 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         };
         let section = format!(
             "{begin}\n{table}\n![Update time against position error]({})\n",
-            args.plot.display()
+            plot_path
+                .as_deref()
+                .unwrap_or(Path::new("screenshots/bench.png"))
+                .display()
         );
         let updated = format!("{}{section}{}", &text[..i], &text[j..]);
         std::fs::write(readme, updated).with_context(|| format!("writing {}", readme.display()))?;
         eprintln!("updated {}", readme.display());
     }
     Ok(())
+}
+
+/// One estimator on a session: per-frame times over all seeds, and the
+/// median position error at each seed.
+struct SessionRun {
+    label: &'static str,
+    points: usize,
+    times_us: Vec<f64>,
+    medians_m: Vec<f64>,
+    poor_fit: usize,
+    frames: usize,
+}
+
+/// Per-frame p50/p99 and the spread of the median error over surface
+/// seeds, on one recorded session, for the refined estimator and the
+/// grid of points it refines (at the same and at seven times the points).
+fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
+    use proprioscope::app::session::session_robot;
+    use proprioscope::core::summary::Verdict;
+    use proprioscope::io::session::{Session, Truth};
+    let session = Session::read(path)?;
+    let robot = session_robot(&session, None, &args.package_paths, &[])?;
+    let sensed = robot.sensed().len();
+    let mut runs = Vec::new();
+    for (label, points, patches) in [
+        ("refined (patches)", 5000, true),
+        ("grid of points", 5000, false),
+        ("grid of points", 35_000, false),
+    ] {
+        let mut run = SessionRun {
+            label,
+            points,
+            times_us: Vec::new(),
+            medians_m: Vec::new(),
+            poor_fit: 0,
+            frames: 0,
+        };
+        for &seed in &args.seeds {
+            eprintln!("{}: {label}, {points} points, seed {seed} …", path.display());
+            let settings = EstimatorSettings {
+                sigma: vec![args.noise; sensed],
+                force_min_newtons: 1.0,
+                force_max_newtons: 30.0,
+                mode: Mode::Exact,
+                phase_alpha: None,
+                patches,
+            };
+            let request = SurfaceRequest {
+                links: robot.default_candidate_links(),
+                total_points: points,
+                seed,
+            };
+            let estimator = Estimator::new(&robot, &request, settings, None)?;
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+            let errors = pool.install(|| -> Result<Vec<f64>> {
+                let mut errors = Vec::new();
+                for frame in &session.frames {
+                    let positions = robot.joint_positions(&frame.q, &[])?;
+                    let t0 = Instant::now();
+                    let update = estimator.update(&robot, &positions, &frame.tau)?;
+                    run.times_us.push(t0.elapsed().as_secs_f64() * 1e6);
+                    run.frames += 1;
+                    run.poor_fit += usize::from(update.summary.verdict == Verdict::PoorFit);
+                    if let Truth::Contact { point, .. } = &frame.truth {
+                        errors.push(update.summary.map.point_world.distance(DVec3::from_array(*point)));
+                    }
+                }
+                Ok(errors)
+            })?;
+            run.medians_m.push(percentile(&errors, 0.5));
+        }
+        runs.push(run);
+    }
+    let name = path
+        .file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let mut out = format!(
+        "`{name}`: {} frames ({} with a contact), σ = {} N·m, one thread, surface seeds {:?}.\n\n",
+        session.frames.len(),
+        session
+            .frames
+            .iter()
+            .filter(|f| matches!(f.truth, Truth::Contact { .. }))
+            .count(),
+        args.noise,
+        args.seeds
+    );
+    out.push_str("| estimator | points | p50 [µs] | p99 [µs] | max [µs] | median pos. error per seed [mm] | spread [mm] | poorly explained |\n");
+    out.push_str("|---|---:|---:|---:|---:|---|---:|---:|\n");
+    for r in &runs {
+        let (lo, hi) = r
+            .medians_m
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), m| {
+                (lo.min(*m), hi.max(*m))
+            });
+        let per_seed: Vec<String> = r.medians_m.iter().map(|m| format!("{:.1}", m * 1e3)).collect();
+        let _ = writeln!(
+            out,
+            "| {} | {} | {:.0} | {:.0} | {:.0} | {} | {:.1} | {:.1} % |",
+            r.label,
+            r.points,
+            percentile(&r.times_us, 0.5),
+            percentile(&r.times_us, 0.99),
+            r.times_us.iter().copied().fold(0.0, f64::max),
+            per_seed.join(", "),
+            (hi - lo) * 1e3,
+            100.0 * r.poor_fit as f64 / r.frames.max(1) as f64
+        );
+    }
+    Ok(out)
 }
 
 /// N as the thesis counts it: surface points in exact mode, particles otherwise.

@@ -74,13 +74,7 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
         total_points: resolved.surface_points,
         seed: args.estimator.seed,
     };
-    let estimator = Estimator::new(
-        &robot,
-        &request,
-        resolved.settings,
-        resolved.phase_sizes,
-        args.estimator.resolution(),
-    )?;
+    let estimator = Estimator::new(&robot, &request, resolved.settings, resolved.phase_sizes)?;
     eprintln!(
         "{}: {} frames; {} surface points on {} links, sampled in {:.0} ms",
         args.session.display(),
@@ -178,6 +172,12 @@ fn frame_json(
         "point": contact.then(|| s.map.point_world.to_array()),
         "force": contact.then(|| s.map.force_world.to_array()),
         "probability": s.map.probability,
+        "refined": s.refined,
+        "grid": contact.then(|| serde_json::json!({
+            "link": robot.links[s.grid_map.link].name.clone(),
+            "point": s.grid_map.point_world.to_array(),
+            "force": s.grid_map.force_world.to_array(),
+        })),
         "credible90_points": s.credible90.points.len(),
         "credible90_radius_m": s.credible90.radius_m,
         "clusters": s.clusters.len(),

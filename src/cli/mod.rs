@@ -67,15 +67,10 @@ pub struct EstimatorArgs {
     /// Seed of the surface sampling, the phase clustering and random particles.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Count the surface's resolution as torque noise (ours; off: the
-    /// thesis' model). Calibrates the posterior when σ is below what the
-    /// surface spacing can resolve.
+    /// Treat each surface sample as a point (the thesis' model) instead
+    /// of as the patch of surface it stands for (exact mode).
     #[arg(long)]
-    pub resolution_noise: bool,
-    /// RMS offset within a candidate's patch, as a fraction of the surface
-    /// spacing, for --resolution-noise.
-    #[arg(long, default_value_t = 0.4)]
-    pub resolution_factor: f64,
+    pub points_only: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -147,15 +142,10 @@ impl EstimatorArgs {
                 force_max_newtons: self.fmax,
                 mode,
                 phase_alpha: self.phases.then_some(self.alpha),
-                resolution_m: 0.0,
+                patches: !self.points_only,
             },
             phase_sizes,
         })
-    }
-
-    /// The resolution factor to hand to the pipeline, when enabled.
-    pub fn resolution(&self) -> Option<f64> {
-        self.resolution_noise.then_some(self.resolution_factor)
     }
 
     /// Runs `f` on a thread pool of `--threads` workers.

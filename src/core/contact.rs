@@ -23,6 +23,66 @@ pub trait UnitTorqueSource: Sync {
     /// `a_k = Σ w u²` and `b_k = Σ w u τ` (its log-likelihood in the
     /// magnitude f is `-½ (c - 2 b_k f + a_k f²)`).
     fn quadratic_forms(&self, weights: &[f64], tau: &[f64], a: &mut Vec<f64>, b: &mut Vec<f64>);
+    /// Each point's [`PatchForms`]: the likelihood terms of its push line
+    /// and of how that line changes across the patch the point stands
+    /// for. `false` when the source knows no patches (then the estimator
+    /// treats each point as a point).
+    fn patch_forms(&self, weights: &[f64], tau: &[f64], out: &mut PatchForms) -> bool {
+        let _ = (weights, tau, out);
+        false
+    }
+}
+
+/// Per point (structure of arrays), with `u` the torque per newton of the
+/// point's push, `d_1`, `d_2` its derivatives per metre along the two
+/// tangents, `⟨x, y⟩ = Σ_j x_j y_j / σ_j²` and `τ` the measurement:
+/// `a = ⟨u, u⟩`, `b = ⟨u, τ⟩`, `h_i = ⟨u, d_i⟩`, `e_i = ⟨d_i, τ⟩`,
+/// `g_ij = ⟨d_i, d_j⟩`; and the patch's width and area.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PatchForms {
+    /// `⟨u, u⟩`.
+    pub a: Vec<f64>,
+    /// `⟨u, τ⟩`.
+    pub b: Vec<f64>,
+    /// `⟨u, d_1⟩`.
+    pub h1: Vec<f64>,
+    /// `⟨u, d_2⟩`.
+    pub h2: Vec<f64>,
+    /// `⟨d_1, τ⟩`.
+    pub e1: Vec<f64>,
+    /// `⟨d_2, τ⟩`.
+    pub e2: Vec<f64>,
+    /// `⟨d_1, d_1⟩`.
+    pub g11: Vec<f64>,
+    /// `⟨d_1, d_2⟩`.
+    pub g12: Vec<f64>,
+    /// `⟨d_2, d_2⟩`.
+    pub g22: Vec<f64>,
+    /// Width (standard deviation) of each point's Gaussian patch, m.
+    pub window_m: Vec<f64>,
+    /// ln of each point's area, m² (its prior weight).
+    pub ln_area: Vec<f64>,
+}
+
+impl PatchForms {
+    fn resize(&mut self, n: usize) {
+        for v in [
+            &mut self.a,
+            &mut self.b,
+            &mut self.h1,
+            &mut self.h2,
+            &mut self.e1,
+            &mut self.e2,
+            &mut self.g11,
+            &mut self.g12,
+            &mut self.g22,
+            &mut self.window_m,
+            &mut self.ln_area,
+        ] {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+    }
 }
 
 /// A surface at one configuration, read without storing unit torques:
@@ -61,6 +121,39 @@ impl UnitTorqueSource for PosedSurface<'_> {
         }
     }
 
+    fn patch_forms(&self, weights: &[f64], tau: &[f64], out: &mut PatchForms) -> bool {
+        let surface = self.surface;
+        let n = surface.len();
+        if surface.tangent_lines.iter().any(|c| c.len() != n) || surface.window_m.len() != n {
+            return false;
+        }
+        out.resize(n);
+        for (k, (w, area)) in surface.window_m.iter().zip(&surface.area_m2).enumerate() {
+            out.window_m[k] = *w;
+            out.ln_area[k] = area.max(f64::MIN_POSITIVE).ln();
+        }
+        let lines = surface.push_lines.each_ref().map(Vec::as_slice);
+        let tangents = surface.tangent_lines.each_ref().map(Vec::as_slice);
+        for (range, r, beta) in self.link_factors(weights, tau) {
+            let block = PatchBlock {
+                l0: std::array::from_fn(|i| lines[i].get(range.clone()).unwrap_or(&[])),
+                l1: std::array::from_fn(|i| tangents[i].get(range.clone()).unwrap_or(&[])),
+                l2: std::array::from_fn(|i| tangents[6 + i].get(range.clone()).unwrap_or(&[])),
+            };
+            let mut outs = PatchOut::of(out, range.clone());
+            match r.len() {
+                0 => {}
+                1 => patch_forms_with::<1>(&r, beta, &block, &mut outs),
+                2 => patch_forms_with::<2>(&r, beta, &block, &mut outs),
+                3 => patch_forms_with::<3>(&r, beta, &block, &mut outs),
+                4 => patch_forms_with::<4>(&r, beta, &block, &mut outs),
+                5 => patch_forms_with::<5>(&r, beta, &block, &mut outs),
+                _ => patch_forms_with::<6>(&r, beta, &block, &mut outs),
+            }
+        }
+        true
+    }
+
     fn quadratic_forms(&self, weights: &[f64], tau: &[f64], a: &mut Vec<f64>, b: &mut Vec<f64>) {
         let surface = self.surface;
         let n = surface.len();
@@ -68,26 +161,7 @@ impl UnitTorqueSource for PosedSurface<'_> {
         a.resize(n, 0.0);
         b.clear();
         b.resize(n, 0.0);
-        // Per link (its points are contiguous): the triangular factor of its
-        // weighted twists and `β = Σ_j w_j τ_j (ω_j, v_j)`.
-        let jobs: Vec<_> = link_ranges(&surface.link)
-            .into_iter()
-            .map(|(link, range)| {
-                let mut rows = Vec::new();
-                let mut beta = [0.0; 6];
-                for t in self.torque_model.twists(link) {
-                    let (Some(&w), Some(&torque)) = (weights.get(t.sensed_index), tau.get(t.sensed_index)) else {
-                        continue;
-                    };
-                    let line = [t.w.x, t.w.y, t.w.z, t.v.x, t.v.y, t.v.z];
-                    rows.push(line.map(|x| x * w.sqrt()));
-                    for (bc, x) in beta.iter_mut().zip(line) {
-                        *bc += w * torque * x;
-                    }
-                }
-                (range, r_factor(&rows), beta)
-            })
-            .collect();
+        let jobs = self.link_factors(weights, tau);
         let lines = surface.push_lines.each_ref().map(Vec::as_slice);
         let run = |range: std::ops::Range<usize>, r: &[[f64; 6]], beta: [f64; 6], a: &mut [f64], b: &mut [f64]| {
             let lines = lines.map(|l| l.get(range.clone()).unwrap_or(&[]));
@@ -131,6 +205,130 @@ impl UnitTorqueSource for PosedSurface<'_> {
                 }
             }
         }
+    }
+}
+
+/// A link's points, the triangular factor of its weighted twists, and `β`.
+type LinkFactor = (std::ops::Range<usize>, Vec<[f64; 6]>, [f64; 6]);
+
+impl PosedSurface<'_> {
+    /// Per link (its points are contiguous): the range of its points, the
+    /// triangular factor of its weighted twists and `β = Σ_j w_j τ_j (ω_j, v_j)`.
+    fn link_factors(&self, weights: &[f64], tau: &[f64]) -> Vec<LinkFactor> {
+        link_ranges(&self.surface.link)
+            .into_iter()
+            .map(|(link, range)| {
+                let mut rows = Vec::new();
+                let mut beta = [0.0; 6];
+                for t in self.torque_model.twists(link) {
+                    let (Some(&w), Some(&torque)) = (weights.get(t.sensed_index), tau.get(t.sensed_index)) else {
+                        continue;
+                    };
+                    let line = [t.w.x, t.w.y, t.w.z, t.v.x, t.v.y, t.v.z];
+                    rows.push(line.map(|x| x * w.sqrt()));
+                    for (bc, x) in beta.iter_mut().zip(line) {
+                        *bc += w * torque * x;
+                    }
+                }
+                (range, r_factor(&rows), beta)
+            })
+            .collect()
+    }
+}
+
+/// A link's points: their push lines and tangent derivatives, six arrays each.
+struct PatchBlock<'a> {
+    l0: [&'a [f64]; 6],
+    l1: [&'a [f64]; 6],
+    l2: [&'a [f64]; 6],
+}
+
+/// Where a link's [`PatchForms`] go.
+struct PatchOut<'a> {
+    a: &'a mut [f64],
+    b: &'a mut [f64],
+    h1: &'a mut [f64],
+    h2: &'a mut [f64],
+    e1: &'a mut [f64],
+    e2: &'a mut [f64],
+    g11: &'a mut [f64],
+    g12: &'a mut [f64],
+    g22: &'a mut [f64],
+}
+
+impl<'a> PatchOut<'a> {
+    fn of(forms: &'a mut PatchForms, range: std::ops::Range<usize>) -> Self {
+        let take = |v: &'a mut Vec<f64>| -> &'a mut [f64] { v.get_mut(range.clone()).unwrap_or(&mut []) };
+        Self {
+            a: take(&mut forms.a),
+            b: take(&mut forms.b),
+            h1: take(&mut forms.h1),
+            h2: take(&mut forms.h2),
+            e1: take(&mut forms.e1),
+            e2: take(&mut forms.e2),
+            g11: take(&mut forms.g11),
+            g12: take(&mut forms.g12),
+            g22: take(&mut forms.g22),
+        }
+    }
+}
+
+/// [`PatchForms`] of a link's points with `R` of `N` rows: three products
+/// `R l` per point, then their inner products.
+fn patch_forms_with<const N: usize>(r: &[[f64; 6]], beta: [f64; 6], block: &PatchBlock, out: &mut PatchOut) {
+    let mut rows = [[0.0; 6]; N];
+    for (dst, src) in rows.iter_mut().zip(r) {
+        *dst = *src;
+    }
+    let len = [out.a.len(), out.b.len(), out.g22.len()]
+        .into_iter()
+        .chain(block.l0.iter().chain(&block.l1).chain(&block.l2).map(|c| c.len()))
+        .min()
+        .unwrap_or(0);
+    // Every column cut to one length: the loop below then has no bounds
+    // checks and the compiler vectorises it across points.
+    let l0: [&[f64]; 6] = std::array::from_fn(|i| &block.l0[i][..len]);
+    let l1: [&[f64]; 6] = std::array::from_fn(|i| &block.l1[i][..len]);
+    let l2: [&[f64]; 6] = std::array::from_fn(|i| &block.l2[i][..len]);
+    let (a, b, h1, h2) = (
+        &mut out.a[..len],
+        &mut out.b[..len],
+        &mut out.h1[..len],
+        &mut out.h2[..len],
+    );
+    let (e1, e2) = (&mut out.e1[..len], &mut out.e2[..len]);
+    let (g11, g12, g22) = (&mut out.g11[..len], &mut out.g12[..len], &mut out.g22[..len]);
+    for k in 0..len {
+        let (mut aa, mut ab, mut ac, mut bb, mut bc, mut cc) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        for (i, row) in rows.iter().enumerate() {
+            let (mut y0, mut y1, mut y2) = (0.0, 0.0, 0.0);
+            for c in i..6 {
+                y0 += row[c] * l0[c][k];
+                y1 += row[c] * l1[c][k];
+                y2 += row[c] * l2[c][k];
+            }
+            aa += y0 * y0;
+            ab += y0 * y1;
+            ac += y0 * y2;
+            bb += y1 * y1;
+            bc += y1 * y2;
+            cc += y2 * y2;
+        }
+        let (mut p0, mut p1, mut p2) = (0.0, 0.0, 0.0);
+        for c in 0..6 {
+            p0 += beta[c] * l0[c][k];
+            p1 += beta[c] * l1[c][k];
+            p2 += beta[c] * l2[c][k];
+        }
+        a[k] = aa;
+        h1[k] = ab;
+        h2[k] = ac;
+        g11[k] = bb;
+        g12[k] = bc;
+        g22[k] = cc;
+        b[k] = p0;
+        e1[k] = p1;
+        e2[k] = p2;
     }
 }
 

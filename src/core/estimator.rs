@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use crate::core::contact::{PARALLEL_MIN_POINTS, UnitTorqueSource};
+use crate::core::contact::{PARALLEL_MIN_POINTS, PatchForms, UnitTorqueSource};
 use crate::core::phases::PhaseHierarchy;
 use crate::core::rng::Rng;
 use crate::core::special::ln_erf_difference;
@@ -59,12 +59,12 @@ pub struct EstimatorSettings {
     /// Phases A/B/C with this α (keep clusters with P ≥ α `P_max`; 0 keeps
     /// every cluster, the limit α → 0); `None` searches every point.
     pub phase_alpha: Option<f64>,
-    /// RMS distance, m, between a candidate point and a true contact in
-    /// the patch it stands for (ours; 0 is the thesis' model). A push of f
-    /// newtons then adds torque noise of about `f · resolution_m` per
-    /// joint, so that a σ below the surface's resolution does not make the
-    /// posterior collapse onto single wrong points (thesis Fig. 3.17).
-    pub resolution_m: f64,
+    /// Exact mode (ours): each surface point stands for the patch of
+    /// surface around it, and its mass is the likelihood integrated over
+    /// that patch (see [`patch_terms`]) rather than taken at the point.
+    /// `false` is the thesis' model (a point is a point); particle modes
+    /// ignore it.
+    pub patches: bool,
 }
 
 /// Why an estimate cannot be made.
@@ -122,12 +122,6 @@ pub enum EstimateError {
     /// A surface without points.
     #[error("there are no candidate points")]
     NoCandidates,
-    /// A resolution that is negative or not finite.
-    #[error("the surface resolution is {value} m; it must be a finite number ≥ 0")]
-    BadResolution {
-        /// The value.
-        value: f64,
-    },
     /// Particle mode with zero particles.
     #[error("particle mode needs at least one particle")]
     NoParticles,
@@ -199,8 +193,13 @@ struct Quadratic<'a> {
     b: &'a [f64],
     /// `c` shared by every point (the bare noise model)…
     c: f64,
-    /// …or one per point, with its normaliser (resolution noise).
+    /// …or one per point, with its normaliser (patches).
     per_point: Option<PerPoint<'a>>,
+    /// Per-point patch volumes (`det(I + f₀²ρ² G) ≥ 1`, see
+    /// [`patch_terms`]), when patches are used: the normaliser's `-½ ln`
+    /// of it is left out of profiles (which stay upper bounds) and added
+    /// where the evidence is computed.
+    volume: Option<&'a [f64]>,
     f_min: f64,
     f_max: f64,
 }
@@ -346,18 +345,19 @@ impl Quadratic<'_> {
     fn log_evidence(&self, k: usize, profile: f64) -> f64 {
         let (a, b) = (self.a[k], self.b[k]);
         let range = self.f_max - self.f_min;
+        let volume = self.volume.and_then(|v| v.get(k)).map_or(0.0, |v| -0.5 * v.ln());
         if range <= 1e-12 * self.f_max.max(1.0) {
-            return profile;
+            return profile + volume;
         }
         let s = (0.5 * a).sqrt();
         if s * range < 1e-6 {
             // Flat over the range (a → 0: the point makes almost no torque).
             let mid = 0.5 * (self.f_min + self.f_max);
-            return self.log_likelihood(k, mid);
+            return self.log_likelihood(k, mid) + volume;
         }
         let mu = b / a;
         let (c, norm) = self.c_norm(k);
-        norm - 0.5 * (c - b * mu).max(0.0)
+        norm + volume - 0.5 * (c - b * mu).max(0.0)
             + 0.5 * (std::f64::consts::PI / (2.0 * a)).ln()
             + ln_erf_difference(s * (self.f_min - mu), s * (self.f_max - mu))
             - range.ln()
@@ -423,17 +423,13 @@ pub fn estimate(
     let n = model.points();
     let weights: Vec<f64> = settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
     let no_contact_chi2: f64 = weights.iter().zip(tau).map(|(w, t)| w * t * t).sum();
-    let (mut a, mut b) = (Vec::new(), Vec::new());
-    model.quadratic_forms(&weights, tau, &mut a, &mut b);
-    let (mut c, mut norm) = (Vec::new(), Vec::new());
-    if settings.resolution_m > 0.0 {
-        add_resolution_noise(model, tau, settings, &mut a, &mut b, &mut c, &mut norm);
-    }
+    let (patches, a, b, terms) = likelihood_terms(model, tau, settings, &weights, no_contact_chi2);
     let q = Quadratic {
         a: &a,
         b: &b,
         c: no_contact_chi2,
-        per_point: (settings.resolution_m > 0.0).then_some((c.as_slice(), norm.as_slice())),
+        per_point: patches.then_some((terms.c.as_slice(), terms.norm.as_slice())),
+        volume: patches.then_some(terms.volume.as_slice()),
         f_min: settings.force_min_newtons,
         f_max: settings.force_max_newtons,
     };
@@ -528,6 +524,34 @@ pub fn estimate(
     })
 }
 
+/// Each point's likelihood terms: patch-integrated in exact mode when the
+/// source knows patches (`true` and the per-point `c`, normaliser and
+/// volumes in [`PatchTerms`]), else the plain `a`, `b` of a point.
+fn likelihood_terms(
+    model: &impl UnitTorqueSource,
+    tau: &[f64],
+    settings: &EstimatorSettings,
+    weights: &[f64],
+    c: f64,
+) -> (bool, Vec<f64>, Vec<f64>, PatchTerms) {
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    let mut forms = PatchForms::default();
+    let mut terms = PatchTerms::default();
+    let patches = settings.patches
+        && settings.mode == Mode::Exact
+        && model.patch_forms(weights, tau, &mut forms)
+        && forms.a.len() == model.points();
+    if patches {
+        let range = (settings.force_min_newtons, settings.force_max_newtons);
+        patch_terms(&forms, c, range, &mut terms);
+        a = std::mem::take(&mut terms.a);
+        b = std::mem::take(&mut terms.b);
+    } else {
+        model.quadratic_forms(weights, tau, &mut a, &mut b);
+    }
+    (patches, a, b, terms)
+}
+
 /// Runs phases A and B (when asked for) and returns the points of the
 /// last phase, marking phase membership in `flags`.
 fn search_phases(
@@ -582,44 +606,133 @@ fn search_phases(
     })
 }
 
-/// Replaces each point's weights `1/σ²` by `1/(σ² + (f* ρ)²)`, with f*
-/// the point's best magnitude under the bare noise, and adds the matching
-/// normaliser `-½ Σ ln(1 + (f* ρ)²/σ²)`.
-fn add_resolution_noise(
-    model: &impl UnitTorqueSource,
-    tau: &[f64],
-    settings: &EstimatorSettings,
-    a: &mut [f64],
-    b: &mut [f64],
-    c: &mut Vec<f64>,
-    norm: &mut Vec<f64>,
-) {
-    c.resize(model.points(), 0.0);
-    norm.resize(model.points(), 0.0);
-    let mut u = vec![0.0; model.joints()];
-    let (f_min, f_max) = (settings.force_min_newtons, settings.force_max_newtons);
-    let variance: Vec<f64> = settings.sigma.iter().map(|s| s * s).collect();
-    for k in 0..model.points() {
-        let f_star = if a[k] > 0.0 {
-            (b[k] / a[k]).clamp(f_min, f_max)
-        } else {
-            f_min
-        };
-        let extra = (f_star * settings.resolution_m).powi(2);
-        let (mut ak, mut bk, mut ck, mut nk) = (0.0, 0.0, 0.0, 0.0);
-        model.unit_torques_into(k, &mut u);
-        for ((v, t), u) in variance.iter().zip(tau).zip(&u) {
-            let w = 1.0 / (v + extra);
-            ak += w * u * u;
-            bk += w * u * t;
-            ck += w * t * t;
-            nk -= 0.5 * (extra / v).ln_1p();
-        }
-        a[k] = ak;
-        b[k] = bk;
-        c[k] = ck;
-        norm[k] = nk;
+/// Each point's likelihood integrated over its patch, as an equivalent
+/// quadratic in the push magnitude f: `ln L(f) = norm - ½ (c - 2 b f + a f²)`.
+///
+/// Within its patch a point's torque per newton is `u + D s` (`s` the
+/// offset along the two tangents, m; [`PatchForms`]), and the patch is a
+/// Gaussian window of width ρ around the point. With `g = f s` the
+/// likelihood is Gaussian in `(f, g)`, and so is the window once its
+/// width in `g`, `f ρ`, is taken at the point's best magnitude `f₀`:
+/// integrating `g` out leaves, with `Q = G + I/(f₀ρ)²`,
+/// `a' = a - hᵀQ⁻¹h`, `b' = b - hᵀQ⁻¹e`, `c' = c - eᵀQ⁻¹e` and the
+/// normaliser `ln A - ½ ln det(I + f₀²ρ² G)`. A peak far narrower than
+/// the patch then counts with its whole mass (times the window at its
+/// place), a broad one as the value at the point times the area, and the
+/// windows of evenly spread points add up to one, so the masses are those
+/// of the continuous surface whatever the sampling (as N grows they tend
+/// to the plain values at the points).
+pub fn patch_terms(forms: &PatchForms, c: f64, (f_min, f_max): (f64, f64), out: &mut PatchTerms) {
+    let n = forms.a.len();
+    for v in [&mut out.a, &mut out.b, &mut out.c, &mut out.volume] {
+        v.clear();
+        v.resize(n, 0.0);
     }
+    out.norm.clear();
+    out.norm.extend_from_slice(&forms.ln_area);
+    out.norm.resize(n, 0.0);
+    let f = forms;
+    // Equal lengths up front, so that the loop runs without bounds checks
+    // and vectorises (no branches, divisions only).
+    let (a_in, b_in, h1, h2) = (
+        &f.a[..n],
+        &f.b[..n.min(f.b.len())],
+        &f.h1[..n.min(f.h1.len())],
+        &f.h2[..n.min(f.h2.len())],
+    );
+    let (e1, e2, g11) = (
+        &f.e1[..n.min(f.e1.len())],
+        &f.e2[..n.min(f.e2.len())],
+        &f.g11[..n.min(f.g11.len())],
+    );
+    let (g12, g22, rho) = (
+        &f.g12[..n.min(f.g12.len())],
+        &f.g22[..n.min(f.g22.len())],
+        &f.window_m[..n.min(f.window_m.len())],
+    );
+    let m = [
+        b_in.len(),
+        h1.len(),
+        h2.len(),
+        e1.len(),
+        e2.len(),
+        g11.len(),
+        g12.len(),
+        g22.len(),
+        rho.len(),
+    ]
+    .into_iter()
+    .min()
+    .unwrap_or(0);
+    let (a_out, b_out, c_out, v_out) = (&mut out.a[..m], &mut out.b[..m], &mut out.c[..m], &mut out.volume[..m]);
+    for k in 0..m {
+        let (ak, bk) = (a_in[k], b_in[k]);
+        // f₀: the point's own best magnitude.
+        let q0 = bk / ak.max(f64::MIN_POSITIVE);
+        let q0 = if q0 > f_min { q0 } else { f_min };
+        let f0 = if q0 < f_max { q0 } else { f_max };
+        let width = (f0 * rho[k]).max(1e-150);
+        let q = 1.0 / (width * width);
+        let (q11, q22) = (g11[k] + q, g22[k] + q);
+        let det = q11 * q22 - g12[k] * g12[k];
+        let det = if det > q * q { det } else { q * q };
+        let inv = 1.0 / det;
+        let (i11, i12, i22) = (q22 * inv, -g12[k] * inv, q11 * inv);
+        let (x1, x2) = (h1[k], h2[k]);
+        let (y1, y2) = (e1[k], e2[k]);
+        let hh = x1 * (i11 * x1 + i12 * x2) + x2 * (i12 * x1 + i22 * x2);
+        let he = x1 * (i11 * y1 + i12 * y2) + x2 * (i12 * y1 + i22 * y2);
+        let ee = y1 * (i11 * y1 + i12 * y2) + y2 * (i12 * y1 + i22 * y2);
+        let a1 = ak - hh;
+        a_out[k] = if a1 > 0.0 { a1 } else { 0.0 };
+        b_out[k] = bk - he;
+        c_out[k] = c - ee;
+        v_out[k] = det * width * width * width * width;
+    }
+}
+
+/// [`patch_terms`]'s output: per point the equivalent quadratic in f
+/// (`a`, `b`, `c`), the normaliser `ln A`, and the patch volume
+/// `det(I + f₀²ρ² G)` whose `-½ ln` completes the normaliser.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PatchTerms {
+    /// `a'`.
+    pub a: Vec<f64>,
+    /// `b'`.
+    pub b: Vec<f64>,
+    /// `c'`.
+    pub c: Vec<f64>,
+    /// `ln A`.
+    pub norm: Vec<f64>,
+    /// `det(I + f₀²ρ² G)`.
+    pub volume: Vec<f64>,
+}
+
+/// ln of the patch-integrated likelihood of one point's [`PatchForms`]
+/// (every array of length 1), averaged over the magnitude range: what
+/// [`estimate`] gives such a point before normalising. `c` is `Σ τ²/σ²`.
+#[must_use]
+pub fn patch_log_evidence(forms: &PatchForms, c: f64, (f_min, f_max): (f64, f64)) -> f64 {
+    let mut t = PatchTerms::default();
+    patch_terms(forms, c, (f_min, f_max), &mut t);
+    if t.a.is_empty() {
+        return f64::NEG_INFINITY;
+    }
+    let q = Quadratic {
+        a: &t.a,
+        b: &t.b,
+        c,
+        per_point: Some((&t.c, &t.norm)),
+        volume: Some(&t.volume),
+        f_min,
+        f_max,
+    };
+    let f = if t.a[0] > 0.0 {
+        (t.b[0] / t.a[0]).clamp(f_min, f_max)
+    } else {
+        f_min
+    };
+    q.log_evidence(0, q.log_likelihood(0, f))
 }
 
 fn validate(model: &impl UnitTorqueSource, tau: &[f64], settings: &EstimatorSettings) -> Result<(), EstimateError> {
@@ -658,11 +771,6 @@ fn validate(model: &impl UnitTorqueSource, tau: &[f64], settings: &EstimatorSett
     }
     if model.points() == 0 {
         return Err(EstimateError::NoCandidates);
-    }
-    if !(settings.resolution_m.is_finite() && settings.resolution_m >= 0.0) {
-        return Err(EstimateError::BadResolution {
-            value: settings.resolution_m,
-        });
     }
     match settings.mode {
         Mode::Particles(ParticleSettings {
@@ -850,6 +958,7 @@ mod tests {
                 b: &bv,
                 c,
                 per_point: None,
+                volume: None,
                 f_min,
                 f_max,
             };
@@ -868,11 +977,107 @@ mod tests {
             b: &bv,
             c: 10.0,
             per_point: None,
+            volume: None,
             f_min: 2.0,
             f_max: 2.0,
         };
         let f = q.best_force(0);
         assert!((q.log_evidence(0, q.log_likelihood(0, f)) - (-0.5 * (10.0 - 12.0 + 8.0))).abs() < 1e-15);
+    }
+
+    /// The patch formula against brute-force integration: the window
+    /// `N(s; 0, ρ²)` over the tangent plane (a 2-D grid) and f over the
+    /// range (Simpson), for a point whose torques change along its
+    /// tangents. Exact but for the window's width in `g = f s` being taken
+    /// at one magnitude: within 2 % (1–1.1 % seen) where f is pinned down, and equal
+    /// to the point's own evidence as the window shrinks.
+    #[test]
+    fn patch_evidence_matches_brute_force_integration_over_the_window() {
+        use crate::core::rng::Rng;
+        let mut rng = Rng::new(3);
+        let w = [400.0; 4];
+        for case in 0..6 {
+            let u: Vec<f64> = (0..4).map(|_| rng.uniform_in(-0.3, 0.3)).collect();
+            let d1: Vec<f64> = (0..4).map(|_| rng.uniform_in(-2.0, 2.0)).collect();
+            let d2: Vec<f64> = (0..4).map(|_| rng.uniform_in(-2.0, 2.0)).collect();
+            let (f_true, s_true) = (
+                rng.uniform_in(5.0, 20.0),
+                [rng.uniform_in(-0.004, 0.004), rng.uniform_in(-0.004, 0.004)],
+            );
+            let tau: Vec<f64> = (0..4)
+                .map(|j| f_true * (u[j] + d1[j] * s_true[0] + d2[j] * s_true[1]) + 0.05 * rng.normal())
+                .collect();
+            let dot = |x: &[f64], y: &[f64]| (0..4).map(|j| w[j] * x[j] * y[j]).sum::<f64>();
+            let rho = 0.004;
+            let one = |x: f64| vec![x];
+            let forms = PatchForms {
+                a: one(dot(&u, &u)),
+                b: one(dot(&u, &tau)),
+                h1: one(dot(&u, &d1)),
+                h2: one(dot(&u, &d2)),
+                e1: one(dot(&d1, &tau)),
+                e2: one(dot(&d2, &tau)),
+                g11: one(dot(&d1, &d1)),
+                g12: one(dot(&d1, &d2)),
+                g22: one(dot(&d2, &d2)),
+                window_m: one(rho),
+                ln_area: one(0.0),
+            };
+            let c = dot(&tau, &tau);
+            let (f_min, f_max) = (1.0, 30.0);
+            let formula = patch_log_evidence(&forms, c, (f_min, f_max));
+            // Brute force, relative to the best log-likelihood seen.
+            let ll = |f: f64, s1: f64, s2: f64| {
+                let r: Vec<f64> = (0..4).map(|j| tau[j] - f * (u[j] + d1[j] * s1 + d2[j] * s2)).collect();
+                -0.5 * dot(&r, &r) - 0.5 * (s1 * s1 + s2 * s2) / (rho * rho) - (std::f64::consts::TAU * rho * rho).ln()
+            };
+            let (nf, ns) = (300, 81);
+            let span = 5.0 * rho;
+            let hs = 2.0 * span / f64::from(ns - 1);
+            let hf = (f_max - f_min) / f64::from(nf);
+            let mut peak = f64::NEG_INFINITY;
+            let mut values = Vec::new();
+            for i in 0..=nf {
+                let f = f_min + f64::from(i) * hf;
+                let mut row = Vec::new();
+                for p in 0..ns {
+                    for q in 0..ns {
+                        let v = ll(f, -span + f64::from(p) * hs, -span + f64::from(q) * hs);
+                        peak = peak.max(v);
+                        row.push(v);
+                    }
+                }
+                values.push(row);
+            }
+            let mut total = 0.0;
+            for (i, row) in values.iter().enumerate() {
+                let wf = if i == 0 || i == nf as usize {
+                    1.0
+                } else if i % 2 == 1 {
+                    4.0
+                } else {
+                    2.0
+                };
+                total += wf * row.iter().map(|v| (v - peak).exp()).sum::<f64>();
+            }
+            let brute = peak + (total * hf / 3.0 * hs * hs).ln() - (f_max - f_min).ln();
+            assert!((formula - brute).abs() < 0.02, "case {case}: {formula} vs {brute}");
+            // A vanishing window gives the point's own evidence.
+            let mut tiny = forms.clone();
+            tiny.window_m = one(1e-9);
+            let (a, b) = ([forms.a[0]], [forms.b[0]]);
+            let q = Quadratic {
+                a: &a,
+                b: &b,
+                c,
+                per_point: None,
+                volume: None,
+                f_min,
+                f_max,
+            };
+            let point = q.log_evidence(0, q.log_likelihood(0, q.best_force(0)));
+            assert!((patch_log_evidence(&tiny, c, (f_min, f_max)) - point).abs() < 1e-6);
+        }
     }
 
     struct Setup {
@@ -911,7 +1116,7 @@ mod tests {
             force_max_newtons: 30.0,
             mode: Mode::Exact,
             phase_alpha: None,
-            resolution_m: 0.0,
+            patches: true,
         }
     }
 
@@ -939,6 +1144,7 @@ mod tests {
             b: &b,
             c: 0.0,
             per_point: Some((&[c0, c1], &[0.0, 0.0])),
+            volume: None,
             f_min: 1.0,
             f_max: 30.0,
         };
@@ -978,6 +1184,7 @@ mod tests {
                 b: &b,
                 c: weights.iter().zip(&tau).map(|(w, t)| w * t * t).sum(),
                 per_point: None,
+                volume: None,
                 f_min: set.force_min_newtons,
                 f_max: set.force_max_newtons,
             };

@@ -281,7 +281,7 @@ pub fn closest_point_on_triangle(p: DVec3, c: &[DVec3; 3]) -> DVec3 {
 
 /// For each vertex, the index of the first vertex at the same position
 /// (quantised to 1 µm, far below any feature of an arm).
-fn weld_map(positions: &[DVec3]) -> Vec<u32> {
+pub(crate) fn weld_map(positions: &[DVec3]) -> Vec<u32> {
     let mut first: HashMap<[i64; 3], u32> = HashMap::with_capacity(positions.len());
     positions
         .iter()

@@ -3,11 +3,12 @@
 //! update at its own configuration.
 
 use crate::core::contact::{PosedSurface, UnitTorqueSource as _};
-use crate::core::estimator::{EstimateError, EstimatorSettings, Posterior, estimate};
+use crate::core::estimator::{EstimateError, EstimatorSettings, Mode, Posterior, estimate};
 use crate::core::kinematics::RobotPose;
 use crate::core::phases::PhaseHierarchy;
+use crate::core::refine::{Measurement, refine};
 use crate::core::robot::{LinkId, Robot};
-use crate::core::summary::{Summary, summarize};
+use crate::core::summary::{Refinement, Summary, summarize_refined};
 use crate::core::surface::{Surface, SurfaceError, SurfaceRequest};
 use crate::core::torque::TorqueModel;
 
@@ -37,20 +38,14 @@ pub struct Update {
 
 impl Estimator {
     /// Samples the surface and, with `phase_sizes`, builds the phase
-    /// hierarchy (seeded by the surface seed). `resolution_factor` sets
-    /// [`EstimatorSettings::resolution_m`] to that fraction of the surface
-    /// spacing (`None` keeps the settings' value).
+    /// hierarchy (seeded by the surface seed).
     pub fn new(
         robot: &Robot,
         request: &SurfaceRequest,
-        mut settings: EstimatorSettings,
+        settings: EstimatorSettings,
         phase_sizes: Option<[usize; 2]>,
-        resolution_factor: Option<f64>,
     ) -> Result<Self, SurfaceError> {
         let surface = Surface::sample(robot, request)?;
-        if let Some(factor) = resolution_factor {
-            settings.resolution_m = factor * surface.spacing_m();
-        }
         let hierarchy = phase_sizes.map(|sizes| PhaseHierarchy::new(&surface, sizes, request.seed));
         Ok(Self {
             surface,
@@ -70,7 +65,27 @@ impl Estimator {
             surface: &self.surface,
         };
         let posterior = estimate(&posed, tau, &self.settings, self.hierarchy.as_ref())?;
-        let summary = summarize(&posterior, &self.surface, &pose, posed.joints());
+        let refined = (self.settings.patches && self.settings.mode == Mode::Exact)
+            .then(|| {
+                let weights: Vec<f64> = self.settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
+                let measurement = Measurement {
+                    tau,
+                    weights: &weights,
+                    force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
+                };
+                refine(&torque_model, &self.surface, &posterior, &measurement)
+            })
+            .flatten();
+        let summary = summarize_refined(
+            &posterior,
+            &self.surface,
+            &pose,
+            posed.joints(),
+            refined.as_ref().map(|contact| Refinement {
+                contact,
+                sensing_joints: torque_model.twists(contact.link).len(),
+            }),
+        );
         Ok(Update {
             pose,
             posterior,

@@ -2,13 +2,13 @@
 //! (Fig. 3.2a), the 90 % credible set, clusters with their dispersions
 //! (eq. 3.1, 3.2) and whether the torques are explained at all.
 
-use std::collections::HashMap;
-
 use glam::DVec3;
 
 use crate::core::estimator::Posterior;
 use crate::core::kinematics::RobotPose;
 use crate::core::phases::link_ranges;
+use crate::core::refine::RefinedContact;
+use crate::core::regions::regions;
 use crate::core::robot::LinkId;
 use crate::core::special::chi_square_survival;
 use crate::core::surface::Surface;
@@ -24,9 +24,6 @@ pub const POOR_FIT_P: f64 = 1e-6;
 /// Points at least this fraction of the best are "probable" (the thesis
 /// clusters particles with P ≥ 0.9 max).
 pub const PROBABLE_FRACTION: f64 = 0.9;
-
-/// At most this many probable points are clustered (the most probable).
-const MAX_CLUSTERED: usize = 20_000;
 
 /// The overall reading.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -74,7 +71,7 @@ pub struct LinkShare {
 /// The smallest set of points holding 90 % of the mass.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CredibleSet {
-    /// Its points, most probable first.
+    /// Its points, in index order.
     pub points: Vec<usize>,
     /// The mass they hold (≥ 0.9).
     pub mass: f64,
@@ -117,8 +114,14 @@ pub struct Fit {
 pub struct Summary {
     /// The overall reading.
     pub verdict: Verdict,
-    /// The most probable contact.
+    /// The most probable contact: refined on the continuous surface when
+    /// a refinement was given (then `map.point` is the sample whose patch
+    /// holds it), else the most probable sample.
     pub map: ContactEstimate,
+    /// The most probable sample (the grid's answer, before refinement).
+    pub grid_map: ContactEstimate,
+    /// Whether `map` was refined below the samples' resolution.
+    pub refined: bool,
     /// Per link, sorted by link.
     pub per_link: Vec<LinkShare>,
     /// The 90 % credible set.
@@ -147,14 +150,69 @@ pub fn contact_at(posterior: &Posterior, surface: &Surface, pose: &RobotPose, k:
     }
 }
 
+/// A refined contact in the world; its `point` is the sample nearest it
+/// on its link among those with mass (its start if none).
+fn refined_estimate(r: &RefinedContact, posterior: &Posterior, surface: &Surface, pose: &RobotPose) -> ContactEstimate {
+    let owner = posterior
+        .support
+        .iter()
+        .copied()
+        .filter(|&k| surface.link.get(k) == Some(&r.link))
+        .min_by(|&x, &y| {
+            let d = |k: usize| surface.point_in_link[k].distance_squared(r.point_in_link);
+            d(x).total_cmp(&d(y)).then(x.cmp(&y))
+        })
+        .unwrap_or(r.start);
+    let frame = pose.world_from_link[r.link];
+    let normal = frame.transform_vector3(r.inward_normal_in_link);
+    ContactEstimate {
+        point: owner,
+        link: r.link,
+        point_world: frame.transform_point3(r.point_in_link),
+        inward_normal_world: normal,
+        force_world: normal * r.force_newtons,
+        force_newtons: r.force_newtons,
+        probability: posterior.probability.get(owner).copied().unwrap_or(0.0),
+    }
+}
+
 /// Summarises a posterior of `joints` sensed joints.
 #[must_use]
 pub fn summarize(posterior: &Posterior, surface: &Surface, pose: &RobotPose, joints: usize) -> Summary {
-    let dof = joints.saturating_sub(1).max(1);
+    summarize_refined(posterior, surface, pose, joints, None)
+}
+
+/// A refined contact for [`summarize_refined`]: the contact and how many
+/// sensed joints move its link.
+#[derive(Debug, Clone, Copy)]
+pub struct Refinement<'a> {
+    /// The contact.
+    pub contact: &'a RefinedContact,
+    /// Sensed joints that move its link.
+    pub sensing_joints: usize,
+}
+
+/// [`summarize`], with the most probable contact refined on the
+/// continuous surface: it is the reported contact, and the fit test uses
+/// its residual with one degree of freedom per sensed joint less the
+/// three it fits (two for the place, one for the magnitude; fewer when
+/// fewer joints sense its link).
+#[must_use]
+pub fn summarize_refined(
+    posterior: &Posterior,
+    surface: &Surface,
+    pose: &RobotPose,
+    joints: usize,
+    refined: Option<Refinement>,
+) -> Summary {
+    let (chi2, dof) = match refined {
+        Some(r) => (r.contact.residual_chi2, joints.saturating_sub(r.sensing_joints.min(3))),
+        None => (posterior.best_residual_chi2, joints.saturating_sub(1)),
+    };
     let fit = Fit {
-        best_residual_chi2: posterior.best_residual_chi2,
+        best_residual_chi2: chi2,
         dof,
-        p_value: chi_square_survival(posterior.best_residual_chi2, dof),
+        p_value: if dof == 0 { 1.0 } else { chi_square_survival(chi2, dof) },
         no_contact_p: chi_square_survival(posterior.no_contact_chi2, joints),
     };
     let verdict = if fit.no_contact_p > NO_CONTACT_P {
@@ -192,9 +250,13 @@ pub fn summarize(posterior: &Posterior, surface: &Surface, pose: &RobotPose, joi
         }
     }
     let world = |k: usize| pose.point_to_world(surface.link[k], surface.point_in_link[k]);
+    let grid_map = contact_at(posterior, surface, pose, posterior.map_point);
+    let map = refined.map_or(grid_map, |r| refined_estimate(r.contact, posterior, surface, pose));
     Summary {
         verdict,
-        map: contact_at(posterior, surface, pose, posterior.map_point),
+        map,
+        grid_map,
+        refined: refined.is_some(),
         per_link,
         credible90: credible_set(posterior, world, 0.9),
         clusters: clusters(posterior, surface, pose, world),
@@ -213,24 +275,14 @@ pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level
         .iter()
         .map(|&k| posterior.probability[k])
         .fold(0.0, f64::max);
-    // Sorting (probability, index) pairs reads no other array while
-    // comparing.
-    let mut order: Vec<(f64, usize)> = posterior
+    let order: Vec<(f64, usize)> = posterior
         .support
         .iter()
         .map(|&k| (posterior.probability[k], k))
         .filter(|&(p, _)| p > top * 1e-18)
         .collect();
-    order.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
-    let mut mass = 0.0;
-    let mut points = Vec::new();
-    for (p, k) in order {
-        points.push(k);
-        mass += p;
-        if mass >= level {
-            break;
-        }
-    }
+    let (mut points, mass) = most_probable_holding(order, level);
+    points.sort_unstable();
     let positions: Vec<DVec3> = points.iter().map(|&k| world(k)).collect();
     let mean = points
         .iter()
@@ -242,8 +294,47 @@ pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level
     CredibleSet { points, mass, radius_m }
 }
 
-/// Probable points grouped: connected groups (neighbours closer than three
-/// surface spacings) seed a weighted K-means, which settles the boundaries.
+/// The fewest of `items` (probability, index) whose probabilities add up
+/// to at least `level` (all of them if they hold less), and that sum: the
+/// most probable ones, ties broken by the lower index. Found by repeated
+/// partitioning in time linear in the items, where sorting them all would
+/// cost most of a broad posterior's update.
+fn most_probable_holding(mut items: Vec<(f64, usize)>, level: f64) -> (Vec<usize>, f64) {
+    let before = |x: &(f64, usize), y: &(f64, usize)| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1));
+    let mut taken = Vec::new();
+    let mut mass = 0.0;
+    let mut rest: &mut [(f64, usize)] = &mut items;
+    loop {
+        if rest.len() <= 32 {
+            rest.sort_unstable_by(before);
+            for &(p, k) in rest.iter() {
+                if mass >= level {
+                    break;
+                }
+                taken.push(k);
+                mass += p;
+            }
+            return (taken, mass);
+        }
+        let mid = rest.len() / 2;
+        let (left, pivot, right) = rest.select_nth_unstable_by(mid, before);
+        let left_mass: f64 = left.iter().map(|(p, _)| p).sum();
+        if mass + left_mass >= level {
+            rest = left;
+        } else {
+            taken.extend(left.iter().map(|(_, k)| *k));
+            taken.push(pivot.1);
+            mass += left_mass + pivot.0;
+            if mass >= level {
+                return (taken, mass);
+            }
+            rest = right;
+        }
+    }
+}
+
+/// Probable points grouped into connected regions of the surface's cells
+/// (a region is a patch of touching cells holding probable points).
 fn clusters(
     posterior: &Posterior,
     surface: &Surface,
@@ -255,76 +346,16 @@ fn clusters(
         .iter()
         .map(|&k| posterior.display[k])
         .fold(0.0, f64::max);
-    let mut probable: Vec<usize> = posterior
+    let probable: Vec<usize> = posterior
         .support
         .iter()
         .copied()
         .filter(|&k| top > 0.0 && posterior.display[k] >= PROBABLE_FRACTION * top)
         .collect();
-    probable.sort_by(|&x, &y| posterior.display[y].total_cmp(&posterior.display[x]).then(x.cmp(&y)));
-    probable.truncate(MAX_CLUSTERED);
-    probable.sort_unstable();
-    if probable.is_empty() {
-        return Vec::new();
-    }
-    // Positions of the probable points only, indexed like the surface.
-    let mut world_of: HashMap<usize, DVec3> = HashMap::with_capacity(probable.len());
-    for &k in &probable {
-        world_of.insert(k, world(k));
-    }
-    let world = |k: usize| world_of.get(&k).copied().unwrap_or_default();
-    let link_distance = 3.0 * surface.spacing_m().max(1e-6);
-    let component = connected_components(&probable, &world, link_distance);
-    let groups = component.iter().copied().max().map_or(0, |m| m + 1);
-    // Weighted K-means from the components' means.
     let weight = |k: usize| posterior.display[k];
-    let mut centres = vec![DVec3::ZERO; groups];
-    let mut totals = vec![0.0; groups];
-    for (i, &k) in probable.iter().enumerate() {
-        centres[component[i]] += world(k) * weight(k);
-        totals[component[i]] += weight(k);
-    }
-    for (c, t) in centres.iter_mut().zip(&totals) {
-        *c /= t.max(f64::MIN_POSITIVE);
-    }
-    let mut label = component;
-    for _ in 0..20 {
-        let mut changed = false;
-        for (i, &k) in probable.iter().enumerate() {
-            let nearest = (0..groups)
-                .min_by(|&x, &y| {
-                    world(k)
-                        .distance_squared(centres[x])
-                        .total_cmp(&world(k).distance_squared(centres[y]))
-                })
-                .unwrap_or(0);
-            changed |= nearest != label[i];
-            label[i] = nearest;
-        }
-        let mut sums = vec![(DVec3::ZERO, 0.0); groups];
-        for (i, &k) in probable.iter().enumerate() {
-            sums[label[i]].0 += world(k) * weight(k);
-            sums[label[i]].1 += weight(k);
-        }
-        for (c, (s, t)) in centres.iter_mut().zip(&sums) {
-            if *t > 0.0 {
-                *c = *s / *t;
-            }
-        }
-        if !changed {
-            break;
-        }
-    }
-    let mut out: Vec<Cluster> = (0..groups)
-        .filter_map(|g| {
-            let members: Vec<usize> = probable
-                .iter()
-                .zip(&label)
-                .filter(|(_, l)| **l == g)
-                .map(|(k, _)| *k)
-                .collect();
-            cluster_of(&members, posterior, surface, pose, &world)
-        })
+    let mut out: Vec<Cluster> = regions(surface, &probable, weight, 0.0)
+        .into_iter()
+        .filter_map(|r| cluster_of(&r.members, posterior, surface, pose, &world))
         .collect();
     out.sort_by(|x, y| y.mass.total_cmp(&x.mass).then(x.points.cmp(&y.points)));
     out
@@ -376,42 +407,47 @@ fn cluster_of(
     })
 }
 
-/// Single-linkage components of `points` (indices into `world`) for
-/// distance `d`; returns a component index per point.
-fn connected_components(points: &[usize], world: &impl Fn(usize) -> DVec3, d: f64) -> Vec<usize> {
-    let cell = |p: DVec3| {
-        let c = (p / d).floor();
-        (c.x as i64, c.y as i64, c.z as i64)
-    };
-    let mut grid: HashMap<(i64, i64, i64), Vec<usize>> = HashMap::new();
-    for (i, &k) in points.iter().enumerate() {
-        grid.entry(cell(world(k))).or_default().push(i);
-    }
-    let mut label = vec![usize::MAX; points.len()];
-    let mut next = 0;
-    for start in 0..points.len() {
-        if label[start] != usize::MAX {
-            continue;
-        }
-        label[start] = next;
-        let mut stack = vec![start];
-        while let Some(i) = stack.pop() {
-            let p = world(points[i]);
-            let (cx, cy, cz) = cell(p);
-            for dx in -1..=1 {
-                for dy in -1..=1 {
-                    for dz in -1..=1 {
-                        for &j in grid.get(&(cx + dx, cy + dy, cz + dz)).map_or(&[][..], Vec::as_slice) {
-                            if label[j] == usize::MAX && world(points[j]).distance(p) <= d {
-                                label[j] = next;
-                                stack.push(j);
-                            }
-                        }
-                    }
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::rng::Rng;
+
+    #[test]
+    fn the_fewest_points_holding_a_level_match_sorting_them_all() {
+        let mut rng = Rng::new(5);
+        for n in [1, 7, 33, 200, 5000] {
+            for sharp in [false, true] {
+                let mut items: Vec<(f64, usize)> = (0..n)
+                    .map(|k| {
+                        let p = rng.uniform();
+                        (if sharp { p.powi(40) } else { p }, k)
+                    })
+                    .collect();
+                // Ties: the lower index goes first.
+                if n > 10 {
+                    items[3].0 = items[9].0;
                 }
+                let total: f64 = items.iter().map(|x| x.0).sum();
+                for i in &mut items {
+                    i.0 /= total;
+                }
+                let mut sorted = items.clone();
+                sorted.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+                let mut expected = Vec::new();
+                let mut mass = 0.0;
+                for (p, k) in &sorted {
+                    if mass >= 0.9 {
+                        break;
+                    }
+                    expected.push(*k);
+                    mass += p;
+                }
+                let (mut got, got_mass) = most_probable_holding(items, 0.9);
+                got.sort_unstable();
+                expected.sort_unstable();
+                assert_eq!(got, expected, "n {n}, sharp {sharp}");
+                assert!((got_mass - mass).abs() < 1e-12);
             }
         }
-        next += 1;
     }
-    label
 }

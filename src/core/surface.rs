@@ -4,6 +4,7 @@
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
 use std::hash::{BuildHasherDefault, Hasher};
+use std::sync::Arc;
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -13,6 +14,7 @@ use crate::core::kinematics::RobotPose;
 use crate::core::mesh::{TriMesh, triangle_area};
 use crate::core::rng::Rng;
 use crate::core::robot::{LinkId, Robot};
+use crate::core::smooth::{MeshPoint, SmoothMesh, SurfaceFrame, segment_frame};
 
 /// How far off the surface the buried test looks, m.
 pub const BURIED_PROBE_M: f64 = 5e-4;
@@ -27,6 +29,70 @@ pub const TESTED_PER_SAMPLE: usize = 2;
 
 /// Force directions per point on a one-dimensional link (the simple robot).
 pub const SEGMENT_DIRECTIONS: usize = 8;
+
+/// The width (standard deviation) of the patch a sample stands for, as a
+/// fraction of the spacing of the samples (`√area` per sample). Gaussian
+/// windows of this width centred on evenly spread samples add up to an
+/// almost constant total over the surface (for a hexagonal lattice the
+/// ripple is below 0.2 %), so the samples' windowed masses partition the
+/// posterior of the continuous surface.
+pub const WINDOW_FRACTION: f64 = 0.5;
+
+/// [`MeshPoint::triangle`] of a sample on a segment link: its weights are
+/// then the distance along the segment, m, and the angle of the push
+/// around it, rad.
+pub const ON_SEGMENT: u32 = u32::MAX;
+
+/// A candidate link's continuous surface.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LinkShape {
+    /// A triangle mesh with smooth normals.
+    Mesh(SmoothMesh),
+    /// A segment (the thesis' simple robot): pushes perpendicular to it.
+    Segment {
+        /// End points, link frame, m.
+        segment: [DVec3; 2],
+        /// Metres of tangent 2 per radian of turn around the segment:
+        /// makes the angular spacing of the samples equal their spacing
+        /// along the segment.
+        radius_m: f64,
+    },
+}
+
+impl LinkShape {
+    /// The surface frame at a sample location (see [`ON_SEGMENT`]).
+    #[must_use]
+    pub fn frame(&self, at: MeshPoint) -> Option<SurfaceFrame> {
+        match self {
+            Self::Mesh(mesh) => mesh.frame(at),
+            Self::Segment { segment, radius_m } => {
+                let length = segment[0].distance(segment[1]);
+                let along = at.weights[0].clamp(0.0, length);
+                Some(segment_frame(*segment, along, at.weights[1], *radius_m))
+            }
+        }
+    }
+
+    /// Moves along the surface by `step` (link frame, m): across triangle
+    /// edges on a mesh; along the segment and around it on a segment.
+    #[must_use]
+    pub fn walk(&self, at: MeshPoint, step: DVec3) -> MeshPoint {
+        match self {
+            Self::Mesh(mesh) => mesh.walk(at, step),
+            Self::Segment { segment, radius_m } => {
+                let length = segment[0].distance(segment[1]);
+                let frame = segment_frame(*segment, at.weights[0].clamp(0.0, length), at.weights[1], *radius_m);
+                MeshPoint {
+                    triangle: ON_SEGMENT,
+                    weights: [
+                        (at.weights[0] + frame.tangents[0].dot(step)).clamp(0.0, length),
+                        at.weights[1] + frame.tangents[1].dot(step) / radius_m.max(1e-9),
+                    ],
+                }
+            }
+        }
+    }
+}
 
 /// What to sample.
 #[derive(Debug, Clone, PartialEq)]
@@ -81,8 +147,108 @@ pub struct Surface {
     pub push_lines: [Vec<f64>; 6],
     /// Area represented by the sample, m² (m of length on a segment link).
     pub area_m2: Vec<f64>,
+    /// Where each sample lies on its link's [`LinkShape`].
+    pub location: Vec<MeshPoint>,
+    /// How each push line changes per metre along the sample's two
+    /// tangents: `∂(p × n, n)/∂s_1` then `∂/∂s_2`, as twelve plain arrays.
+    pub tangent_lines: [Vec<f64>; 12],
+    /// Width (standard deviation) of the Gaussian patch each sample
+    /// stands for, m (see [`WINDOW_FRACTION`]).
+    pub window_m: Vec<f64>,
     /// Per sampled link, in the order of [`SurfaceRequest::links`] sorted.
     pub stats: Vec<LinkSurfaceStats>,
+    /// Each sampled link's continuous surface, in the order of `stats`.
+    pub shapes: Vec<Arc<LinkShape>>,
+    /// The cell of each sample (see [`Cells`]).
+    pub cell: Vec<u32>,
+    /// Samples grouped into cells a few spacings wide, with their neighbours.
+    pub cells: Cells,
+}
+
+/// A partition of the samples into cells about [`CELL_SPACINGS`] sample
+/// spacings wide (one link each), and which cells touch: regions of a
+/// posterior are found on these in time proportional to the samples with
+/// mass, without a spatial search per update.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Cells {
+    /// Link of each cell.
+    pub link: Vec<LinkId>,
+    /// Neighbours of cell c: `neighbours[start[c]..start[c + 1]]`.
+    pub start: Vec<u32>,
+    /// Flattened neighbour lists (each cell's sorted, without itself).
+    pub neighbours: Vec<u32>,
+}
+
+impl Cells {
+    /// Number of cells.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.link.len()
+    }
+
+    /// True without cells.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.link.is_empty()
+    }
+
+    /// The cells touching cell `c`.
+    #[must_use]
+    pub fn neighbours_of(&self, c: usize) -> &[u32] {
+        let (Some(&a), Some(&b)) = (self.start.get(c), self.start.get(c + 1)) else {
+            return &[];
+        };
+        self.neighbours.get(a as usize..b as usize).unwrap_or(&[])
+    }
+}
+
+/// Width of a [`Cells`] cell, in sample spacings.
+pub const CELL_SPACINGS: f64 = 3.0;
+
+impl Surface {
+    /// Groups the samples into voxel cells per link; cells whose voxels
+    /// touch (26-neighbourhood) are neighbours.
+    fn build_cells(&mut self) {
+        let mut ids: HashMap<(LinkId, [i64; 3]), u32> = HashMap::new();
+        let mut cells = Cells::default();
+        let mut cell_voxel: Vec<(LinkId, [i64; 3])> = Vec::new();
+        self.cell = Vec::with_capacity(self.len());
+        for k in 0..self.len() {
+            let size = (CELL_SPACINGS * self.window_m[k] / WINDOW_FRACTION).max(1e-6);
+            let p = self.point_in_link[k] / size;
+            let key = (
+                self.link[k],
+                [p.x.floor() as i64, p.y.floor() as i64, p.z.floor() as i64],
+            );
+            let next = ids.len() as u32;
+            let id = *ids.entry(key).or_insert_with(|| {
+                cells.link.push(key.0);
+                cell_voxel.push(key);
+                next
+            });
+            self.cell.push(id);
+        }
+        for (link, v) in &cell_voxel {
+            cells.start.push(cells.neighbours.len() as u32);
+            let mut around = Vec::new();
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        if (dx, dy, dz) == (0, 0, 0) {
+                            continue;
+                        }
+                        if let Some(&n) = ids.get(&(*link, [v[0] + dx, v[1] + dy, v[2] + dz])) {
+                            around.push(n);
+                        }
+                    }
+                }
+            }
+            around.sort_unstable();
+            cells.neighbours.extend(around);
+        }
+        cells.start.push(cells.neighbours.len() as u32);
+        self.cells = cells;
+    }
 }
 
 /// Why a surface could not be sampled.
@@ -144,6 +310,13 @@ impl Surface {
             .fold(0.0, f64::max)
     }
 
+    /// The continuous surface of `link`, if it was sampled.
+    #[must_use]
+    pub fn shape(&self, link: LinkId) -> Option<&LinkShape> {
+        let i = self.stats.iter().position(|s| s.link == link)?;
+        self.shapes.get(i).map(AsRef::as_ref)
+    }
+
     /// Sample `i`'s position in the world for a pose.
     #[must_use]
     pub fn point_world(&self, pose: &RobotPose, i: usize) -> Option<DVec3> {
@@ -151,8 +324,19 @@ impl Surface {
         Some(pose.point_to_world(link, *self.point_in_link.get(i)?))
     }
 
-    /// Samples a robot's candidate links.
+    /// Samples a robot's candidate links, evenly spread.
     pub fn sample(robot: &Robot, request: &SurfaceRequest) -> Result<Self, SurfaceError> {
+        Self::sample_with(robot, request, true)
+    }
+
+    /// Independent points, each uniform over the exposed surface of the
+    /// candidate links (the links' shares in proportion to their exposed
+    /// areas): contacts for generated sessions and benchmarks.
+    pub fn sample_random(robot: &Robot, request: &SurfaceRequest) -> Result<Self, SurfaceError> {
+        Self::sample_with(robot, request, false)
+    }
+
+    fn sample_with(robot: &Robot, request: &SurfaceRequest, even: bool) -> Result<Self, SurfaceError> {
         let mut links = request.links.clone();
         links.sort_unstable();
         links.dedup();
@@ -189,7 +373,7 @@ impl Surface {
         let mut drawn: Vec<Candidates> = prepared
             .iter()
             .zip(&first)
-            .map(|(p, &n)| p.draw(n.max(1), &mut rng))
+            .map(|(p, &n)| p.draw(n.max(1), even, &mut rng))
             .collect();
         let exposed: Vec<f64> = drawn.iter().map(|d| d.exposed_area_m2).collect();
         let caps: Vec<usize> = drawn.iter().map(|d| d.points.len()).collect();
@@ -198,7 +382,8 @@ impl Surface {
         let mut surface = Self::default();
         for ((p, cands), &keep) in prepared.iter().zip(&mut drawn).zip(&second) {
             let kept = match p {
-                Prepared::Mesh { .. } => eliminate(&cands.points, keep, cands.exposed_area_m2),
+                Prepared::Mesh { .. } if even => eliminate(&cands.points, keep, cands.exposed_area_m2),
+                Prepared::Mesh { .. } => (0..keep.min(cands.points.len())).collect(),
                 Prepared::Segment { .. } => (0..cands.points.len()).collect(),
             };
             let weight = if kept.is_empty() {
@@ -206,33 +391,49 @@ impl Surface {
             } else {
                 cands.exposed_area_m2 / kept.len() as f64
             };
+            let shape = p.shape(cands);
+            // The spacing of the samples: on a mesh √(area per sample); on
+            // a segment the distance between positions along it.
+            let spacing = match &shape {
+                LinkShape::Mesh(_) => weight.sqrt(),
+                LinkShape::Segment { radius_m, .. } => radius_m * std::f64::consts::TAU / SEGMENT_DIRECTIONS as f64,
+            };
             for &i in &kept {
-                surface.link.push(p.link());
-                surface.point_in_link.push(cands.points[i]);
-                surface.inward_normal_in_link.push(cands.inward_normals[i]);
-                let moment = cands.points[i].cross(cands.inward_normals[i]);
-                let normal = cands.inward_normals[i];
-                surface.moment_in_link.push(moment);
-                for (column, value) in surface
-                    .push_lines
-                    .iter_mut()
-                    .zip([moment.x, moment.y, moment.z, normal.x, normal.y, normal.z])
-                {
-                    column.push(value);
-                }
-                surface.area_m2.push(weight);
+                let Some(frame) = shape.frame(cands.locations[i]) else {
+                    continue;
+                };
+                surface.push_sample(p.link(), cands.locations[i], &frame, weight, WINDOW_FRACTION * spacing);
             }
             cands.stats.kept = kept.len();
             surface.stats.push(cands.stats.clone());
+            surface.shapes.push(Arc::new(shape));
         }
+        surface.build_cells();
         Ok(surface)
+    }
+
+    fn push_sample(&mut self, link: LinkId, at: MeshPoint, frame: &SurfaceFrame, area_m2: f64, window_m: f64) {
+        self.link.push(link);
+        self.point_in_link.push(frame.point);
+        self.inward_normal_in_link.push(frame.inward_normal);
+        self.moment_in_link.push(frame.point.cross(frame.inward_normal));
+        for (column, value) in self.push_lines.iter_mut().zip(frame.line()) {
+            column.push(value);
+        }
+        let [d1, d2] = frame.line_derivatives;
+        for (column, value) in self.tangent_lines.iter_mut().zip(d1.iter().chain(&d2)) {
+            column.push(*value);
+        }
+        self.area_m2.push(area_m2);
+        self.location.push(at);
+        self.window_m.push(window_m);
     }
 }
 
 enum Prepared {
     Mesh {
         link: LinkId,
-        mesh: TriMesh,
+        mesh: Box<SmoothMesh>,
         bvh: Bvh,
         cdf: Vec<f64>,
         stats: LinkSurfaceStats,
@@ -247,25 +448,25 @@ enum Prepared {
 
 struct Candidates {
     points: Vec<DVec3>,
-    inward_normals: Vec<DVec3>,
+    locations: Vec<MeshPoint>,
     exposed_area_m2: f64,
     stats: LinkSurfaceStats,
 }
 
 impl Prepared {
     fn mesh(link: LinkId, mesh: &TriMesh) -> Self {
-        let mut mesh = mesh.clone();
-        let report = mesh.orient_shells();
-        let mut cdf = Vec::with_capacity(mesh.triangles.len());
+        let mesh = SmoothMesh::new(mesh);
+        let report = mesh.report;
+        let mut cdf = Vec::with_capacity(mesh.len());
         let mut total = 0.0;
-        for c in mesh.triangle_corners() {
+        for c in mesh.mesh.triangle_corners() {
             total += triangle_area(&c);
             cdf.push(total);
         }
-        let bvh = Bvh::new(&mesh);
+        let bvh = Bvh::new(&mesh.mesh);
         Self::Mesh {
             link,
-            mesh,
+            mesh: Box::new(mesh),
             bvh,
             cdf,
             closed: report.boundary_edges == 0,
@@ -288,6 +489,22 @@ impl Prepared {
         Self::Segment { link, segment }
     }
 
+    /// The continuous surface; a segment's tangent scale from how its
+    /// samples were spread.
+    fn shape(&self, cands: &Candidates) -> LinkShape {
+        match self {
+            Self::Mesh { mesh, .. } => LinkShape::Mesh(mesh.as_ref().clone()),
+            Self::Segment { segment, .. } => {
+                let positions = (cands.points.len() / SEGMENT_DIRECTIONS).max(1);
+                let spacing = segment[0].distance(segment[1]) / positions as f64;
+                LinkShape::Segment {
+                    segment: *segment,
+                    radius_m: spacing / (std::f64::consts::TAU / SEGMENT_DIRECTIONS as f64),
+                }
+            }
+        }
+    }
+
     fn link(&self) -> LinkId {
         match self {
             Self::Mesh { link, .. } | Self::Segment { link, .. } => *link,
@@ -301,8 +518,9 @@ impl Prepared {
         }
     }
 
-    /// Candidates for about `target` final samples.
-    fn draw(&self, target: usize, rng: &mut Rng) -> Candidates {
+    /// Candidates for about `target` final samples: thinned to an even
+    /// spread before the burial test when `even`, else all independent.
+    fn draw(&self, target: usize, even: bool, rng: &mut Rng) -> Candidates {
         match self {
             Self::Mesh {
                 mesh,
@@ -315,33 +533,27 @@ impl Prepared {
                 let mut stats = stats.clone();
                 let total = self.area();
                 let n = (OVERSAMPLE * target).max(16);
-                let mut drawn = Vec::with_capacity(n);
-                let mut outward = Vec::with_capacity(n);
-                for _ in 0..n {
-                    let x = rng.uniform() * total;
-                    let tri = cdf.partition_point(|&c| c <= x).min(cdf.len().saturating_sub(1));
-                    let (u1, u2) = (rng.uniform(), rng.uniform());
-                    let Some(c) = mesh.corners(tri) else { continue };
-                    let s = u1.sqrt();
-                    drawn.push(c[0] * (1.0 - s) + c[1] * (s * (1.0 - u2)) + c[2] * (s * u2));
-                    outward.push((c[1] - c[0]).cross(c[2] - c[0]).normalize_or_zero());
-                }
+                let (drawn, outward, locations) = draw_on_mesh(mesh, cdf, total, n, rng);
                 // Thinning spreads the survivors evenly, so the buried share
                 // among them estimates the buried share of the area.
-                let tested = eliminate(&drawn, (TESTED_PER_SAMPLE * target).max(16), total);
+                let tested = if even {
+                    eliminate(&drawn, (TESTED_PER_SAMPLE * target).max(16), total)
+                } else {
+                    (0..drawn.len()).collect()
+                };
                 let verdicts: Vec<Verdict> = tested
                     .par_iter()
                     .map(|&i| classify(bvh, drawn[i], outward[i], *closed))
                     .collect();
                 let mut points = Vec::with_capacity(tested.len());
-                let mut inward_normals = Vec::with_capacity(tested.len());
+                let mut kept_locations = Vec::with_capacity(tested.len());
                 for (&i, verdict) in tested.iter().zip(&verdicts) {
                     match verdict {
                         Verdict::Buried => stats.buried += 1,
                         Verdict::Open => stats.open_or_thin += 1,
                         Verdict::Exposed => {
                             points.push(drawn[i]);
-                            inward_normals.push(-outward[i]);
+                            kept_locations.push(locations[i]);
                         }
                     }
                 }
@@ -354,28 +566,29 @@ impl Prepared {
                 stats.exposed_area_m2 = exposed;
                 Candidates {
                     points,
-                    inward_normals,
+                    locations: kept_locations,
                     exposed_area_m2: exposed,
                     stats,
                 }
             }
             Self::Segment { link, segment } => {
                 let positions = target.div_ceil(SEGMENT_DIRECTIONS).max(1);
-                let axis = (segment[1] - segment[0]).normalize_or(DVec3::Z);
-                let (u, v) = axis.any_orthonormal_pair();
                 let phase = rng.uniform();
+                let length = self.area();
                 let mut points = Vec::with_capacity(positions * SEGMENT_DIRECTIONS);
-                let mut inward_normals = Vec::with_capacity(positions * SEGMENT_DIRECTIONS);
+                let mut locations = Vec::with_capacity(positions * SEGMENT_DIRECTIONS);
                 for i in 0..positions {
                     let t = (i as f64 + 0.5) / positions as f64;
                     let p = segment[0].lerp(segment[1], t);
                     for d in 0..SEGMENT_DIRECTIONS {
                         let theta = std::f64::consts::TAU * (d as f64 + phase) / SEGMENT_DIRECTIONS as f64;
                         points.push(p);
-                        inward_normals.push(u * theta.cos() + v * theta.sin());
+                        locations.push(MeshPoint {
+                            triangle: ON_SEGMENT,
+                            weights: [t * length, theta],
+                        });
                     }
                 }
-                let length = self.area();
                 Candidates {
                     stats: LinkSurfaceStats {
                         link: *link,
@@ -390,12 +603,42 @@ impl Prepared {
                         degenerate_triangles: 0,
                     },
                     points,
-                    inward_normals,
+                    locations,
                     exposed_area_m2: length,
                 }
             }
         }
     }
+}
+
+/// `n` points drawn uniformly by area on a mesh (`cdf`: its cumulative
+/// triangle areas, `total` the last), with their facets' outward normals
+/// (for the burial probe) and places on the mesh.
+fn draw_on_mesh(
+    mesh: &SmoothMesh,
+    cdf: &[f64],
+    total: f64,
+    n: usize,
+    rng: &mut Rng,
+) -> (Vec<DVec3>, Vec<DVec3>, Vec<MeshPoint>) {
+    let mut drawn = Vec::with_capacity(n);
+    let mut outward = Vec::with_capacity(n);
+    let mut locations = Vec::with_capacity(n);
+    for _ in 0..n {
+        let x = rng.uniform() * total;
+        let tri = cdf.partition_point(|&c| c <= x).min(cdf.len().saturating_sub(1));
+        let (u1, u2) = (rng.uniform(), rng.uniform());
+        let Some(c) = mesh.mesh.corners(tri) else { continue };
+        let s = u1.sqrt();
+        let weights = [s * (1.0 - u2), s * u2];
+        drawn.push(c[0] * (1.0 - s) + c[1] * weights[0] + c[2] * weights[1]);
+        outward.push((c[1] - c[0]).cross(c[2] - c[0]).normalize_or_zero());
+        locations.push(MeshPoint {
+            triangle: tri as u32,
+            weights,
+        });
+    }
+    (drawn, outward, locations)
 }
 
 /// Where a candidate point stands.

@@ -352,7 +352,7 @@ impl EstimatorSettings {
             force_max_newtons: self.force_max_newtons,
             mode,
             phase_alpha: self.phases.enabled.then_some(self.phases.alpha),
-            resolution_m: 0.0,
+            patches: true,
         })
     }
 }
@@ -607,19 +607,17 @@ fn resolve_push(robot: &Robot, pose: &RobotPose, push: &Push, scene_path: &Path)
         (Some(f), _) => DVec3::from_array(f),
         (None, Some(magnitude)) => {
             let point_in_link = world_from_link.inverse().transform_point3(point_world);
-            let (_, outward) =
-                robot.links[link]
-                    .mesh
-                    .closest_point(point_in_link)
-                    .ok_or_else(|| SceneError::Invalid {
-                        path: scene_path.to_owned(),
-                        field: "push.force_newtons".to_owned(),
-                        message: format!(
-                            "link '{}' has no mesh to take the surface normal from: give push.force_world",
-                            push.link
-                        ),
-                    })?;
-            -world_from_link.transform_vector3(outward) * magnitude
+            let (_, frame) = crate::core::smooth::SmoothMesh::new(&robot.links[link].mesh)
+                .closest(point_in_link)
+                .ok_or_else(|| SceneError::Invalid {
+                    path: scene_path.to_owned(),
+                    field: "push.force_newtons".to_owned(),
+                    message: format!(
+                        "link '{}' has no mesh to take the surface normal from: give push.force_world",
+                        push.link
+                    ),
+                })?;
+            world_from_link.transform_vector3(frame.inward_normal) * magnitude
         }
         (None, None) => DVec3::ZERO,
     };

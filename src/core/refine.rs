@@ -1,0 +1,387 @@
+//! The most probable contact below the sampling's resolution: from the
+//! likeliest samples, Gauss–Newton steps move the contact over the link's
+//! continuous surface (across triangle edges, on the posed link) and fit
+//! its magnitude, until the step is below a micrometre. The answer is the
+//! best point of the surface, not of the samples.
+
+use glam::DVec3;
+
+use crate::core::estimator::Posterior;
+use crate::core::regions::regions;
+use crate::core::robot::LinkId;
+use crate::core::smooth::{MeshPoint, SurfaceFrame};
+use crate::core::special::ln_erf_difference;
+use crate::core::surface::{LinkShape, Surface};
+use crate::core::torque::TorqueModel;
+
+/// Gauss–Newton steps per start.
+const MAX_STEPS: usize = 30;
+
+/// A step shorter than this ends the search, m.
+const CONVERGED_M: f64 = 1e-7;
+
+/// The refined contact.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RefinedContact {
+    /// The link.
+    pub link: LinkId,
+    /// Where on the link's surface.
+    pub location: MeshPoint,
+    /// Contact point, link frame, m.
+    pub point_in_link: DVec3,
+    /// Inward unit normal, link frame.
+    pub inward_normal_in_link: DVec3,
+    /// Push magnitude, N.
+    pub force_newtons: f64,
+    /// `Σ (τ - f u)² / σ²` at this point and magnitude.
+    pub residual_chi2: f64,
+    /// ln of the posterior mass of a patch centred here (the likelihood
+    /// integrated over a window as wide as the start's patch and over the
+    /// magnitude): how starts that end in different places are compared.
+    pub patch_log_mass: f64,
+    /// The sample it started from.
+    pub start: usize,
+    /// Gauss–Newton steps taken.
+    pub steps: usize,
+}
+
+/// What a refinement needs of one measurement.
+#[derive(Debug, Clone, Copy)]
+pub struct Measurement<'a> {
+    /// Measured torques, sensed order, N·m.
+    pub tau: &'a [f64],
+    /// `1/σ²` per sensed joint.
+    pub weights: &'a [f64],
+    /// Push magnitudes considered, N.
+    pub force_range_newtons: (f64, f64),
+}
+
+/// The torques per newton on every sensed joint of a push line `(m, n)`
+/// on `link`.
+fn unit_torques(model: &TorqueModel, link: LinkId, line: &[f64; 6], out: &mut [f64]) {
+    out.fill(0.0);
+    let (m, n) = (
+        DVec3::new(line[0], line[1], line[2]),
+        DVec3::new(line[3], line[4], line[5]),
+    );
+    for t in model.twists(link) {
+        if let Some(slot) = out.get_mut(t.sensed_index) {
+            *slot += t.w.dot(m) + t.v.dot(n);
+        }
+    }
+}
+
+/// Weighted inner product `Σ w x y`.
+fn inner(w: &[f64], x: &[f64], y: &[f64]) -> f64 {
+    w.iter().zip(x).zip(y).map(|((w, x), y)| w * x * y).sum()
+}
+
+/// The best magnitude in range for unit torques `u` and its residual.
+fn profile(m: &Measurement, u: &[f64]) -> (f64, f64) {
+    let (a, b) = (inner(m.weights, u, u), inner(m.weights, u, m.tau));
+    let c = inner(m.weights, m.tau, m.tau);
+    let (lo, hi) = m.force_range_newtons;
+    let f = if a > 0.0 { (b / a).clamp(lo, hi) } else { lo };
+    (f, (c - 2.0 * b * f + a * f * f).max(0.0))
+}
+
+/// One Gauss–Newton step at `frame`: the offset along the tangents, m,
+/// from the linearised model `f u + g₁ d₁ + g₂ d₂` (`g = f s`), with f in
+/// range. `None` when the tangents do not change the torques.
+fn step(m: &Measurement, u: &[f64], d1: &[f64], d2: &[f64]) -> Option<[f64; 2]> {
+    let w = m.weights;
+    let (a, h1, h2) = (inner(w, u, u), inner(w, u, d1), inner(w, u, d2));
+    let (g11, g12, g22) = (inner(w, d1, d1), inner(w, d1, d2), inner(w, d2, d2));
+    let (b, e1, e2) = (inner(w, u, m.tau), inner(w, d1, m.tau), inner(w, d2, m.tau));
+    // A tiny ridge keeps directions the torques cannot see from moving.
+    let ridge = 1e-12 * (g11 + g22).max(f64::MIN_POSITIVE);
+    let (g11, g22) = (g11 + ridge, g22 + ridge);
+    let det_g = g11 * g22 - g12 * g12;
+    if det_g <= 0.0 || !det_g.is_finite() {
+        return None;
+    }
+    // g for a given f: G g = e - f h.
+    let solve_g = |f: f64| {
+        let (r1, r2) = (e1 - f * h1, e2 - f * h2);
+        [(g22 * r1 - g12 * r2) / det_g, (g11 * r2 - g12 * r1) / det_g]
+    };
+    // f from the Schur complement: (a - hᵀG⁻¹h) f = b - hᵀG⁻¹e.
+    let gh = solve_g(0.0); // = G⁻¹e
+    let (gh1, gh2) = ((g22 * h1 - g12 * h2) / det_g, (g11 * h2 - g12 * h1) / det_g);
+    let a_s = a - (h1 * gh1 + h2 * gh2);
+    let b_s = b - (h1 * gh[0] + h2 * gh[1]);
+    let (lo, hi) = m.force_range_newtons;
+    let f = if a_s > 0.0 { (b_s / a_s).clamp(lo, hi) } else { lo };
+    if f <= 0.0 {
+        return None;
+    }
+    let g = solve_g(f);
+    let s = [g[0] / f, g[1] / f];
+    s.iter().all(|x| x.is_finite()).then_some(s)
+}
+
+/// A frame's unit torques: of its line and of its two derivatives.
+fn frame_torques(model: &TorqueModel, link: LinkId, frame: &SurfaceFrame, joints: usize) -> [Vec<f64>; 3] {
+    let mut out = [vec![0.0; joints], vec![0.0; joints], vec![0.0; joints]];
+    unit_torques(model, link, &frame.line(), &mut out[0]);
+    unit_torques(model, link, &frame.line_derivatives[0], &mut out[1]);
+    unit_torques(model, link, &frame.line_derivatives[1], &mut out[2]);
+    out
+}
+
+/// Where a search stands: the place and everything the next step needs.
+#[derive(Clone)]
+struct State {
+    at: MeshPoint,
+    frame: SurfaceFrame,
+    torques: [Vec<f64>; 3],
+    f: f64,
+    chi2: f64,
+}
+
+impl State {
+    fn at(model: &TorqueModel, shape: &LinkShape, link: LinkId, m: &Measurement, at: MeshPoint) -> Option<Self> {
+        let frame = shape.frame(at)?;
+        let torques = frame_torques(model, link, &frame, model.sensed_count());
+        let (f, chi2) = profile(m, &torques[0]);
+        Some(Self {
+            at,
+            frame,
+            torques,
+            f,
+            chi2,
+        })
+    }
+}
+
+/// The search on one link's surface.
+struct Search<'a> {
+    model: &'a TorqueModel,
+    shape: &'a LinkShape,
+    link: LinkId,
+    measurement: &'a Measurement<'a>,
+    /// Longest step, m: the linear model holds within a patch width.
+    trust: f64,
+}
+
+impl Search<'_> {
+    fn state(&self, at: MeshPoint) -> Option<State> {
+        State::at(self.model, self.shape, self.link, self.measurement, at)
+    }
+
+    /// Gauss–Newton steps until the step is below [`CONVERGED_M`] or no
+    /// shortened step lowers the residual; returns the steps taken.
+    fn descend(&self, state: &mut State) -> usize {
+        let mut steps = 0;
+        for _ in 0..MAX_STEPS {
+            let [u, d1, d2] = &state.torques;
+            let Some(s) = step(self.measurement, u, d1, d2) else {
+                break;
+            };
+            let mut offset = state.frame.tangents[0] * s[0] + state.frame.tangents[1] * s[1];
+            if offset.length() > self.trust {
+                offset *= self.trust / offset.length();
+            }
+            let mut moved = false;
+            for _ in 0..8 {
+                let Some(next) = self.state(self.shape.walk(state.at, offset)) else {
+                    break;
+                };
+                if next.chi2 < state.chi2 {
+                    *state = next;
+                    moved = true;
+                    break;
+                }
+                offset *= 0.5;
+            }
+            steps += 1;
+            if !moved || offset.length() < CONVERGED_M {
+                break;
+            }
+        }
+        steps
+    }
+
+    /// Where the torques cannot tell places apart (a valley of equally
+    /// good contacts), moves along the valley towards `centre` (link
+    /// frame), keeping the residual within [`VALLEY_CHI2`] of where it
+    /// started: the answer is then the valley's point nearest the
+    /// region's centre of mass, not wherever the search first met it.
+    fn slide(&self, state: &mut State, centre: DVec3) -> usize {
+        let best = state.chi2;
+        let mut steps = 0;
+        for _ in 0..MAX_SLIDES {
+            let w = self.measurement.weights;
+            let [u, d1, d2] = &state.torques;
+            let a = inner(w, u, u).max(f64::MIN_POSITIVE);
+            let (h1, h2) = (inner(w, u, d1), inner(w, u, d2));
+            let f2 = state.f * state.f;
+            // Curvature of χ²/2 in the tangent plane, the magnitude refitted.
+            let s11 = f2 * (inner(w, d1, d1) - h1 * h1 / a);
+            let s12 = f2 * (inner(w, d1, d2) - h1 * h2 / a);
+            let s22 = f2 * (inner(w, d2, d2) - h2 * h2 / a);
+            let to = centre - state.frame.point;
+            let want = [state.frame.tangents[0].dot(to), state.frame.tangents[1].dot(to)];
+            // Eigen-directions of the 2×2 curvature; along each, a move
+            // that costs at most a quarter of a nat.
+            let (mean, diff) = (0.5 * (s11 + s22), (0.25 * (s11 - s22).powi(2) + s12 * s12).sqrt());
+            let angle = 0.5 * (2.0 * s12).atan2(s11 - s22);
+            let dirs = [[angle.cos(), angle.sin()], [-angle.sin(), angle.cos()]];
+            let lambdas = [mean + diff, mean - diff];
+            let mut move2 = [0.0; 2];
+            for (dir, lambda) in dirs.iter().zip(lambdas) {
+                let along = dir[0] * want[0] + dir[1] * want[1];
+                let limit = if lambda > 0.0 {
+                    (0.5 / lambda).sqrt()
+                } else {
+                    f64::INFINITY
+                };
+                let x = along.clamp(-limit, limit);
+                move2[0] += x * dir[0];
+                move2[1] += x * dir[1];
+            }
+            let mut offset = state.frame.tangents[0] * move2[0] + state.frame.tangents[1] * move2[1];
+            if offset.length() > self.trust {
+                offset *= self.trust / offset.length();
+            }
+            if offset.length() < 1e-5 {
+                break;
+            }
+            let Some(mut next) = self.state(self.shape.walk(state.at, offset)) else {
+                break;
+            };
+            self.descend(&mut next);
+            steps += 1;
+            if next.chi2 > best + VALLEY_CHI2 || next.frame.point.distance(centre) >= state.frame.point.distance(centre)
+            {
+                break;
+            }
+            *state = next;
+        }
+        steps
+    }
+}
+
+/// Along a valley the residual may rise by this much (a quarter of a nat
+/// of likelihood: no test tells such contacts apart).
+const VALLEY_CHI2: f64 = 0.5;
+
+/// Moves along a valley per refinement.
+const MAX_SLIDES: usize = 12;
+
+/// Refines from sample `start` and slides towards `centre` (link frame);
+/// `None` if its link has no continuous surface.
+fn refine_from(
+    model: &TorqueModel,
+    surface: &Surface,
+    measurement: &Measurement,
+    start: usize,
+    centre: DVec3,
+) -> Option<RefinedContact> {
+    let link = *surface.link.get(start)?;
+    let search = Search {
+        model,
+        shape: surface.shape(link)?,
+        link,
+        measurement,
+        trust: surface.window_m.get(start).copied().unwrap_or(0.01).max(1e-4),
+    };
+    let mut state = search.state(*surface.location.get(start)?)?;
+    let mut steps = search.descend(&mut state);
+    steps += search.slide(&mut state, centre);
+    let [u, d1, d2] = &state.torques;
+    let patch_log_mass = centred_patch_log_mass(measurement, [u, d1, d2], state.chi2, state.f, search.trust);
+    Some(RefinedContact {
+        link,
+        location: state.at,
+        point_in_link: state.frame.point,
+        inward_normal_in_link: state.frame.inward_normal,
+        force_newtons: state.f,
+        residual_chi2: state.chi2,
+        patch_log_mass,
+        start,
+        steps,
+    })
+}
+
+/// ln of the posterior mass of a Gaussian patch of width `window_m`
+/// centred on a contact with unit torques `u` (derivatives `d₁`, `d₂`
+/// per metre along the tangents), residual `chi2` and magnitude `f`: the
+/// Gauss–Newton model of the likelihood around the contact, taken as
+/// peaking there (the search has stopped there), integrated over the
+/// window and the magnitude range. Up to the same constant as the
+/// samples' masses (the area density is uniform).
+fn centred_patch_log_mass(m: &Measurement, [u, d1, d2]: [&[f64]; 3], chi2: f64, f: f64, window_m: f64) -> f64 {
+    let w = m.weights;
+    let a = inner(w, u, u);
+    let (h1, h2) = (inner(w, u, d1), inner(w, u, d2));
+    let (g11, g12, g22) = (inner(w, d1, d1), inner(w, d1, d2), inner(w, d2, d2));
+    // The window in g = f s has width f ρ; g integrated out (as in
+    // `estimator::patch_terms`) leaves a' for f and a volume factor.
+    let width = (f * window_m).max(1e-12);
+    let q = 1.0 / (width * width);
+    let (q11, q22) = (g11 + q, g22 + q);
+    let det = (q11 * q22 - g12 * g12).max(q * q);
+    let h_q_h = (h1 * (q22 * h1 - g12 * h2) + h2 * (q11 * h2 - g12 * h1)) / det;
+    let a_f = (a - h_q_h).max(0.0);
+    let ln_volume = -0.5 * (det / (q * q)).ln();
+    let (lo, hi) = m.force_range_newtons;
+    let range = hi - lo;
+    let ln_f = if range <= 1e-12 * hi.max(1.0) || a_f * range * range < 1e-12 {
+        0.0
+    } else {
+        let s = (0.5 * a_f).sqrt();
+        0.5 * (std::f64::consts::PI / (2.0 * a_f)).ln() + ln_erf_difference(s * (lo - f), s * (hi - f)) - range.ln()
+    };
+    -0.5 * chi2 + ln_volume + ln_f
+}
+
+/// Cells with less than this fraction of the heaviest cell's mass do not
+/// join regions (a region is where the posterior is, not its faint tails).
+const REGION_CELL_FRACTION: f64 = 1e-4;
+
+/// The most probable contact on the continuous surface: in the region of
+/// the posterior with the most mass (regions are integrals over the
+/// surface, so which one wins does not depend on where the samples fell),
+/// the best point found from the sample nearest its centre of mass, or
+/// from its most probable sample when that ends clearly better (by more
+/// than half a nat of patch mass). In a valley of equally good contacts
+/// (a link that few joints sense) that is the valley's point nearest the
+/// region's centre. `None` without a sample to start from.
+#[must_use]
+pub fn refine(
+    model: &TorqueModel,
+    surface: &Surface,
+    posterior: &Posterior,
+    measurement: &Measurement,
+) -> Option<RefinedContact> {
+    let support: &[usize] = if posterior.support.is_empty() {
+        std::slice::from_ref(&posterior.map_point)
+    } else {
+        &posterior.support
+    };
+    let weight = |k: usize| {
+        posterior
+            .probability
+            .get(k)
+            .copied()
+            .unwrap_or(0.0)
+            .max(f64::MIN_POSITIVE)
+    };
+    let best = regions(surface, support, weight, REGION_CELL_FRACTION)
+        .into_iter()
+        .next()?;
+    let central = refine_from(model, surface, measurement, best.central, best.centre_in_link);
+    if best.top == best.central {
+        return central;
+    }
+    let top = refine_from(model, surface, measurement, best.top, best.centre_in_link);
+    match (central, top) {
+        (Some(c), Some(t)) => Some(if t.patch_log_mass > c.patch_log_mass + 0.5 {
+            t
+        } else {
+            c
+        }),
+        (c, t) => c.or(t),
+    }
+}

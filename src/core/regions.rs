@@ -1,0 +1,176 @@
+//! Connected regions of a posterior over the surface: samples grouped by
+//! the surface's cells ([`crate::core::surface::Cells`]), cells joined
+//! where they touch. The work is proportional to the samples given, with
+//! no spatial search per update.
+
+use glam::DVec3;
+
+use crate::core::robot::LinkId;
+use crate::core::surface::Surface;
+
+/// A connected region of weighted samples on one link.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Region {
+    /// The link.
+    pub link: LinkId,
+    /// Summed weight of its samples.
+    pub weight: f64,
+    /// Weighted mean of its samples' positions, link frame, m.
+    pub centre_in_link: DVec3,
+    /// Its sample nearest the centre.
+    pub central: usize,
+    /// Its heaviest sample (the lowest index among equals).
+    pub top: usize,
+    /// Its samples, in the order given.
+    pub members: Vec<usize>,
+}
+
+fn root(parent: &mut [u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        let grand = parent[parent[i as usize] as usize];
+        parent[i as usize] = grand;
+        i = grand;
+    }
+    i
+}
+
+/// The regions formed by `samples` weighted by `weight`, heaviest first.
+/// Cells holding less than `min_cell_fraction` of the heaviest cell's
+/// weight are left out (they neither join regions nor form them).
+#[must_use]
+pub fn regions(
+    surface: &Surface,
+    samples: &[usize],
+    weight: impl Fn(usize) -> f64,
+    min_cell_fraction: f64,
+) -> Vec<Region> {
+    let cells = &surface.cells;
+    let n = cells.len();
+    if n == 0 || samples.is_empty() {
+        return Vec::new();
+    }
+    let cell_of = |k: usize| surface.cell.get(k).map(|&c| c as usize);
+    let mut cell_weight = vec![0.0; n];
+    for &k in samples {
+        if let Some(c) = cell_of(k) {
+            cell_weight[c] += weight(k);
+        }
+    }
+    let heaviest = cell_weight.iter().copied().fold(0.0, f64::max);
+    let floor = heaviest * min_cell_fraction;
+    let active = |c: usize| cell_weight[c] > 0.0 && cell_weight[c] >= floor;
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    for c in 0..n {
+        if !active(c) {
+            continue;
+        }
+        for &d in cells.neighbours_of(c) {
+            if active(d as usize) {
+                let (a, b) = (root(&mut parent, c as u32), root(&mut parent, d));
+                if a != b {
+                    parent[a.max(b) as usize] = a.min(b);
+                }
+            }
+        }
+    }
+    // Per region root: weight, weighted position sum, members.
+    let mut slot = vec![u32::MAX; n];
+    let mut out: Vec<Region> = Vec::new();
+    let mut sums: Vec<DVec3> = Vec::new();
+    for &k in samples {
+        let Some(c) = cell_of(k) else { continue };
+        if !active(c) {
+            continue;
+        }
+        let r = root(&mut parent, c as u32) as usize;
+        if slot[r] == u32::MAX {
+            slot[r] = out.len() as u32;
+            out.push(Region {
+                link: surface.link[k],
+                weight: 0.0,
+                centre_in_link: DVec3::ZERO,
+                central: k,
+                top: k,
+                members: Vec::new(),
+            });
+            sums.push(DVec3::ZERO);
+        }
+        let i = slot[r] as usize;
+        let w = weight(k);
+        out[i].weight += w;
+        sums[i] += surface.point_in_link[k] * w;
+        out[i].members.push(k);
+        let top = out[i].top;
+        let heavier = match w.total_cmp(&weight(top)) {
+            std::cmp::Ordering::Greater => true,
+            std::cmp::Ordering::Equal => k < top,
+            std::cmp::Ordering::Less => false,
+        };
+        if heavier {
+            out[i].top = k;
+        }
+    }
+    for (region, sum) in out.iter_mut().zip(&sums) {
+        region.centre_in_link = *sum / region.weight.max(f64::MIN_POSITIVE);
+        let centre = region.centre_in_link;
+        region.central = region
+            .members
+            .iter()
+            .copied()
+            .min_by(|&x, &y| {
+                let d = |k: usize| surface.point_in_link[k].distance_squared(centre);
+                d(x).total_cmp(&d(y)).then(x.cmp(&y))
+            })
+            .unwrap_or(region.top);
+    }
+    out.sort_by(|x, y| y.weight.total_cmp(&x.weight).then(x.top.cmp(&y.top)));
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::builtin;
+    use crate::core::surface::SurfaceRequest;
+
+    #[test]
+    fn two_separate_groups_make_two_regions_and_a_gap_of_light_cells_is_not_crossed() {
+        let robot = builtin::lwr4plus_generated().unwrap();
+        let link = robot.link_id("lwr_4_link").unwrap();
+        let s = Surface::sample(
+            &robot,
+            &SurfaceRequest {
+                links: vec![link],
+                total_points: 600,
+                seed: 3,
+            },
+        )
+        .unwrap();
+        // Weight falling off from two far-apart samples.
+        let (a, b) = (
+            0,
+            (0..s.len())
+                .max_by(|&x, &y| {
+                    s.point_in_link[x]
+                        .distance(s.point_in_link[0])
+                        .total_cmp(&s.point_in_link[y].distance(s.point_in_link[0]))
+                })
+                .unwrap(),
+        );
+        let w = |k: usize| {
+            let d = |c: usize| s.point_in_link[k].distance(s.point_in_link[c]);
+            (-(d(a) / 0.02).powi(2)).exp() + 0.5 * (-(d(b) / 0.02).powi(2)).exp()
+        };
+        let all: Vec<usize> = (0..s.len()).collect();
+        let r = regions(&s, &all, w, 1e-3);
+        assert_eq!(r.len(), 2, "{:?}", r.iter().map(|x| x.weight).collect::<Vec<_>>());
+        assert_eq!(r[0].top, a);
+        assert_eq!(r[1].top, b);
+        assert!(r[0].centre_in_link.distance(s.point_in_link[a]) < 0.02);
+        assert!(r[0].weight > r[1].weight);
+        // Everything weighted the same: one region, all members.
+        let one = regions(&s, &all, |_| 1.0, 1e-3);
+        assert_eq!(one.len(), 1);
+        assert_eq!(one[0].members.len(), s.len());
+    }
+}
