@@ -298,37 +298,44 @@ fn patch_forms_with<const N: usize>(r: &[[f64; 6]], beta: [f64; 6], block: &Patc
     );
     let (e1, e2) = (&mut out.e1[..len], &mut out.e2[..len]);
     let (g11, g12, g22) = (&mut out.g11[..len], &mut out.g12[..len], &mut out.g22[..len]);
-    for k in 0..len {
-        let (mut aa, mut ab, mut ac, mut bb, mut bc, mut cc) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let [m0, m1, m2, n0, n1, n2] = l0;
+    let [p0, p1, p2, q0, q1, q2] = l1;
+    let [r0, r1, r2, s0, s1, s2] = l2;
+    let apply = |l: [f64; 6]| -> [f64; N] {
+        let mut y = [0.0; N];
         for (i, row) in rows.iter().enumerate() {
-            let (mut y0, mut y1, mut y2) = (0.0, 0.0, 0.0);
+            let mut u = 0.0;
             for c in i..6 {
-                y0 += row[c] * l0[c][k];
-                y1 += row[c] * l1[c][k];
-                y2 += row[c] * l2[c][k];
+                u += row[c] * l[c];
             }
-            aa += y0 * y0;
-            ab += y0 * y1;
-            ac += y0 * y2;
-            bb += y1 * y1;
-            bc += y1 * y2;
-            cc += y2 * y2;
+            y[i] = u;
         }
-        let (mut p0, mut p1, mut p2) = (0.0, 0.0, 0.0);
-        for c in 0..6 {
-            p0 += beta[c] * l0[c][k];
-            p1 += beta[c] * l1[c][k];
-            p2 += beta[c] * l2[c][k];
+        y
+    };
+    let dot = |x: &[f64; N], z: &[f64; N]| {
+        let mut v = 0.0;
+        for i in 0..N {
+            v += x[i] * z[i];
         }
-        a[k] = aa;
-        h1[k] = ab;
-        h2[k] = ac;
-        g11[k] = bb;
-        g12[k] = bc;
-        g22[k] = cc;
-        b[k] = p0;
-        e1[k] = p1;
-        e2[k] = p2;
+        v
+    };
+    let project = |l: &[f64; 6]| {
+        beta[0] * l[0] + beta[1] * l[1] + beta[2] * l[2] + beta[3] * l[3] + beta[4] * l[4] + beta[5] * l[5]
+    };
+    for k in 0..len {
+        let x0 = [m0[k], m1[k], m2[k], n0[k], n1[k], n2[k]];
+        let x1 = [p0[k], p1[k], p2[k], q0[k], q1[k], q2[k]];
+        let x2 = [r0[k], r1[k], r2[k], s0[k], s1[k], s2[k]];
+        let (y0, y1, y2) = (apply(x0), apply(x1), apply(x2));
+        a[k] = dot(&y0, &y0);
+        h1[k] = dot(&y0, &y1);
+        h2[k] = dot(&y0, &y2);
+        g11[k] = dot(&y1, &y1);
+        g12[k] = dot(&y1, &y2);
+        g22[k] = dot(&y2, &y2);
+        b[k] = project(&x0);
+        e1[k] = project(&x1);
+        e2[k] = project(&x2);
     }
 }
 

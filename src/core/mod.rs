@@ -6,6 +6,7 @@ pub mod builtin;
 pub mod bvh;
 pub mod contact;
 pub mod estimator;
+pub mod fastmath;
 pub mod kinematics;
 pub mod mesh;
 pub mod metrics;
