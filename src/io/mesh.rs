@@ -8,6 +8,7 @@ use base64::Engine as _;
 use glam::{DAffine3, DMat3, DMat4, DVec3};
 
 use crate::core::mesh::TriMesh;
+use crate::io::guard::{self, MAX_EXTENT_M, MAX_FILE_BYTES, MAX_SCENE_NODES, MAX_TRIANGLES, MAX_VERTICES, isolated};
 
 /// Why a mesh file could not be read.
 #[derive(Debug, thiserror::Error)]
@@ -50,14 +51,30 @@ fn parse_error(path: &Path, element: impl Into<String>, message: impl ToString) 
 }
 
 fn read_bytes(path: &Path) -> Result<Vec<u8>, MeshError> {
-    std::fs::read(path).map_err(|cause| MeshError::Read {
+    let read_error = |cause| MeshError::Read {
         path: path.to_owned(),
         cause,
-    })
+    };
+    let size = std::fs::metadata(path).map_err(read_error)?.len();
+    if size > MAX_FILE_BYTES {
+        return Err(parse_error(
+            path,
+            "file",
+            format!("{size} bytes is more than the limit of {MAX_FILE_BYTES}"),
+        ));
+    }
+    std::fs::read(path).map_err(read_error)
 }
 
-/// Reads any supported mesh file, chosen by extension (case-insensitive).
+/// Reads any supported mesh file, chosen by extension (case-insensitive),
+/// with its vertices checked after every transform in the file.
 pub fn load_mesh(path: &Path) -> Result<TriMesh, MeshError> {
+    let mesh = load_mesh_unchecked(path)?;
+    check_extent(&mesh, path, "mesh")?;
+    Ok(mesh)
+}
+
+fn load_mesh_unchecked(path: &Path) -> Result<TriMesh, MeshError> {
     let extension = path
         .extension()
         .and_then(|e| e.to_str())
@@ -90,7 +107,41 @@ pub fn load_mesh(path: &Path) -> Result<TriMesh, MeshError> {
 /// STL, binary or ASCII.
 pub fn load_stl(path: &Path) -> Result<TriMesh, MeshError> {
     let bytes = read_bytes(path)?;
-    let mesh = stl_io::read_stl(&mut std::io::Cursor::new(bytes)).map_err(|e| parse_error(path, "STL", e))?;
+    read_stl(&bytes, path)
+}
+
+/// STL from bytes (`path` names it in errors). A binary file's triangle
+/// count must match its length (the reader would otherwise reserve what
+/// the header claims).
+pub fn read_stl(bytes: &[u8], path: &Path) -> Result<TriMesh, MeshError> {
+    let ascii = bytes.trim_ascii_start().starts_with(b"solid");
+    let binary_count = bytes
+        .get(80..84)
+        .and_then(|b| <[u8; 4]>::try_from(b).ok())
+        .map(|b| u32::from_le_bytes(b) as usize);
+    let binary_fits =
+        binary_count.is_some_and(|n| n.checked_mul(50).and_then(|x| x.checked_add(84)) == Some(bytes.len()));
+    if !ascii && !binary_fits {
+        return Err(parse_error(
+            path,
+            "STL",
+            format!(
+                "a binary STL of {} bytes cannot hold the {} triangles its header claims",
+                bytes.len(),
+                binary_count.unwrap_or(0)
+            ),
+        ));
+    }
+    if binary_fits && binary_count.is_some_and(|n| n > MAX_TRIANGLES) {
+        return Err(parse_error(
+            path,
+            "STL",
+            format!("more than the limit of {MAX_TRIANGLES} triangles"),
+        ));
+    }
+    let mesh = isolated(|| stl_io::read_stl(&mut std::io::Cursor::new(bytes)))
+        .map_err(|e| parse_error(path, "STL", e))?
+        .map_err(|e| parse_error(path, "STL", e))?;
     let positions = mesh
         .vertices
         .iter()
@@ -106,13 +157,26 @@ pub fn load_stl(path: &Path) -> Result<TriMesh, MeshError> {
 
 /// Wavefront OBJ (faces triangulated; materials ignored).
 pub fn load_obj(path: &Path) -> Result<TriMesh, MeshError> {
+    let bytes = read_bytes(path)?;
+    read_obj(&bytes, path)
+}
+
+/// OBJ from bytes (`path` names it in errors). Material libraries are not
+/// read: the surface is all we need, and their parser can fail on them.
+pub fn read_obj(bytes: &[u8], path: &Path) -> Result<TriMesh, MeshError> {
     let options = tobj::LoadOptions {
         triangulate: true,
         ignore_points: true,
         ignore_lines: true,
         ..tobj::LoadOptions::default()
     };
-    let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| parse_error(path, "OBJ", e))?;
+    let (models, _materials) = isolated(|| {
+        tobj::load_obj_buf(&mut std::io::Cursor::new(bytes), &options, |_| {
+            Ok((Vec::new(), std::collections::HashMap::new()))
+        })
+    })
+    .map_err(|e| parse_error(path, "OBJ", e))?
+    .map_err(|e| parse_error(path, "OBJ", e))?;
     let mut mesh = TriMesh::default();
     for model in &models {
         let positions = model
@@ -133,6 +197,17 @@ pub fn load_obj(path: &Path) -> Result<TriMesh, MeshError> {
 }
 
 fn checked(mesh: TriMesh, path: &Path, element: &str) -> Result<TriMesh, MeshError> {
+    if mesh.triangles.len() > MAX_TRIANGLES || mesh.positions.len() > MAX_VERTICES {
+        return Err(parse_error(
+            path,
+            element,
+            format!(
+                "{} triangles and {} vertices: more than the limits of {MAX_TRIANGLES} and {MAX_VERTICES}",
+                mesh.triangles.len(),
+                mesh.positions.len()
+            ),
+        ));
+    }
     if let Some(t) = mesh.first_bad_index() {
         return Err(parse_error(
             path,
@@ -146,10 +221,93 @@ fn checked(mesh: TriMesh, path: &Path, element: &str) -> Result<TriMesh, MeshErr
     Ok(mesh)
 }
 
+/// Checks a mesh after its transforms (node matrices, units, scale):
+/// every vertex finite and within [`MAX_EXTENT_M`] of the origin.
+pub fn check_extent(mesh: &TriMesh, path: &Path, element: &str) -> Result<(), MeshError> {
+    match mesh
+        .positions
+        .iter()
+        .position(|p| !p.is_finite() || p.abs().max_element() > MAX_EXTENT_M)
+    {
+        Some(v) => Err(parse_error(
+            path,
+            element,
+            format!(
+                "vertex {v} is at {}, not within {MAX_EXTENT_M} m of the origin (a unit, scale or transform error)",
+                mesh.positions[v]
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
 /// The meshes of a glTF or GLB document, one per node that has a mesh,
 /// with the node's name and its scene transform applied. `path` names the
 /// file in errors and locates external buffers.
 pub fn read_gltf_nodes(bytes: &[u8], path: &Path) -> Result<Vec<(String, TriMesh)>, MeshError> {
+    // The glTF crates panic on some malformed documents: isolated.
+    isolated(|| read_gltf_nodes_unguarded(bytes, path)).map_err(|e| parse_error(path, "glTF", e))?
+}
+
+/// The greatest depth of a glTF node hierarchy we follow (a cycle makes it
+/// infinite).
+const MAX_GLTF_DEPTH: usize = 64;
+
+/// An accessor's data lies within its view and buffer, and it has at most
+/// `max_count` elements: checked before reading it.
+fn check_accessor(
+    accessor: &gltf::Accessor,
+    buffers: &[Vec<u8>],
+    max_count: usize,
+    path: &Path,
+) -> Result<(), MeshError> {
+    let element = format!("accessor {}", accessor.index());
+    let count = accessor.count();
+    if count > max_count {
+        return Err(parse_error(
+            path,
+            element,
+            format!("{count} elements, more than the limit of {max_count}"),
+        ));
+    }
+    if accessor.sparse().is_some() {
+        return Err(parse_error(path, element, "sparse accessors are not supported"));
+    }
+    let Some(view) = accessor.view() else {
+        return Err(parse_error(path, element, "no buffer view"));
+    };
+    let buffer_len = buffers.get(view.buffer().index()).map_or(0, Vec::len);
+    let view_end = view.offset().checked_add(view.length());
+    if view_end.is_none_or(|end| end > buffer_len) {
+        return Err(parse_error(
+            path,
+            format!("buffer view {}", view.index()),
+            format!(
+                "bytes {}..{} lie outside its buffer of {buffer_len} bytes",
+                view.offset(),
+                view.offset().saturating_add(view.length())
+            ),
+        ));
+    }
+    let size = accessor.size();
+    let stride = view.stride().unwrap_or(size);
+    let needed = count
+        .checked_sub(1)
+        .map_or(Some(0), |last| {
+            last.checked_mul(stride).and_then(|x| x.checked_add(size))
+        })
+        .and_then(|x| x.checked_add(accessor.offset()));
+    if needed.is_none_or(|n| n > view.length()) {
+        return Err(parse_error(
+            path,
+            element,
+            format!("{count} elements do not fit in its view of {} bytes", view.length()),
+        ));
+    }
+    Ok(())
+}
+
+fn read_gltf_nodes_unguarded(bytes: &[u8], path: &Path) -> Result<Vec<(String, TriMesh)>, MeshError> {
     let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| parse_error(path, "glTF", e))?;
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for buffer in gltf.buffers() {
@@ -179,8 +337,19 @@ pub fn read_gltf_nodes(bytes: &[u8], path: &Path) -> Result<Vec<(String, TriMesh
         Some(scene) => scene.nodes().collect(),
         None => gltf.nodes().collect(),
     };
-    let mut stack: Vec<(gltf::Node, DMat4)> = roots.into_iter().map(|n| (n, DMat4::IDENTITY)).collect();
-    while let Some((node, parent)) = stack.pop() {
+    let mut stack: Vec<(gltf::Node, DMat4, usize)> = roots.into_iter().map(|n| (n, DMat4::IDENTITY, 0)).collect();
+    let (mut visited, mut total_triangles) = (0usize, 0usize);
+    while let Some((node, parent, depth)) = stack.pop() {
+        visited += 1;
+        if depth > MAX_GLTF_DEPTH || visited > MAX_SCENE_NODES {
+            return Err(parse_error(
+                path,
+                format!("node {}", node.index()),
+                format!(
+                    "the node hierarchy is deeper than {MAX_GLTF_DEPTH} or expands to more than {MAX_SCENE_NODES} nodes (a cycle?)"
+                ),
+            ));
+        }
         let local = node.transform().matrix();
         let world = parent * DMat4::from_cols_array_2d(&local.map(|c| c.map(f64::from)));
         if let Some(mesh) = node.mesh() {
@@ -188,6 +357,13 @@ pub fn read_gltf_nodes(bytes: &[u8], path: &Path) -> Result<Vec<(String, TriMesh
             for primitive in mesh.primitives() {
                 if primitive.mode() != gltf::mesh::Mode::Triangles {
                     continue;
+                }
+                let Some(positions) = primitive.get(&gltf::Semantic::Positions) else {
+                    continue;
+                };
+                check_accessor(&positions, &buffers, MAX_VERTICES, path)?;
+                if let Some(indices) = primitive.indices() {
+                    check_accessor(&indices, &buffers, 3 * MAX_TRIANGLES, path)?;
                 }
                 let reader = primitive.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
                 let Some(positions) = reader.read_positions() else {
@@ -203,12 +379,27 @@ pub fn read_gltf_nodes(bytes: &[u8], path: &Path) -> Result<Vec<(String, TriMesh
                 let triangles = indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
                 let element = format!("mesh '{}'", mesh.name().unwrap_or_default());
                 part.append(&checked(TriMesh::new(positions, triangles), path, &element)?);
+                if part.triangles.len() > MAX_TRIANGLES {
+                    return Err(parse_error(
+                        path,
+                        element,
+                        format!("more than {MAX_TRIANGLES} triangles"),
+                    ));
+                }
             }
             let name = node.name().unwrap_or_default().to_owned();
+            total_triangles += part.triangles.len();
+            if total_triangles > MAX_TRIANGLES {
+                return Err(parse_error(
+                    path,
+                    format!("node {}", node.index()),
+                    format!("the scene holds more than {MAX_TRIANGLES} triangles"),
+                ));
+            }
             out.push((name, part.transformed(&DAffine3::from_mat4(world))));
         }
         for child in node.children() {
-            stack.push((child, world));
+            stack.push((child, world, depth + 1));
         }
     }
     out.sort_by(|a, b| a.0.cmp(&b.0));
@@ -304,8 +495,148 @@ pub fn encode_glb(meshes: &[(String, TriMesh)]) -> Vec<u8> {
 /// `<translate>`, `<rotate>`, `<scale>`), `<unit meter>` and `<up_axis>`
 /// applied so that the result is in metres, z up.
 pub fn read_dae(text: &str, path: &Path) -> Result<TriMesh, MeshError> {
+    let depth = guard::xml_depth(text);
+    if depth > guard::MAX_XML_DEPTH {
+        return Err(parse_error(
+            path,
+            "XML",
+            format!(
+                "elements nested {depth} deep, more than the limit of {}",
+                guard::MAX_XML_DEPTH
+            ),
+        ));
+    }
     let doc = roxmltree::Document::parse(text).map_err(|e| parse_error(path, "XML", e))?;
     let root = doc.root_element();
+    let (meter, up_to_z) = dae_units(root, path)?;
+    let root_transform = DMat4::from_mat3(up_to_z) * DMat4::from_scale(DVec3::splat(meter));
+
+    // Every id once (a search per reference was quadratic in the file).
+    let mut ids: std::collections::HashMap<&str, roxmltree::Node> = std::collections::HashMap::new();
+    for n in doc.descendants() {
+        if let Some(id) = n.attribute("id") {
+            ids.entry(id).or_insert(n);
+        }
+    }
+    let by_id = |id: &str| ids.get(id.trim_start_matches('#')).copied();
+    let mut mesh = TriMesh::default();
+    let scene = child(root, "scene")
+        .and_then(|s| child(s, "instance_visual_scene"))
+        .and_then(|i| i.attribute("url"))
+        .and_then(|u| by_id(u.trim_start_matches('#')))
+        .or_else(|| doc.descendants().find(|n| n.has_tag_name("visual_scene")));
+    match scene {
+        Some(scene) => {
+            let mut stack: Vec<(roxmltree::Node, DMat4)> = scene
+                .children()
+                .filter(|c| c.has_tag_name("node"))
+                .map(|n| (n, root_transform))
+                .collect();
+            // Geometries read once, however often they are instanced.
+            let mut geometries: std::collections::HashMap<roxmltree::NodeId, TriMesh> =
+                std::collections::HashMap::new();
+            let mut visited = 0usize;
+            while let Some((node, parent)) = stack.pop() {
+                visited += 1;
+                if visited > MAX_SCENE_NODES {
+                    return Err(parse_error(
+                        path,
+                        "<visual_scene>",
+                        format!("the scene expands to more than {MAX_SCENE_NODES} nodes (an <instance_node> cycle?)"),
+                    ));
+                }
+                let world = parent * node_transform(node, path)?;
+                for c in node.children() {
+                    if c.has_tag_name("node") {
+                        stack.push((c, world));
+                    } else if c.has_tag_name("instance_node") {
+                        if let Some(target) = c.attribute("url").and_then(by_id) {
+                            stack.push((target, world));
+                        }
+                    } else if c.has_tag_name("instance_geometry") {
+                        let url = c.attribute("url").unwrap_or_default();
+                        let geometry = by_id(url).ok_or_else(|| {
+                            parse_error(path, "<instance_geometry>", format!("no geometry with id '{url}'"))
+                        })?;
+                        let part = match geometries.entry(geometry.id()) {
+                            std::collections::hash_map::Entry::Occupied(e) => e.get().clone(),
+                            std::collections::hash_map::Entry::Vacant(e) => {
+                                e.insert(dae_geometry(geometry, &by_id, path)?).clone()
+                            }
+                        };
+                        if mesh.triangles.len() + part.triangles.len() > MAX_TRIANGLES {
+                            return Err(parse_error(
+                                path,
+                                "<visual_scene>",
+                                format!("the scene holds more than {MAX_TRIANGLES} triangles"),
+                            ));
+                        }
+                        mesh.append(&part.transformed(&DAffine3::from_mat4(world)));
+                    }
+                }
+            }
+        }
+        None => {
+            for geometry in doc.descendants().filter(|n| n.has_tag_name("geometry")) {
+                let part = dae_geometry(geometry, &by_id, path)?;
+                if mesh.triangles.len() + part.triangles.len() > MAX_TRIANGLES {
+                    return Err(parse_error(
+                        path,
+                        "<geometry>",
+                        format!("more than {MAX_TRIANGLES} triangles"),
+                    ));
+                }
+                mesh.append(&part.transformed(&DAffine3::from_mat4(root_transform)));
+            }
+        }
+    }
+    Ok(mesh)
+}
+
+/// The largest `<input offset>` read in a COLLADA primitive.
+const MAX_DAE_OFFSET: usize = 64;
+
+/// The most corners of one COLLADA polygon.
+const MAX_DAE_POLYGON: usize = 1 << 20;
+
+/// The vertex positions of a COLLADA `<mesh>` (the POSITION source of its
+/// `<vertices>`).
+fn dae_positions<'a, 'input>(
+    mesh: roxmltree::Node<'a, 'input>,
+    by_id: &impl Fn(&str) -> Option<roxmltree::Node<'a, 'input>>,
+    path: &Path,
+    gid: &str,
+) -> Result<Vec<DVec3>, MeshError> {
+    let vertices = mesh
+        .children()
+        .find(|c| c.has_tag_name("vertices"))
+        .ok_or_else(|| parse_error(path, format!("geometry '{gid}'"), "no <vertices>"))?;
+    let source_url = vertices
+        .children()
+        .find(|c| c.has_tag_name("input") && c.attribute("semantic") == Some("POSITION"))
+        .and_then(|i| i.attribute("source"))
+        .ok_or_else(|| parse_error(path, format!("geometry '{gid}' <vertices>"), "no POSITION input"))?;
+    let source_node = by_id(source_url)
+        .ok_or_else(|| parse_error(path, format!("geometry '{gid}'"), format!("no source '{source_url}'")))?;
+    let element = format!("geometry '{gid}' <source '{source_url}'>");
+    let array = source_node.descendants().find(|c| c.has_tag_name("float_array"));
+    let values = floats(array.and_then(|a| a.text()), path, &element)?;
+    let stride = source_node
+        .descendants()
+        .find(|c| c.has_tag_name("accessor"))
+        .and_then(|a| a.attribute("stride"))
+        .and_then(|s| s.parse::<usize>().ok())
+        .unwrap_or(3)
+        .clamp(3, MAX_DAE_OFFSET);
+    Ok(values
+        .chunks_exact(stride)
+        .map(|c| DVec3::new(c[0], c[1], c[2]))
+        .collect())
+}
+
+/// A COLLADA document's `<unit meter>` and the rotation of its
+/// `<up_axis>` to z up.
+fn dae_units(root: roxmltree::Node, path: &Path) -> Result<(f64, DMat3), MeshError> {
     let asset = child(root, "asset");
     let meter = match asset.and_then(|a| child(a, "unit")).and_then(|u| u.attribute("meter")) {
         Some(m) => m
@@ -326,50 +657,7 @@ pub fn read_dae(text: &str, path: &Path) -> Result<TriMesh, MeshError> {
         "X_UP" => DMat3::from_rotation_y(-std::f64::consts::FRAC_PI_2),
         _ => DMat3::from_rotation_x(std::f64::consts::FRAC_PI_2),
     };
-    let root_transform = DMat4::from_mat3(up_to_z) * DMat4::from_scale(DVec3::splat(meter));
-
-    let by_id = |id: &str| doc.descendants().find(|n| n.attribute("id") == Some(id));
-    let mut mesh = TriMesh::default();
-    let scene = child(root, "scene")
-        .and_then(|s| child(s, "instance_visual_scene"))
-        .and_then(|i| i.attribute("url"))
-        .and_then(|u| by_id(u.trim_start_matches('#')))
-        .or_else(|| doc.descendants().find(|n| n.has_tag_name("visual_scene")));
-    match scene {
-        Some(scene) => {
-            let mut stack: Vec<(roxmltree::Node, DMat4)> = scene
-                .children()
-                .filter(|c| c.has_tag_name("node"))
-                .map(|n| (n, root_transform))
-                .collect();
-            while let Some((node, parent)) = stack.pop() {
-                let world = parent * node_transform(node, path)?;
-                for c in node.children() {
-                    if c.has_tag_name("node") {
-                        stack.push((c, world));
-                    } else if c.has_tag_name("instance_node") {
-                        if let Some(target) = c.attribute("url").and_then(|u| by_id(u.trim_start_matches('#'))) {
-                            stack.push((target, world));
-                        }
-                    } else if c.has_tag_name("instance_geometry") {
-                        let url = c.attribute("url").unwrap_or_default();
-                        let geometry = by_id(url.trim_start_matches('#')).ok_or_else(|| {
-                            parse_error(path, "<instance_geometry>", format!("no geometry with id '{url}'"))
-                        })?;
-                        let part = dae_geometry(geometry, &doc, path)?;
-                        mesh.append(&part.transformed(&DAffine3::from_mat4(world)));
-                    }
-                }
-            }
-        }
-        None => {
-            for geometry in doc.descendants().filter(|n| n.has_tag_name("geometry")) {
-                let part = dae_geometry(geometry, &doc, path)?;
-                mesh.append(&part.transformed(&DAffine3::from_mat4(root_transform)));
-            }
-        }
-    }
-    Ok(mesh)
+    Ok((meter, up_to_z))
 }
 
 fn child<'a, 'input>(node: roxmltree::Node<'a, 'input>, name: &str) -> Option<roxmltree::Node<'a, 'input>> {
@@ -418,42 +706,17 @@ fn node_transform(node: roxmltree::Node, path: &Path) -> Result<DMat4, MeshError
     Ok(m)
 }
 
-fn dae_geometry(geometry: roxmltree::Node, doc: &roxmltree::Document, path: &Path) -> Result<TriMesh, MeshError> {
+fn dae_geometry<'a, 'input>(
+    geometry: roxmltree::Node<'a, 'input>,
+    by_id: &impl Fn(&str) -> Option<roxmltree::Node<'a, 'input>>,
+    path: &Path,
+) -> Result<TriMesh, MeshError> {
     let gid = geometry.attribute("id").unwrap_or_default();
     let mut out = TriMesh::default();
     let Some(mesh) = geometry.children().find(|c| c.has_tag_name("mesh")) else {
         return Ok(out);
     };
-    let by_id = |id: &str| {
-        doc.descendants()
-            .find(|n| n.attribute("id") == Some(id.trim_start_matches('#')))
-    };
-    // POSITION source of the <vertices> element.
-    let vertices = mesh
-        .children()
-        .find(|c| c.has_tag_name("vertices"))
-        .ok_or_else(|| parse_error(path, format!("geometry '{gid}'"), "no <vertices>"))?;
-    let source_url = vertices
-        .children()
-        .find(|c| c.has_tag_name("input") && c.attribute("semantic") == Some("POSITION"))
-        .and_then(|i| i.attribute("source"))
-        .ok_or_else(|| parse_error(path, format!("geometry '{gid}' <vertices>"), "no POSITION input"))?;
-    let source_node = by_id(source_url)
-        .ok_or_else(|| parse_error(path, format!("geometry '{gid}'"), format!("no source '{source_url}'")))?;
-    let element = format!("geometry '{gid}' <source '{source_url}'>");
-    let array = source_node.descendants().find(|c| c.has_tag_name("float_array"));
-    let values = floats(array.and_then(|a| a.text()), path, &element)?;
-    let stride = source_node
-        .descendants()
-        .find(|c| c.has_tag_name("accessor"))
-        .and_then(|a| a.attribute("stride"))
-        .and_then(|s| s.parse::<usize>().ok())
-        .unwrap_or(3)
-        .max(3);
-    out.positions = values
-        .chunks_exact(stride)
-        .map(|c| DVec3::new(c[0], c[1], c[2]))
-        .collect();
+    out.positions = dae_positions(mesh, by_id, path, gid)?;
 
     for prim in mesh.children().filter(roxmltree::Node::is_element) {
         let kind = prim.tag_name().name();
@@ -463,7 +726,15 @@ fn dae_geometry(geometry: roxmltree::Node, doc: &roxmltree::Document, path: &Pat
         let element = format!("geometry '{gid}' <{kind}>");
         let inputs: Vec<roxmltree::Node> = prim.children().filter(|c| c.has_tag_name("input")).collect();
         let offset_of = |i: &roxmltree::Node| i.attribute("offset").and_then(|o| o.parse::<usize>().ok()).unwrap_or(0);
-        let step = inputs.iter().map(offset_of).max().unwrap_or(0) + 1;
+        let largest = inputs.iter().map(offset_of).max().unwrap_or(0);
+        if largest > MAX_DAE_OFFSET {
+            return Err(parse_error(
+                path,
+                &element,
+                format!("an <input> offset of {largest} (at most {MAX_DAE_OFFSET} are read)"),
+            ));
+        }
+        let step = largest + 1;
         let vertex_offset = inputs
             .iter()
             .find(|i| i.attribute("semantic") == Some("VERTEX"))
@@ -479,8 +750,18 @@ fn dae_geometry(geometry: roxmltree::Node, doc: &roxmltree::Document, path: &Pat
                     &element,
                 )?
                 .iter()
-                .map(|v| *v as usize)
-                .collect(),
+                .map(|&v| {
+                    if v.fract() == 0.0 && (0.0..=MAX_DAE_POLYGON as f64).contains(&v) {
+                        Ok(v as usize)
+                    } else {
+                        Err(parse_error(
+                            path,
+                            &element,
+                            format!("<vcount> {v} is not a polygon size"),
+                        ))
+                    }
+                })
+                .collect::<Result<Vec<usize>, MeshError>>()?,
             ),
             _ => None,
         };
@@ -492,14 +773,24 @@ fn dae_geometry(geometry: roxmltree::Node, doc: &roxmltree::Document, path: &Pat
                     .iter()
                     .skip(vertex_offset)
                     .step_by(step)
-                    .map(|v| *v as u32)
-                    .collect();
+                    .map(|&v| {
+                        if v.fract() == 0.0 && (0.0..f64::from(u32::MAX)).contains(&v) {
+                            Ok(v as u32)
+                        } else {
+                            Err(parse_error(
+                                path,
+                                &element,
+                                format!("<p> index {v} is not a vertex index"),
+                            ))
+                        }
+                    })
+                    .collect::<Result<Vec<u32>, MeshError>>()?;
                 match (kind, &counts) {
                     ("triangles", _) => polys.extend(corners.chunks_exact(3).map(<[u32]>::to_vec)),
                     ("polylist", Some(counts)) => {
-                        let mut at = 0;
+                        let mut at = 0usize;
                         for &n in counts {
-                            let Some(poly) = corners.get(at..at + n) else {
+                            let Some(poly) = at.checked_add(n).and_then(|end| corners.get(at..end)) else {
                                 return Err(parse_error(path, &element, "<vcount> needs more indices than <p> has"));
                             };
                             polys.push(poly.to_vec());

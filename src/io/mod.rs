@@ -2,6 +2,7 @@
 //! scenes. Each reader has its own error type naming the file and element.
 
 pub mod builtin;
+pub mod guard;
 pub mod mesh;
 pub mod scene;
 pub mod session;

@@ -8,10 +8,17 @@ use glam::{DAffine3, DQuat, DVec3};
 use crate::core::mesh::TriMesh;
 use crate::core::primitives::{self, Primitive};
 use crate::core::robot::{JointKind, JointLimits, JointSpec, LinkSpec, Robot, RobotError};
-use crate::io::mesh::{MeshError, load_mesh};
+use crate::io::guard;
+use crate::io::mesh::{MeshError, check_extent, load_mesh};
 
 /// Facets around the round URDF primitives.
 const PRIMITIVE_SEGMENTS: usize = 32;
+
+/// The most links (and joints) a URDF may have.
+pub const MAX_LINKS: usize = 10_000;
+
+/// How many folders above a URDF's own `package://` URIs are looked for in.
+pub const PACKAGE_SEARCH_LEVELS: usize = 6;
 
 /// Which links' visual meshes to read.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -124,10 +131,39 @@ pub fn load_urdf(path: &Path, options: &UrdfOptions) -> Result<Robot, UrdfError>
         path: path.to_owned(),
         cause,
     })?;
-    let urdf = urdf_rs::read_from_string(&text).map_err(|e| UrdfError::Parse {
+    let parse_error = |message: String| UrdfError::Parse {
         path: path.to_owned(),
-        message: e.to_string(),
-    })?;
+        message,
+    };
+    if text.len() as u64 > guard::MAX_FILE_BYTES {
+        return Err(parse_error(format!(
+            "{} bytes, more than the limit of {}",
+            text.len(),
+            guard::MAX_FILE_BYTES
+        )));
+    }
+    // The URDF reader recurses per level of nesting: a file nested
+    // thousands deep would overflow its stack, so it is refused first.
+    let depth = guard::xml_depth(&text);
+    if depth > guard::MAX_XML_DEPTH {
+        return Err(parse_error(format!(
+            "elements nested {depth} deep, more than the limit of {}",
+            guard::MAX_XML_DEPTH
+        )));
+    }
+    let urdf = guard::isolated(|| urdf_rs::read_from_string(&text))
+        .map_err(&parse_error)?
+        .map_err(|e| parse_error(e.to_string()))?;
+    if urdf.links.len() > MAX_LINKS || urdf.joints.len() > MAX_LINKS {
+        return Err(parse_error(format!(
+            "{} links and {} joints, more than the limit of {MAX_LINKS}",
+            urdf.links.len(),
+            urdf.joints.len()
+        )));
+    }
+    // Relative to an absolute folder: `package://` search climbs from it.
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_owned());
+    let path = absolute.as_path();
     let mut links = Vec::with_capacity(urdf.links.len());
     for link in &urdf.links {
         let wanted = match &options.meshes {
@@ -228,7 +264,13 @@ fn visual_mesh(visual: &urdf_rs::Visual, link: &str, path: &Path, options: &Urdf
             mesh.transformed(&DAffine3::from_scale(s))
         }
     };
-    Ok(part.transformed(&origin))
+    let part = part.transformed(&origin);
+    check_extent(&part, path, &format!("link '{link}' <visual>")).map_err(|cause| UrdfError::Mesh {
+        path: path.to_owned(),
+        link: link.to_owned(),
+        cause,
+    })?;
+    Ok(part)
 }
 
 /// A URDF joint as a [`JointSpec`].
@@ -269,8 +311,8 @@ fn joint_spec(j: &urdf_rs::Joint, path: &Path) -> Result<JointSpec, UrdfError> {
 }
 
 /// Where a URDF mesh filename points: `package://` by the longest suffix
-/// that exists under the URDF's folder or one of its ancestors (or under a
-/// package path), `file://` and plain paths relative to the URDF's folder.
+/// that exists under the URDF's folder or one of its ancestors up to
+/// [`PACKAGE_SEARCH_LEVELS`] above it (or under a package path), `file://` and plain paths relative to the URDF's folder.
 /// On failure, the places looked at.
 pub fn resolve_mesh_path(
     filename: &str,
@@ -288,7 +330,11 @@ pub fn resolve_mesh_path(
             }
             tried.push(candidate);
         }
-        let mut roots: Vec<PathBuf> = urdf_folder.ancestors().map(Path::to_path_buf).collect();
+        let mut roots: Vec<PathBuf> = urdf_folder
+            .ancestors()
+            .take(PACKAGE_SEARCH_LEVELS + 1)
+            .map(Path::to_path_buf)
+            .collect();
         if roots.first().is_some_and(|r| r.as_os_str().is_empty()) {
             roots[0] = PathBuf::from(".");
         }
@@ -305,7 +351,7 @@ pub fn resolve_mesh_path(
             }
         }
         tried.push(PathBuf::from(format!(
-            "every suffix of '{rest}' under {} and its ancestors",
+            "every suffix of '{rest}' under {} and {PACKAGE_SEARCH_LEVELS} folders above it",
             urdf_folder.display()
         )));
         return Err(tried);
