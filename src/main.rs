@@ -1,6 +1,16 @@
 //! The `proprioscope` command line: headless commands over the same core
 //! the desktop app uses.
 
+/// Writes a line to standard output, returning the error instead of
+/// panicking: a closed pipe (`proprioscope robot-info … | head -1`) ends
+/// the program quietly in `main`.
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($arg)*)?;
+    }};
+}
+
 mod cli;
 
 use std::path::{Path, PathBuf};
@@ -121,7 +131,7 @@ struct TorquesArgs {
     #[arg(long, conflicts_with = "scene")]
     robot: Option<String>,
     /// Sensed joint positions, rad, comma separated (default all 0).
-    #[arg(long, allow_hyphen_values = true, value_delimiter = ',')]
+    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = cli::finite)]
     q: Vec<f64>,
     /// The link pushed.
     #[arg(long)]
@@ -157,8 +167,27 @@ fn parse_vec3(text: &str) -> Result<DVec3, String> {
     Ok(DVec3::new(num(x)?, num(y)?, num(z)?))
 }
 
-fn main() -> Result<()> {
-    let cli = Cli::parse();
+fn main() -> std::process::ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        // The reader of our output went away (`| head`): nothing to report.
+        Err(e)
+            if e.chain().any(|c| {
+                c.downcast_ref::<std::io::Error>()
+                    .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+            }) =>
+        {
+            std::process::ExitCode::SUCCESS
+        }
+        Err(e) => {
+            use std::io::Write as _;
+            let _ = writeln!(std::io::stderr(), "Error: {e:?}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Some(Command::Torques(args)) => torques(&args),
         Some(Command::Estimate(args)) => cli::estimate::run(&args),
@@ -197,6 +226,9 @@ struct PushCase {
 fn torques(args: &TorquesArgs) -> Result<()> {
     let case = push_case(args)?;
     let tau = joint_torques(&case.robot, &case.pose, case.link, case.point_world, case.force_world);
+    if let Some((name, t)) = case.robot.sensed_names().iter().zip(&tau).find(|(_, t)| !t.is_finite()) {
+        bail!("the torque of {name} is {t}: the push is too large to compute (check its units)");
+    }
     if args.json {
         let joints: Vec<serde_json::Value> = case
             .robot
@@ -205,9 +237,9 @@ fn torques(args: &TorquesArgs) -> Result<()> {
             .zip(&tau)
             .map(|(n, t)| serde_json::json!({ "name": n, "torque": t }))
             .collect();
-        println!("{}", serde_json::json!({ "joints": joints }));
+        outln!("{}", serde_json::json!({ "joints": joints }));
     } else {
-        print_torques(&case, &tau, args.ncm);
+        print_torques(&case, &tau, args.ncm)?;
     }
     Ok(())
 }
@@ -263,29 +295,37 @@ fn push_case(args: &TorquesArgs) -> Result<PushCase> {
 }
 
 /// The torque table, then which joints sense nothing and which read zero.
-fn print_torques(case: &PushCase, tau: &[f64], ncm: bool) {
+fn print_torques(case: &PushCase, tau: &[f64], ncm: bool) -> Result<()> {
     let names = case.robot.sensed_names();
     let (unit, scale) = if ncm { ("N·cm", 100.0) } else { ("N·m", 1.0) };
     let link_name = &case.robot.links[case.link].name;
     let (p, f) = (case.point_world, case.force_world);
-    println!(
+    outln!(
         "robot {} · link {link_name} · point ({:.4}, {:.4}, {:.4}) m · force ({:.3}, {:.3}, {:.3}) N, world frame",
-        case.robot.name, p.x, p.y, p.z, f.x, f.y, f.z
+        case.robot.name,
+        p.x,
+        p.y,
+        p.z,
+        f.x,
+        f.y,
+        f.z
     );
     let width = names.iter().map(|n| n.len()).max().unwrap_or(5).max(5);
-    match &case.measured {
-        Some(_) => println!(
+    if case.measured.is_some() {
+        outln!(
             "{:width$}  {:>12}  {:>12}",
             "joint",
             format!("torque [{unit}]"),
             "measured"
-        ),
-        None => println!("{:width$}  {:>12}", "joint", format!("torque [{unit}]")),
+        );
+    } else {
+        outln!("{:width$}  {:>12}", "joint", format!("torque [{unit}]"));
     }
     for (i, (name, t)) in names.iter().zip(tau).enumerate() {
-        match case.measured.as_ref().and_then(|m| m.get(i)) {
-            Some(m) => println!("{name:width$}  {:>12}  {:>12}", shown(t * scale), shown(m * scale)),
-            None => println!("{name:width$}  {:>12}", shown(t * scale)),
+        if let Some(m) = case.measured.as_ref().and_then(|m| m.get(i)) {
+            outln!("{name:width$}  {:>12}  {:>12}", shown(t * scale), shown(m * scale));
+        } else {
+            outln!("{name:width$}  {:>12}", shown(t * scale));
         }
     }
     let path = case.robot.path_joints(case.link);
@@ -307,14 +347,15 @@ fn print_torques(case: &PushCase, tau: &[f64], ncm: bool) {
         .map(|(_, (n, _))| *n)
         .collect();
     if !distal.is_empty() {
-        println!("Sense nothing (they do not move {link_name}): {}", distal.join(", "));
+        outln!("Sense nothing (they do not move {link_name}): {}", distal.join(", "));
     }
     if !zero.is_empty() {
-        println!(
+        outln!(
             "Read zero here (the force line meets or parallels their axis): {}",
             zero.join(", ")
         );
     }
+    Ok(())
 }
 
 /// Four decimals, without the "-0.0000" of a value that rounds to zero.
@@ -333,13 +374,13 @@ fn robot_info(spec: &str, package_paths: Vec<PathBuf>) -> Result<()> {
         meshes: MeshSelection::All,
     };
     let robot = load_robot(spec, Path::new("."), &options)?;
-    println!(
+    outln!(
         "robot {}: {} links, {} joints",
         robot.name,
         robot.links.len(),
         robot.joints.len()
     );
-    println!(
+    outln!(
         "sensed joints (order of q and tau): {}",
         robot.sensed_names().join(", ")
     );
@@ -349,7 +390,7 @@ fn robot_info(spec: &str, package_paths: Vec<PathBuf>) -> Result<()> {
             || "root".to_owned(),
             |j| format!("{} ({:?})", robot.joints[j].name, robot.joints[j].kind),
         );
-        println!(
+        outln!(
             "  link {:<24} {:>7} triangles  area {:>8.4} m²  moved by {joint}{}",
             link.name,
             link.mesh.triangles.len(),
@@ -370,18 +411,25 @@ fn surface(path: &Path, points: Option<usize>) -> Result<()> {
     let start = std::time::Instant::now();
     let surface = Surface::sample(&loaded.robot, &request).with_context(|| format!("{}", path.display()))?;
     let elapsed = start.elapsed();
-    println!(
+    outln!(
         "{} surface points on {} links in {:.1} ms",
         surface.len(),
         surface.stats.len(),
         elapsed.as_secs_f64() * 1e3
     );
-    println!(
+    outln!(
         "{:<20} {:>9} {:>9} {:>7} {:>7} {:>6} {:>6} {:>7}",
-        "link", "area m²", "exposed", "drawn", "buried", "open", "kept", "shells"
+        "link",
+        "area m²",
+        "exposed",
+        "drawn",
+        "buried",
+        "open",
+        "kept",
+        "shells"
     );
     for st in &surface.stats {
-        println!(
+        outln!(
             "{:<20} {:>9.4} {:>9.4} {:>7} {:>7} {:>6} {:>6} {:>7}",
             loaded.robot.links[st.link].name,
             st.mesh_area_m2,
@@ -416,7 +464,7 @@ fn screenshot(
         std::fs::create_dir_all(folder).with_context(|| format!("creating {}", folder.display()))?;
     }
     image.save(out).with_context(|| format!("writing {}", out.display()))?;
-    println!("wrote {} ({}×{})", out.display(), image.width(), image.height());
+    outln!("wrote {} ({}×{})", out.display(), image.width(), image.height());
     Ok(())
 }
 
@@ -445,7 +493,7 @@ fn export_assets(root: &Path) -> Result<()> {
         std::fs::create_dir_all(folder).with_context(|| format!("creating {}", folder.display()))?;
     }
     std::fs::write(&path, &bytes).with_context(|| format!("writing {}", path.display()))?;
-    println!("wrote {} ({} bytes)", path.display(), bytes.len());
+    outln!("wrote {} ({} bytes)", path.display(), bytes.len());
     Ok(())
 }
 
@@ -497,12 +545,12 @@ fn record_demo(out: &Path, rate: f64, seconds: Option<f64>) -> Result<()> {
         model.noise_seed = u64::from(i);
         recorder.write(&proprioscope::app::timeline::interactive_frame(&model, t))?;
         if !announced {
-            println!("recording {}", out.display());
+            outln!("recording {}", out.display());
             std::io::Write::flush(&mut std::io::stdout())?;
             announced = true;
         }
     }
     let frames = recorder.finish()?;
-    println!("wrote {frames} frames to {}", out.display());
+    outln!("wrote {frames} frames to {}", out.display());
     Ok(())
 }

@@ -318,3 +318,90 @@ fn a_screenshot_of_a_session_that_cannot_be_read_fails_naming_it() {
     assert!(!ok && stderr.contains("proprioscope-no-such-session.csv"), "{stderr}");
     assert!(!out.exists());
 }
+
+/// Non-finite numbers, absurd counts and pushes too large to compute are
+/// errors naming the value (they printed NaN torques, `inf` and `null`).
+#[test]
+fn non_finite_and_out_of_range_inputs_are_named_errors() {
+    let (ok, _, err) = run(&["torques", "--robot", "lwr4plus", "--q", "inf,0,0,0,0,0,0"]);
+    assert!(!ok && err.contains("'inf' is not a finite number"), "{err}");
+    let (ok, _, err) = run(&[
+        "torques",
+        "--robot",
+        "lwr4plus",
+        "--link",
+        "lwr_4_link",
+        "--point",
+        "0,0,0.6",
+        "--force",
+        "NaN,0,0",
+    ]);
+    assert!(!ok && err.contains("not a finite number"), "{err}");
+    let (ok, _, err) = run(&["estimate", "scenes/lwr-collision-1.json", "--sigma", "NaN"]);
+    assert!(!ok && err.contains("not a finite number"), "{err}");
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-limits");
+    std::fs::create_dir_all(&dir).unwrap();
+    let session = dir.join("s.json");
+    std::fs::write(
+        &session,
+        r#"{"format":"contact-session","version":1,"robot":"lwr4plus","frames":[{"t":0,"q":[0,0,0,0,0,0,0],"tau":[1e70,0,0,0,0,0,0]}]}"#,
+    )
+    .unwrap();
+    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--n", "1000000000"]);
+    assert!(
+        !ok && err.contains("1000000000") && err.contains("at most 1000000"),
+        "{err}"
+    );
+    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--n", "300"]);
+    assert!(!ok && err.contains("beyond what can be computed"), "{err}");
+}
+
+/// `robot-info … | head -1`: the reader goes away; the program ends
+/// quietly instead of panicking on the broken pipe.
+#[test]
+fn a_closed_output_pipe_ends_the_program_quietly() {
+    use std::io::Read as _;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .args(["robot-info", "lwr4plus"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let status = child.wait().unwrap();
+    let mut err = String::new();
+    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    assert!(status.success() && !err.contains("panicked"), "{status} {err}");
+}
+
+/// A URDF named by a relative path from its own folder finds its
+/// `package://` meshes (the search started from an empty folder name).
+#[test]
+fn package_uris_resolve_for_a_urdf_named_from_its_own_folder() {
+    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-package");
+    let _ = std::fs::remove_dir_all(&root);
+    std::fs::create_dir_all(root.join("my_robot/urdf")).unwrap();
+    std::fs::create_dir_all(root.join("my_robot/meshes")).unwrap();
+    std::fs::write(
+        root.join("my_robot/meshes/body.obj"),
+        "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    )
+    .unwrap();
+    std::fs::write(
+        root.join("my_robot/urdf/r.urdf"),
+        r#"<robot name="r"><link name="base"/><link name="body"><visual><geometry><mesh filename="package://my_robot/meshes/body.obj"/></geometry></visual></link>
+        <joint name="j" type="continuous"><parent link="base"/><child link="body"/><axis xyz="0 0 1"/></joint></robot>"#,
+    )
+    .unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .args(["robot-info", "r.urdf"])
+        .current_dir(root.join("my_robot/urdf"))
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success(), "{stderr}");
+    assert!(stdout.contains("body"), "{stdout}");
+}

@@ -521,7 +521,7 @@ impl Model {
                     *v = s.max(1e-6);
                 }
             }
-            Command::SetSurfacePoints(n) => self.surface_points = n.max(10),
+            Command::SetSurfacePoints(n) => self.surface_points = n.clamp(10, crate::core::surface::MAX_POINTS),
             Command::SetCandidate(link, on) => {
                 let can_touch = self.robot.default_candidate_links().contains(&link);
                 if on && can_touch && !self.candidate_links.contains(&link) {
@@ -535,8 +535,10 @@ impl Model {
             Command::SetNoise(s) => self.noise_sigma = s.max(0.0),
             Command::SetEstimator(choice) => {
                 self.estimator = EstimatorChoice {
-                    particles: choice.particles.max(1),
-                    magnitudes_per_point: choice.magnitudes_per_point.max(1),
+                    particles: choice.particles.clamp(1, crate::core::estimator::MAX_PARTICLES),
+                    magnitudes_per_point: choice
+                        .magnitudes_per_point
+                        .clamp(1, crate::core::estimator::MAX_MAGNITUDES),
                     alpha: choice.alpha.clamp(0.0, 0.99),
                     ..choice
                 };

@@ -258,7 +258,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         out.push('\n');
     }
     if args.sessions_only {
-        println!("{out}");
+        outln!("{out}");
         return Ok(());
     }
     for robot in &robots {
@@ -275,7 +275,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         }
     }
     let table = format!("{out}{}", table(&rows, args));
-    println!("{table}");
+    outln!("{table}");
     let plot_path = args
         .plot
         .clone()

@@ -130,7 +130,7 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
     if let Some(mut w) = out {
         w.flush()?;
     }
-    println!(
+    outln!(
         "{} frames: {} contact, {} no contact, {} poorly explained",
         session.frames.len(),
         verdicts[0],
@@ -138,12 +138,12 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
         verdicts[2]
     );
     let mean = times_ms.iter().sum::<f64>() / times_ms.len().max(1) as f64;
-    println!(
+    outln!(
         "update time: mean {mean:.3} ms, median {:.3} ms",
         percentile(&times_ms, 0.5)
     );
     if !outcomes.is_empty() {
-        print_metrics(&outcomes);
+        print_metrics(&outcomes)?;
     }
     Ok(())
 }
@@ -200,14 +200,14 @@ fn frame_json(
 }
 
 /// The errors table: all frames, then by number of sensing joints.
-pub fn print_metrics(outcomes: &[FrameOutcome]) {
-    println!();
-    println!(
+pub fn print_metrics(outcomes: &[FrameOutcome]) -> Result<()> {
+    outln!();
+    outln!(
         "| frames | sensing joints | median pos. error [mm] | p90 [mm] | median force error [N] | p90 [N] | link right | ε_r [mm] | ε_F [N] | σ_r [mm] |"
     );
-    println!("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|");
-    let row = |label: &str, m: &Metrics| {
-        println!(
+    outln!("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let row = |label: &str, m: &Metrics| -> Result<()> {
+        outln!(
             "| {} | {label} | {:.1} | {:.1} | {:.2} | {:.2} | {:.0} % | {:.1} | {:.2} | {:.1} |",
             m.frames,
             m.position_median_m * 1e3,
@@ -219,9 +219,11 @@ pub fn print_metrics(outcomes: &[FrameOutcome]) {
             m.eps_f_newtons,
             m.sigma_r_m * 1e3
         );
+        Ok(())
     };
-    row("all", &metrics(outcomes));
+    row("all", &metrics(outcomes))?;
     for (k, m) in metrics_by_sensing_joints(outcomes) {
-        row(&k.to_string(), &m);
+        row(&k.to_string(), &m)?;
     }
+    Ok(())
 }

@@ -7,6 +7,15 @@ use anyhow::{Result, bail};
 use proprioscope::core::estimator::{EstimatorSettings, Mode, ParticleSettings, Sampling};
 use proprioscope::core::robot::{LinkId, Robot};
 
+/// A finite number (`inf` and `NaN`, which Rust's parser takes, are not).
+pub fn finite(text: &str) -> Result<f64, String> {
+    text.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| format!("'{text}' is not a finite number"))
+}
+
 /// Estimator mode on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ModeArg {
@@ -44,13 +53,13 @@ pub struct EstimatorArgs {
     #[arg(long, default_value_t = 5000)]
     pub points: usize,
     /// Likelihood σ, N·m: one value, or one per sensed joint (comma separated).
-    #[arg(long, value_delimiter = ',', default_value = "0.05")]
+    #[arg(long, value_delimiter = ',', default_value = "0.05", value_parser = finite)]
     pub sigma: Vec<f64>,
     /// Smallest push magnitude considered, N.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = finite)]
     pub fmin: f64,
     /// Largest push magnitude considered, N.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, value_parser = finite)]
     pub fmax: f64,
     /// Search coarse-to-fine in phases A/B/C.
     #[arg(long)]
@@ -59,7 +68,7 @@ pub struct EstimatorArgs {
     #[arg(long, value_delimiter = ',', default_value = "200,1000")]
     pub phase_sizes: Vec<usize>,
     /// Keep clusters with P ≥ α `P_max` between phases.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = finite)]
     pub alpha: f64,
     /// Candidate links (comma separated); default: every link a revolute joint moves.
     #[arg(long, value_delimiter = ',')]

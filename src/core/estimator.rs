@@ -123,6 +123,23 @@ pub enum EstimateError {
     /// A surface without points.
     #[error("there are no candidate points")]
     NoCandidates,
+    /// Torques so large against σ that their squares overflow.
+    #[error(
+        "the torques are {chi2:e} times σ² in sum: beyond what can be computed (at most {MAX_CHI2:e}); check their units and σ"
+    )]
+    TooLarge {
+        /// `Σ τ²/σ²`.
+        chi2: f64,
+    },
+    /// More particles than [`MAX_PARTICLES`] (or more than
+    /// [`MAX_MAGNITUDES`] per point).
+    #[error(
+        "{particles} particles asked for: at most {MAX_PARTICLES} in all and {MAX_MAGNITUDES} magnitudes per point are evaluated"
+    )]
+    TooManyParticles {
+        /// Particles asked for.
+        particles: usize,
+    },
     /// Particle mode with zero particles.
     #[error("particle mode needs at least one particle")]
     NoParticles,
@@ -867,6 +884,14 @@ fn validate(model: &impl UnitTorqueSource, tau: &[f64], settings: &EstimatorSett
     {
         return Err(EstimateError::BadSigma { joint, value });
     }
+    let scaled = tau
+        .iter()
+        .zip(&settings.sigma)
+        .map(|(t, s)| (t / s).powi(2))
+        .sum::<f64>();
+    if scaled.is_nan() || scaled > MAX_CHI2 {
+        return Err(EstimateError::TooLarge { chi2: scaled });
+    }
     let (min, max) = (settings.force_min_newtons, settings.force_max_newtons);
     if !(min.is_finite() && max.is_finite() && min >= 0.0 && min <= max) {
         return Err(EstimateError::BadForceRange { min, max });
@@ -887,9 +912,32 @@ fn validate(model: &impl UnitTorqueSource, tau: &[f64], settings: &EstimatorSett
                 }
                 | Sampling::Random { count: 0, .. },
         }) => Err(EstimateError::NoParticles),
+        Mode::Particles(ParticleSettings {
+            sampling: Sampling::Deterministic {
+                magnitudes_per_point: m,
+            },
+        }) if m > MAX_MAGNITUDES || m.saturating_mul(model.points()) > MAX_PARTICLES => {
+            Err(EstimateError::TooManyParticles {
+                particles: m.saturating_mul(model.points()),
+            })
+        }
+        Mode::Particles(ParticleSettings {
+            sampling: Sampling::Random { count, .. },
+        }) if count > MAX_PARTICLES => Err(EstimateError::TooManyParticles { particles: count }),
         _ => Ok(()),
     }
 }
+
+/// The most particles an update evaluates (about a second's work).
+pub const MAX_PARTICLES: usize = 10_000_000;
+
+/// The most magnitudes per point of deterministic particles.
+pub const MAX_MAGNITUDES: usize = 1000;
+
+/// The largest `Σ τ²/σ²` the estimator takes: far beyond any contact
+/// (1e100 is torques of 1e49 σ) and far from overflowing the squares it
+/// forms.
+pub const MAX_CHI2: f64 = 1e100;
 
 /// From this many near-best points on, their evidence takes the
 /// branch-free path…
@@ -1426,6 +1474,16 @@ mod tests {
         let post = estimate(&s.model, &tau, &settings(1e6), None).unwrap();
         let n = s.surface.len() as f64;
         assert!(post.probability.iter().all(|p| (p * n - 1.0).abs() < 1e-3));
+    }
+
+    #[test]
+    fn huge_torques_are_poorly_explained_and_absurd_ones_an_error() {
+        let s = setup(&Q, 500, None);
+        let post = estimate(&s.model, &[1e20; 7], &settings(0.05), None).unwrap();
+        assert!(post.probability.iter().all(|p| p.is_finite()));
+        assert_eq!(summarize(&post, &s.surface, &s.pose, 7).verdict, Verdict::PoorFit);
+        let e = estimate(&s.model, &[1e70; 7], &settings(0.05), None).unwrap_err();
+        assert!(matches!(e, EstimateError::TooLarge { .. }), "{e}");
     }
 
     #[test]

@@ -193,40 +193,56 @@ pub fn ln_erf_difference(lo: f64, hi: f64) -> f64 {
 }
 
 /// `P(X > x)` for `X` chi-square distributed with `dof` degrees of freedom
-/// (closed forms for integer degrees of freedom); 1 for `dof = 0`.
+/// (closed forms for integer degrees of freedom, each term taken in log
+/// space so that huge `x` gives 0, not an overflow); 1 for `dof = 0`, 0
+/// for a NaN `x`.
 #[must_use]
 pub fn chi_square_survival(x: f64, dof: usize) -> f64 {
+    if x.is_nan() || (x.is_infinite() && x > 0.0) {
+        return 0.0;
+    }
     if dof == 0 || x <= 0.0 {
         return 1.0;
     }
     let half = 0.5 * x;
     if dof.is_multiple_of(2) {
         // e^{-x/2} Σ_{j < k/2} (x/2)^j / j!
-        let mut term = 1.0;
-        let mut sum = 1.0;
+        let mut ln_term = -half;
+        let mut sum = ln_term.exp();
         for j in 1..dof / 2 {
-            term *= half / j as f64;
-            sum += term;
+            ln_term += half.ln() - (j as f64).ln();
+            sum += ln_term.exp();
         }
-        ((-half).exp() * sum).min(1.0)
+        sum.min(1.0)
     } else {
         // erfc(√(x/2)) + e^{-x/2} Σ_{j=1}^{(k-1)/2} x^{j-1/2} / (√(2π)/2 · 1·3·…·(2j-1))
-        let root = x.sqrt();
-        let mut term = root * (2.0 / PI).sqrt();
+        let mut ln_term = 0.5 * x.ln() + 0.5 * (2.0 / PI).ln() - half;
         let mut sum = 0.0;
         for j in 1..=(dof - 1) / 2 {
             if j > 1 {
-                term *= x / (2 * j - 1) as f64;
+                ln_term += x.ln() - ((2 * j - 1) as f64).ln();
             }
-            sum += term;
+            sum += ln_term.exp();
         }
-        (erfc((half).sqrt()) + (-half).exp() * sum).min(1.0)
+        (erfc(half.sqrt()) + sum).min(1.0)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Torques of 1e70 N·m gave 0·∞ = NaN and a survival of 1 ("no
+    /// contact").
+    #[test]
+    fn huge_chi_squares_have_no_chance() {
+        for dof in 1..=8 {
+            for x in [1e4, 1e100, 1e300, f64::INFINITY] {
+                assert!(chi_square_survival(x, dof) < f64::MIN_POSITIVE, "{x} with {dof}");
+            }
+            assert!(chi_square_survival(f64::NAN, dof) < f64::MIN_POSITIVE);
+        }
+    }
 
     /// Reference values (Abramowitz and Stegun, Table 7.1, and mpmath).
     #[test]

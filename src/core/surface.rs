@@ -27,6 +27,10 @@ pub const OVERSAMPLE: usize = 4;
 /// thinned to this many, since the inside tests cost more than thinning.
 pub const TESTED_PER_SAMPLE: usize = 2;
 
+/// The most surface points a request may ask for: sampling a million takes
+/// about half a minute and an update about 10 ms per core.
+pub const MAX_POINTS: usize = 1_000_000;
+
 /// Force directions per point on a one-dimensional link (the simple robot).
 pub const SEGMENT_DIRECTIONS: usize = 8;
 
@@ -269,6 +273,12 @@ pub enum SurfaceError {
         /// The link name.
         link: String,
     },
+    /// More samples requested than [`MAX_POINTS`].
+    #[error("the surface resolution is {requested} points; at most {MAX_POINTS} are sampled")]
+    TooManyPoints {
+        /// Points asked for.
+        requested: usize,
+    },
     /// Zero samples requested.
     #[error("the surface resolution must be at least 1 point per candidate link, got {requested} for {links} links")]
     TooFewPoints {
@@ -342,6 +352,11 @@ impl Surface {
         links.dedup();
         if links.is_empty() {
             return Err(SurfaceError::NoLinks);
+        }
+        if request.total_points > MAX_POINTS {
+            return Err(SurfaceError::TooManyPoints {
+                requested: request.total_points,
+            });
         }
         if request.total_points < links.len() {
             return Err(SurfaceError::TooFewPoints {

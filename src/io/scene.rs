@@ -434,8 +434,15 @@ impl Scene {
                 return Err(invalid(&format!("other_joints.{name}"), format!("{v} is not finite")));
             }
         }
-        if self.surface_points == 0 {
-            return Err(invalid("surface_points", "must be at least 1".to_owned()));
+        if self.surface_points == 0 || self.surface_points > crate::core::surface::MAX_POINTS {
+            return Err(invalid(
+                "surface_points",
+                format!(
+                    "{} is not between 1 and the limit of {}",
+                    self.surface_points,
+                    crate::core::surface::MAX_POINTS
+                ),
+            ));
         }
         if let Some(push) = &self.push {
             push.validate(path)?;
@@ -580,16 +587,28 @@ impl EstimatorSettings {
                 format!("{} is not in [0, 1)", self.phases.alpha),
             ));
         }
-        if self.particles == 0 || self.magnitudes_per_point == 0 {
+        if self.particles == 0 || self.particles > MAX_PARTICLES {
             return Err(invalid(
                 path,
                 "estimator.particles",
-                "particles and magnitudes_per_point must be at least 1".to_owned(),
+                format!("{} is not between 1 and the limit of {MAX_PARTICLES}", self.particles),
+            ));
+        }
+        if self.magnitudes_per_point == 0 || self.magnitudes_per_point > MAX_MAGNITUDES {
+            return Err(invalid(
+                path,
+                "estimator.magnitudes_per_point",
+                format!(
+                    "{} is not between 1 and the limit of {MAX_MAGNITUDES}",
+                    self.magnitudes_per_point
+                ),
             ));
         }
         Ok(())
     }
 }
+
+use crate::core::estimator::{MAX_MAGNITUDES, MAX_PARTICLES};
 
 fn resolve_push(robot: &Robot, pose: &RobotPose, push: &Push, scene_path: &Path) -> Result<ResolvedPush, SceneError> {
     let link = robot.link_id(&push.link).map_err(|cause| SceneError::Model {
