@@ -4,7 +4,9 @@
 //! `core` is the numerical heart (no I/O), `io` reads and writes robots,
 //! meshes and scenes, `render` and `app` are the desktop program.
 
+#[cfg(feature = "gui")]
 pub mod app;
 pub mod core;
 pub mod io;
+#[cfg(feature = "gui")]
 pub mod render;

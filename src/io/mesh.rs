@@ -55,7 +55,12 @@ fn read_bytes(path: &Path) -> Result<Vec<u8>, MeshError> {
         path: path.to_owned(),
         cause,
     };
-    let size = std::fs::metadata(path).map_err(read_error)?.len();
+    let meta = std::fs::metadata(path).map_err(read_error)?;
+    if !meta.is_file() {
+        // A device (/dev/zero) or a folder: never read to its end.
+        return Err(parse_error(path, "file", "not a regular file"));
+    }
+    let size = meta.len();
     if size > MAX_FILE_BYTES {
         return Err(parse_error(
             path,

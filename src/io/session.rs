@@ -380,8 +380,7 @@ impl Session {
     }
 
     /// [`Session::read_skipping_bad_frames`], telling `progress` how far it
-    /// is (0 to 1: reading the file to 0.3, parsing to 0.9, checking the
-    /// frames to 1).
+    /// is (0 to 1: reading the file to 0.3, then parsing and checking it).
     pub fn read_skipping_bad_frames_with_progress(
         path: &Path,
         progress: &dyn Fn(f64),
@@ -405,20 +404,27 @@ impl Session {
         }
         let text = String::from_utf8(bytes)
             .map_err(|e| read_error(std::io::Error::new(std::io::ErrorKind::InvalidData, e)))?;
+        progress(0.3);
+        let result = Self::parse_skipping_bad_frames(&text, path);
+        progress(1.0);
+        result
+    }
+
+    /// [`Session::read_skipping_bad_frames`] of a file's text (`path`
+    /// names it in errors and says whether it is CSV).
+    pub fn parse_skipping_bad_frames(text: &str, path: &Path) -> Result<(Self, Vec<FrameProblem>), SessionError> {
         let mut session = if is_csv(path) {
-            Self::parse_csv(&text, path)?
+            Self::parse_csv(text, path)?
         } else {
-            match Self::parse_json(&text, path) {
-                Err(e) => match close_cut_recording(&text) {
+            match Self::parse_json(text, path) {
+                Err(e) => match close_cut_recording(text) {
                     Some(closed) => Self::parse_json(&closed, path)?,
                     None => return Err(e),
                 },
                 ok => ok?,
             }
         };
-        progress(0.9);
         let problems = session.remove_bad_frames();
-        progress(1.0);
         Ok((session, problems))
     }
 }
@@ -479,7 +485,9 @@ fn close_cut_recording(text: &str) -> Option<String> {
     if !first.trim_end().ends_with("\"frames\":[") {
         return None;
     }
-    for keep in (1..=lines.len()).rev() {
+    // Only the last line can be incomplete (and a blank one after it): a
+    // bounded number of tries, not one parse of the file per line.
+    for keep in (lines.len().saturating_sub(2).max(1)..=lines.len()).rev() {
         let candidate = format!("{}\n]}}\n", lines[..keep].join("\n"));
         if serde_json::from_str::<serde_json::Value>(&candidate).is_ok() {
             return Some(candidate);

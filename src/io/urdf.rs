@@ -131,6 +131,12 @@ pub fn load_urdf(path: &Path, options: &UrdfOptions) -> Result<Robot, UrdfError>
         path: path.to_owned(),
         cause,
     })?;
+    read_urdf(&text, path, options)
+}
+
+/// A URDF's text into a [`Robot`]; `path` names it in errors and is where
+/// its relative mesh paths start.
+pub fn read_urdf(text: &str, path: &Path, options: &UrdfOptions) -> Result<Robot, UrdfError> {
     let parse_error = |message: String| UrdfError::Parse {
         path: path.to_owned(),
         message,
@@ -144,14 +150,14 @@ pub fn load_urdf(path: &Path, options: &UrdfOptions) -> Result<Robot, UrdfError>
     }
     // The URDF reader recurses per level of nesting: a file nested
     // thousands deep would overflow its stack, so it is refused first.
-    let depth = guard::xml_depth(&text);
+    let depth = guard::xml_depth(text);
     if depth > guard::MAX_XML_DEPTH {
         return Err(parse_error(format!(
             "elements nested {depth} deep, more than the limit of {}",
             guard::MAX_XML_DEPTH
         )));
     }
-    let urdf = guard::isolated(|| urdf_rs::read_from_string(&text))
+    let urdf = guard::isolated(|| urdf_rs::read_from_string(text))
         .map_err(&parse_error)?
         .map_err(|e| parse_error(e.to_string()))?;
     if urdf.links.len() > MAX_LINKS || urdf.joints.len() > MAX_LINKS {

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Runs fuzz targets for a while each: `fuzz/run.sh SECONDS [TARGET…]`
+# (default: every target). Needs the nightly toolchain and cargo-fuzz.
+# A crash, a hang (an input taking over 10 s) or a runaway allocation
+# (over 2 GiB) stops the run and leaves the input in fuzz/artifacts/.
+set -euo pipefail
+cd "$(dirname "$0")"
+seconds=${1:-20}
+shift || true
+targets=("$@")
+if [ ${#targets[@]} -eq 0 ]; then
+    targets=(stl obj dae gltf urdf scene session_json session_csv recording)
+fi
+./seed.sh
+for t in "${targets[@]}"; do
+    echo "== fuzz $t for $seconds s"
+    cargo +nightly fuzz run "$t" -O -- -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+        -max_len=262144 -print_final_stats=1 2>&1 | grep -E "^(Done|stat::number_of_executed_units|==|SUMMARY|.*(panicked|ERROR|timeout))" || true
+    if [ -n "$(ls artifacts/"$t" 2>/dev/null)" ]; then
+        echo "fuzz target $t found a failing input: fuzz/artifacts/$t/" >&2
+        exit 1
+    fi
+done

@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Seeds each fuzz target's corpus (fuzz/corpus/<target>/, not committed)
+# from the repository's scenes and assets and from ../shared: robots'
+# meshes and URDFs, sessions, and a recording cut short.
+set -euo pipefail
+cd "$(dirname "$0")"
+shared=../../shared
+seed() {
+    local target=$1
+    shift
+    mkdir -p "corpus/$target"
+    for f in "$@"; do
+        [ -f "$f" ] && cp "$f" "corpus/$target/$(basename "$(dirname "$f")")_$(basename "$f")"
+    done
+    return 0
+}
+shopt -s nullglob globstar
+seed stl "$shared"/robots/**/*.STL "$shared"/robots/**/*.stl
+seed obj "$shared"/robots/**/*.obj
+seed dae "$shared"/robots/**/*.dae
+seed gltf ../assets/*.glb
+seed urdf "$shared"/robots/**/*.urdf
+seed scene ../scenes/*.json
+seed session_json "$shared"/sessions/*.json
+seed session_csv "$shared"/sessions/*.csv
+mkdir -p corpus/recording
+for f in "$shared"/sessions/*.session.json; do
+    # A recording as the app writes it: header line, one frame a line, cut.
+    python3 - "$f" corpus/recording/"$(basename "$f")" <<'PY' || true
+import json, sys
+s = json.load(open(sys.argv[1]))
+frames = s.pop("frames")[:20]
+head = json.dumps(s)[:-1] + ',"frames":['
+lines = [head] + [json.dumps(fr) + ("," if i + 1 < len(frames) else "") for i, fr in enumerate(frames)]
+text = "\n".join(lines)
+open(sys.argv[2], "w").write(text[: len(text) * 2 // 3])
+PY
+done
