@@ -644,3 +644,27 @@ fn switching_robots_from_the_menu_never_draws_the_old_estimate() {
         assert!(harness.state().current_outcome().is_some());
     }
 }
+
+/// A frame whose estimate fails (torques beyond what can be computed) is
+/// counted and listed: the timeline settles instead of waiting for it
+/// forever, and the other frames are estimated.
+#[test]
+fn a_session_frame_that_cannot_be_estimated_is_counted_and_the_timeline_settles() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("one-absurd-frame.session.json");
+    std::fs::write(
+        &path,
+        r#"{"format": "contact-session", "version": 1, "robot": "lwr4plus", "frames": [
+            {"t": 0.0, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.1, 0, 0, 0, 0, 0, 0]},
+            {"t": 0.1, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [1e70, 0, 0, 0, 0, 0, 0]},
+            {"t": 0.2, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0, 0.2, 0, 0, 0, 0, 0]}]}"#,
+    )
+    .unwrap();
+    let harness = session_harness(&path);
+    let app = harness.state();
+    assert_eq!(app.session_estimated(), 2);
+    let failures = app.session_failures();
+    assert_eq!(failures.keys().copied().collect::<Vec<_>>(), vec![1]);
+    assert!(failures[&1].contains("beyond what can be computed"), "{failures:?}");
+}

@@ -761,6 +761,8 @@ pub struct ProprioscopeApp {
     pub session_estimates: Vec<Option<session::FrameEstimate>>,
     /// How many of them are there (counted as they arrive, not per frame).
     session_done: usize,
+    /// Frames whose estimate failed, with why.
+    session_failures: std::collections::BTreeMap<usize, String>,
     session_generation: u64,
     session_key: Option<timeline::SessionKey>,
     loader: Option<session::Loader>,
@@ -833,6 +835,7 @@ impl ProprioscopeApp {
             ctx: cc.egui_ctx.clone(),
             session_estimates: Vec::new(),
             session_done: 0,
+            session_failures: std::collections::BTreeMap::new(),
             session_generation: 0,
             session_key: None,
             loader: None,
@@ -1141,6 +1144,7 @@ impl ProprioscopeApp {
         self.session_key = None;
         self.session_estimates.clear();
         self.session_done = 0;
+        self.session_failures.clear();
         self.session_metrics = None;
         self.error = None;
         self.request_estimate();

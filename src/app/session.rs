@@ -271,11 +271,15 @@ pub struct EstimateJob {
 pub struct Estimated {
     /// The job's generation.
     pub generation: u64,
-    /// Kept-frame index.
+    /// Kept-frame index, or [`EVERY_FRAME`] when the job could not start.
     pub frame: usize,
     /// The estimate, or why there is none.
     pub estimate: Result<FrameEstimate, String>,
 }
+
+/// [`Estimated::frame`] of a job that failed before any frame (its
+/// estimator could not be made): every frame failed with it.
+pub const EVERY_FRAME: usize = usize::MAX;
 
 /// Frames estimated together (in parallel) between looks for a newer job.
 const BATCH_FRAMES: usize = 32;
@@ -302,13 +306,18 @@ impl SessionWorker {
                         Err(_) => return,
                     },
                 };
-                let estimator = match Estimator::new(&job.robot, &job.surface, job.settings.clone(), job.phase_sizes) {
+                let made = crate::io::guard::isolated(|| {
+                    Estimator::new(&job.robot, &job.surface, job.settings.clone(), job.phase_sizes)
+                        .map_err(|e| e.to_string())
+                })
+                .and_then(|r| r);
+                let estimator = match made {
                     Ok(e) => e,
                     Err(e) => {
                         let _ = outbox.send(Estimated {
                             generation: job.generation,
-                            frame: job.first,
-                            estimate: Err(e.to_string()),
+                            frame: EVERY_FRAME,
+                            estimate: Err(e),
                         });
                         wake();
                         continue;
@@ -316,17 +325,25 @@ impl SessionWorker {
                 };
                 let frames = &job.session.frames;
                 let estimate_frame = |index: usize| -> Estimated {
-                    let estimate = frames.get(index).map_or_else(
-                        || Err(format!("no frame {index}")),
-                        |frame| {
-                            let positions = job.robot.joint_positions(&frame.q, &[]).map_err(|e| e.to_string())?;
-                            let t0 = Instant::now();
-                            estimator
-                                .update(&job.robot, &positions, &frame.tau)
-                                .map(|u| FrameEstimate::of(&u, t0.elapsed().as_secs_f64() * 1e3))
-                                .map_err(|e| e.to_string())
-                        },
-                    );
+                    // A panic on one frame fails that frame, not the thread.
+                    let estimate = crate::io::guard::isolated(|| {
+                        frames.get(index).map_or_else(
+                            || Err(format!("no frame {index}")),
+                            |frame| {
+                                let positions = job.robot.joint_positions(&frame.q, &[]).map_err(|e| e.to_string())?;
+                                let t0 = Instant::now();
+                                estimator
+                                    .update(&job.robot, &positions, &frame.tau)
+                                    .map(|u| FrameEstimate::of(&u, t0.elapsed().as_secs_f64() * 1e3))
+                                    .map_err(|e| e.to_string())
+                            },
+                        )
+                    })
+                    .map_err(|message| {
+                        eprintln!("proprioscope: estimating session frame {index} failed: {message}");
+                        format!("the estimator failed: {message}")
+                    })
+                    .and_then(|r| r);
                     Estimated {
                         generation: job.generation,
                         frame: index,

@@ -112,6 +112,7 @@ impl ProprioscopeApp {
         self.session_key = None;
         self.session_estimates.clear();
         self.session_done = 0;
+        self.session_failures.clear();
         self.request_estimate();
     }
 
@@ -134,6 +135,7 @@ impl ProprioscopeApp {
             self.session_generation += 1;
             self.session_estimates = vec![None; replay.session.frames.len()];
             self.session_done = 0;
+            self.session_failures.clear();
             self.session_worker.start(EstimateJob {
                 generation: self.session_generation,
                 robot: m.robot.clone(),
@@ -160,7 +162,20 @@ impl ProprioscopeApp {
                         *slot = Some(e);
                     }
                 }
-                Err(e) => self.error = Some(format!("session frame {}: {e}", done.frame)),
+                Err(e) if done.frame == session::EVERY_FRAME => {
+                    let frames = self.session_estimates.len();
+                    for frame in 0..frames {
+                        if self.session_estimates.get(frame).is_some_and(Option::is_none) {
+                            self.session_failures.entry(frame).or_insert_with(|| e.clone());
+                        }
+                    }
+                    self.error = Some(format!("the session could not be estimated: {e}"));
+                }
+                Err(e) => {
+                    if self.session_estimates.get(done.frame).is_some_and(Option::is_none) {
+                        self.session_failures.insert(done.frame, e);
+                    }
+                }
             }
         }
     }
@@ -171,11 +186,19 @@ impl ProprioscopeApp {
         self.session_done
     }
 
-    /// Whether nothing is loading and every session frame is estimated.
+    /// Session frames whose estimate failed, with why (frame → message).
+    #[must_use]
+    pub fn session_failures(&self) -> &std::collections::BTreeMap<usize, String> {
+        &self.session_failures
+    }
+
+    /// Whether nothing is loading and every session frame is estimated
+    /// (or failed: those are counted and listed, not waited for).
     pub(super) fn session_settled(&self) -> bool {
         self.loader.is_none()
             && (self.model.replay.is_none()
-                || (self.session_key.is_some() && self.session_done == self.session_estimates.len()))
+                || (self.session_key.is_some()
+                    && self.session_done + self.session_failures.len() >= self.session_estimates.len()))
     }
 
     /// Space plays or pauses, the arrow keys step, unless a text field or
@@ -388,7 +411,20 @@ impl ProprioscopeApp {
                     }
                 });
         }
-        let done = self.session_estimated();
+        let failures = &self.session_failures;
+        if !failures.is_empty() {
+            egui::CollapsingHeader::new(format!("Frames not estimated ({})", failures.len()))
+                .default_open(true)
+                .show(ui, |ui| {
+                    for (frame, why) in failures.iter().take(20) {
+                        ui.colored_label(egui::Color32::LIGHT_RED, format!("frame {frame}: {why}"));
+                    }
+                    if failures.len() > 20 {
+                        ui.label(format!("… and {} more", failures.len() - 20));
+                    }
+                });
+        }
+        let done = self.session_estimated() + failures.len();
         let total = session.frames.len();
         if done < total {
             ui.label(format!("metrics when every frame is estimated ({done} of {total})"));

@@ -71,83 +71,36 @@ pub struct Worker {
 impl Worker {
     /// Starts the thread; `wake` is called after each result (to repaint).
     pub fn spawn(wake: impl Fn() + Send + 'static) -> Self {
+        let mut cache: Option<Cached> = None;
+        Self::spawn_with(wake, move |request| serve(&mut cache, request))
+    }
+
+    /// Starts a thread that answers each request with `serve`, supervised:
+    /// a panic inside `serve` is caught, logged on standard error and
+    /// answered as an error outcome naming it, and the thread goes on with
+    /// the next request (`serve` keeps no state a panic could leave half
+    /// made: see [`serve`]).
+    pub fn spawn_with<S>(wake: impl Fn() + Send + 'static, serve: S) -> Self
+    where
+        S: FnMut(&Request) -> Outcome + Send + 'static,
+    {
         let (requests, inbox) = channel::<Request>();
         let (outbox, outcomes) = channel::<Outcome>();
         std::thread::spawn(move || {
-            let mut cache: Option<Cached> = None;
+            let mut serve = serve;
             while let Ok(mut request) = inbox.recv() {
                 // Only the newest request matters.
                 while let Ok(newer) = inbox.try_recv() {
                     request = newer;
                 }
-                let reuse = cache.as_ref().is_some_and(|c| {
-                    Arc::ptr_eq(&c.robot, &request.robot)
-                        && c.links == request.surface.links
-                        && c.points == request.surface.total_points
-                        && c.phase_sizes == request.phase_sizes
-                });
-                if !reuse {
-                    match Estimator::new(
-                        &request.robot,
-                        &request.surface,
-                        request.settings.clone(),
-                        request.phase_sizes,
-                    ) {
-                        Ok(estimator) => {
-                            let nearest = nearest_samples(&request.robot, &estimator.surface);
-                            cache = Some(Cached {
-                                robot: request.robot.clone(),
-                                links: request.surface.links.clone(),
-                                points: request.surface.total_points,
-                                phase_sizes: request.phase_sizes,
-                                estimator: Arc::new(estimator),
-                                nearest: Arc::new(nearest),
-                            });
-                        }
-                        Err(e) => {
-                            let empty = Estimator {
-                                surface: Surface::default(),
-                                links: Vec::new(),
-                                hierarchy: None,
-                                settings: request.settings.clone(),
-                            };
-                            let _ = outbox.send(Outcome {
-                                generation: request.generation,
-                                robot: request.robot.clone(),
-                                estimator: Arc::new(empty),
-                                nearest: Arc::new(Vec::new()),
-                                update: Err(e.to_string()),
-                                update_ms: 0.0,
-                            });
-                            wake();
-                            continue;
-                        }
+                let outcome = match crate::io::guard::isolated(|| serve(&request)) {
+                    Ok(outcome) => outcome,
+                    Err(message) => {
+                        eprintln!("proprioscope: the estimator failed and was restarted: {message}");
+                        failed(&request, format!("the estimator failed and was restarted: {message}"))
                     }
-                }
-                let Some(Cached { estimator, nearest, .. }) = cache.as_mut() else {
-                    continue;
                 };
-                if estimator.settings != request.settings {
-                    let mut changed = (**estimator).clone();
-                    changed.settings = request.settings.clone();
-                    *estimator = Arc::new(changed);
-                }
-                let t0 = Instant::now();
-                let update = estimator
-                    .update(&request.robot, &request.joint_positions, &request.tau)
-                    .map_err(|e| e.to_string());
-                let update_ms = t0.elapsed().as_secs_f64() * 1e3;
-                if outbox
-                    .send(Outcome {
-                        generation: request.generation,
-                        robot: request.robot.clone(),
-                        estimator: estimator.clone(),
-                        nearest: nearest.clone(),
-                        update,
-                        update_ms,
-                    })
-                    .is_err()
-                {
+                if outbox.send(outcome).is_err() {
                     break;
                 }
                 wake();
@@ -165,5 +118,145 @@ impl Worker {
     #[must_use]
     pub fn latest(&self) -> Option<Outcome> {
         self.outcomes.try_iter().last()
+    }
+}
+
+/// An outcome that reports `message` instead of an estimate.
+fn failed(request: &Request, message: String) -> Outcome {
+    Outcome {
+        generation: request.generation,
+        robot: request.robot.clone(),
+        estimator: Arc::new(Estimator {
+            surface: Surface::default(),
+            links: Vec::new(),
+            hierarchy: None,
+            settings: request.settings.clone(),
+        }),
+        nearest: Arc::new(Vec::new()),
+        update: Err(message),
+        update_ms: 0.0,
+    }
+}
+
+/// Answers one request, reusing the sampled surface in `cache` when the
+/// robot, links, resolution and phases are those it was made for. A
+/// panic leaves `cache` empty (it is rebuilt by the next request).
+fn serve(cache: &mut Option<Cached>, request: &Request) -> Outcome {
+    let reuse = cache.as_ref().is_some_and(|c| {
+        Arc::ptr_eq(&c.robot, &request.robot)
+            && c.links == request.surface.links
+            && c.points == request.surface.total_points
+            && c.phase_sizes == request.phase_sizes
+    });
+    if !reuse {
+        // Dropped first: a panic below leaves no half-made cache behind.
+        *cache = None;
+        match Estimator::new(
+            &request.robot,
+            &request.surface,
+            request.settings.clone(),
+            request.phase_sizes,
+        ) {
+            Ok(estimator) => {
+                let nearest = nearest_samples(&request.robot, &estimator.surface);
+                *cache = Some(Cached {
+                    robot: request.robot.clone(),
+                    links: request.surface.links.clone(),
+                    points: request.surface.total_points,
+                    phase_sizes: request.phase_sizes,
+                    estimator: Arc::new(estimator),
+                    nearest: Arc::new(nearest),
+                });
+            }
+            Err(e) => return failed(request, e.to_string()),
+        }
+    }
+    let Some(Cached { estimator, nearest, .. }) = cache.as_mut() else {
+        return failed(request, "no surface".to_owned());
+    };
+    if estimator.settings != request.settings {
+        let mut changed = (**estimator).clone();
+        changed.settings = request.settings.clone();
+        *estimator = Arc::new(changed);
+    }
+    let estimator = estimator.clone();
+    let nearest = nearest.clone();
+    // Taken out while it works: a panic inside leaves the cache empty.
+    let kept = cache.take();
+    let t0 = Instant::now();
+    let update = estimator
+        .update(&request.robot, &request.joint_positions, &request.tau)
+        .map_err(|e| e.to_string());
+    let update_ms = t0.elapsed().as_secs_f64() * 1e3;
+    *cache = kept;
+    Outcome {
+        generation: request.generation,
+        robot: request.robot.clone(),
+        estimator,
+        nearest,
+        update,
+        update_ms,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::estimator::{EstimatorSettings, Mode};
+
+    fn request(generation: u64) -> Request {
+        Request {
+            generation,
+            robot: Arc::new(crate::core::builtin::simple6().unwrap_or_else(|e| panic!("{e}"))),
+            joint_positions: vec![0.0; 6],
+            tau: vec![0.0; 6],
+            surface: SurfaceRequest {
+                links: vec![1],
+                total_points: 16,
+                seed: 0,
+            },
+            settings: EstimatorSettings {
+                sigma: vec![0.1; 6],
+                force_min_newtons: 1.0,
+                force_max_newtons: 2.0,
+                mode: Mode::Exact,
+                phase_alpha: None,
+                patches: true,
+            },
+            phase_sizes: None,
+        }
+    }
+
+    /// A panic inside the worker is answered as an error naming it, and
+    /// the next request is served.
+    #[test]
+    fn a_panicking_estimate_is_reported_and_the_worker_goes_on() {
+        let worker = Worker::spawn_with(
+            || {},
+            |r: &Request| {
+                assert!(r.generation != 1, "injected failure");
+                failed(r, "fine".to_owned())
+            },
+        );
+        let wait = || {
+            for _ in 0..500 {
+                if let Some(o) = worker.latest() {
+                    return o;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(10));
+            }
+            panic!("no outcome");
+        };
+        worker.request(request(1));
+        let first = wait();
+        let message = first.update.err().unwrap_or_default();
+        assert!(
+            message.contains("restarted") && message.contains("injected failure"),
+            "{message}"
+        );
+        worker.request(request(2));
+        let second = wait();
+        assert_eq!(second.generation, 2);
+        assert_eq!(second.update.err().as_deref(), Some("fine"));
     }
 }
