@@ -499,7 +499,7 @@ fn export_assets(root: &Path) -> Result<()> {
 
 /// Records the scripted session of `record-demo`.
 fn record_demo(out: &Path, rate: f64, seconds: Option<f64>) -> Result<()> {
-    use proprioscope::app::{EstimatorChoice, Model, Push, ViewOptions};
+    use proprioscope::app::{Model, Push, StartSettings, ViewOptions};
     use proprioscope::io::session::Recorder;
     if !(rate.is_finite() && rate > 0.0) {
         bail!("--rate {rate}: give a positive number of frames per second");
@@ -507,25 +507,17 @@ fn record_demo(out: &Path, rate: f64, seconds: Option<f64>) -> Result<()> {
     let robot = proprioscope::core::builtin::lwr4plus_generated()?;
     let link = robot.link_id("lwr_5_link")?;
     let joints: Vec<String> = robot.sensed().iter().map(|&j| robot.joints[j].name.clone()).collect();
-    let mut model = Model {
-        q: vec![0.0; joints.len()],
-        push: Some(Push {
-            link,
-            point_in_link: DVec3::new(0.06, 0.0, 0.1),
-            inward_normal_in_link: DVec3::new(-1.0, 0.0, 0.0),
-            force_newtons: 12.0,
-        }),
-        sigma: vec![0.1; joints.len()],
+    let push = Some(Push {
+        link,
+        point_in_link: DVec3::new(0.06, 0.0, 0.1),
+        inward_normal_in_link: DVec3::new(-1.0, 0.0, 0.0),
+        force_newtons: 12.0,
+    });
+    let settings = StartSettings {
         surface_points: 1000,
-        candidate_links: robot.default_candidate_links(),
-        noise_sigma: 0.05,
-        noise_seed: 1,
-        force_range_newtons: (1.0, 30.0),
-        estimator: EstimatorChoice::default(),
-        view: ViewOptions::default(),
-        replay: None,
-        robot: std::sync::Arc::new(robot),
+        ..StartSettings::default()
     };
+    let mut model = Model::from_start(robot, vec![0.0; joints.len()], push, settings, ViewOptions::default());
     let mut recorder = Recorder::create(out, "lwr4plus", &joints)?;
     let started = std::time::Instant::now();
     // Tell a watching test when the first frame is on disk.

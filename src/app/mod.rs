@@ -82,7 +82,6 @@ pub fn open_target_with(
     package_paths: &[std::path::PathBuf],
 ) -> anyhow::Result<AppStart> {
     use crate::io::builtin::load_robot;
-    use crate::io::scene::{Scene, Sigma};
     use crate::io::urdf::UrdfOptions;
     use std::path::Path;
     if let Some(t) = target
@@ -110,52 +109,7 @@ pub fn open_target_with(
                 package_paths: package_paths.to_vec(),
             }
         }
-        Some(t) if t.to_ascii_lowercase().ends_with(".json") => {
-            let path = Path::new(t);
-            let loaded = Scene::read(path)?.load(path)?;
-            let push = loaded.push.and_then(|p| {
-                let link_from_world = loaded.pose.world_from_link[p.link].inverse();
-                Some(Push {
-                    link: p.link,
-                    point_in_link: link_from_world.transform_point3(p.point_world),
-                    inward_normal_in_link: link_from_world.transform_vector3(p.force_world.try_normalize()?),
-                    force_newtons: p.force_world.length(),
-                })
-            });
-            let e = &loaded.scene.estimator;
-            let settings = StartSettings {
-                sigma: match &e.sigma_newton_metres {
-                    Sigma::All(s) => vec![*s],
-                    Sigma::PerJoint(v) => v.clone(),
-                },
-                surface_points: loaded.scene.surface_points,
-                noise: (loaded.scene.noise.sigma_newton_metres, loaded.scene.noise.seed),
-                force_range_newtons: (e.force_min_newtons, e.force_max_newtons),
-                candidate_links: loaded
-                    .scene
-                    .candidate_links
-                    .is_some()
-                    .then(|| loaded.candidate_links.clone()),
-            };
-            let spec = if crate::io::builtin::is_builtin(&loaded.scene.robot) {
-                loaded.scene.robot.clone()
-            } else {
-                path.parent()
-                    .unwrap_or(Path::new("."))
-                    .join(&loaded.scene.robot)
-                    .display()
-                    .to_string()
-            };
-            AppStart {
-                robot_spec: spec,
-                q: loaded.scene.q.clone(),
-                robot: loaded.robot,
-                push,
-                settings,
-                session: None,
-                package_paths: package_paths.to_vec(),
-            }
-        }
+        Some(t) if t.to_ascii_lowercase().ends_with(".json") => scene_start(Path::new(t), package_paths)?,
         Some(t) => {
             let options = UrdfOptions {
                 package_paths: package_paths.to_vec(),
@@ -164,7 +118,11 @@ pub fn open_target_with(
             let robot = load_robot(t, Path::new("."), &options)?;
             let q = vec![0.0; robot.sensed().len()];
             AppStart {
-                robot_spec: t.to_owned(),
+                robot_spec: if crate::io::builtin::is_builtin(t) {
+                    t.to_owned()
+                } else {
+                    absolute_spec(Path::new(t))
+                },
                 robot,
                 q,
                 push: None,
@@ -174,6 +132,77 @@ pub fn open_target_with(
             }
         }
     })
+}
+
+/// What a scene file opens on: its robot, pose, push and every setting.
+fn scene_start(path: &std::path::Path, package_paths: &[std::path::PathBuf]) -> anyhow::Result<AppStart> {
+    use crate::io::scene::{Scene, Sigma};
+    use std::path::Path;
+    let loaded = Scene::read(path)?.load(path)?;
+    let push = loaded.push.and_then(|p| {
+        let link_from_world = loaded.pose.world_from_link[p.link].inverse();
+        Some(Push {
+            link: p.link,
+            point_in_link: link_from_world.transform_point3(p.point_world),
+            inward_normal_in_link: link_from_world.transform_vector3(p.force_world.try_normalize()?),
+            force_newtons: p.force_world.length(),
+        })
+    });
+    let e = &loaded.scene.estimator;
+    let settings = StartSettings {
+        sigma: match &e.sigma_newton_metres {
+            Sigma::All(s) => vec![*s],
+            Sigma::PerJoint(v) => v.clone(),
+        },
+        surface_points: loaded.scene.surface_points,
+        noise: (loaded.scene.noise.sigma_newton_metres, loaded.scene.noise.seed),
+        force_range_newtons: (e.force_min_newtons, e.force_max_newtons),
+        candidate_links: loaded
+            .scene
+            .candidate_links
+            .is_some()
+            .then(|| loaded.candidate_links.clone()),
+        estimator: EstimatorChoice::from_scene(e),
+        surface_seed: loaded.scene.surface_seed,
+        other_joints: loaded.scene.other_joints.iter().map(|(k, v)| (k.clone(), *v)).collect(),
+        view: loaded.scene.view.map(|v| ViewOptions {
+            log_scale: v.log_scale,
+            threshold: v.threshold,
+            red_green: v.red_green,
+            show_points: v.candidate_points,
+            show_axes: v.joint_axes,
+        }),
+        title: (loaded.scene.name.clone(), loaded.scene.description.clone()),
+    };
+    let folder = path.parent().unwrap_or(Path::new("."));
+    let mut package_paths = package_paths.to_vec();
+    package_paths.extend(
+        loaded
+            .scene
+            .package_paths
+            .iter()
+            .map(|p| crate::io::scene::normalized_path(&folder.join(p))),
+    );
+    let spec = if crate::io::builtin::is_builtin(&loaded.scene.robot) {
+        loaded.scene.robot.clone()
+    } else {
+        absolute_spec(&folder.join(&loaded.scene.robot))
+    };
+    Ok(AppStart {
+        robot_spec: spec,
+        q: loaded.scene.q.clone(),
+        robot: loaded.robot,
+        push,
+        settings,
+        session: None,
+        package_paths,
+    })
+}
+
+/// A URDF path as the app keeps it: absolute, so that a scene saved
+/// anywhere can name it relative to itself.
+fn absolute_spec(path: &std::path::Path) -> String {
+    crate::io::scene::normalized_path(path).display().to_string()
 }
 
 /// Runs frames until the newest estimate has arrived (at most ~10 s).
@@ -290,6 +319,12 @@ pub struct Model {
     pub force_range_newtons: (f64, f64),
     /// Estimator mode and phases.
     pub estimator: EstimatorChoice,
+    /// Seed of the surface sampling.
+    pub surface_seed: u64,
+    /// Positions of joints that are neither sensed nor fixed, by name.
+    pub other_joints: Vec<(String, f64)>,
+    /// The scene's title and description (saved with it).
+    pub title: (String, String),
     /// How the posterior is shown (changing it re-runs nothing).
     pub view: ViewOptions,
     /// A recorded session being replayed: its current frame sets `q`, the
@@ -343,6 +378,26 @@ pub struct EstimatorChoice {
     pub phase_sizes: [usize; 2],
     /// α between phases.
     pub alpha: f64,
+}
+
+impl EstimatorChoice {
+    /// The choice a scene's estimator section makes.
+    #[must_use]
+    pub fn from_scene(e: &crate::io::scene::EstimatorSettings) -> Self {
+        use crate::io::scene as sc;
+        Self {
+            mode: match (e.mode, e.sampling) {
+                (sc::Mode::Exact, _) => ModeChoice::Exact,
+                (sc::Mode::Particles, sc::Sampling::Deterministic) => ModeChoice::ParticlesDeterministic,
+                (sc::Mode::Particles, sc::Sampling::Random) => ModeChoice::ParticlesRandom,
+            },
+            particles: e.particles,
+            magnitudes_per_point: e.magnitudes_per_point,
+            phases: e.phases.enabled,
+            phase_sizes: e.phases.sizes,
+            alpha: e.phases.alpha,
+        }
+    }
 }
 
 impl Default for EstimatorChoice {
@@ -410,6 +465,8 @@ struct EstimateInputs {
     estimator: EstimatorChoice,
     force_range_newtons: (f64, f64),
     frame: Option<usize>,
+    surface_seed: u64,
+    other_joints: Vec<(String, f64)>,
 }
 
 /// Estimator and sensor settings to start the app with.
@@ -425,6 +482,16 @@ pub struct StartSettings {
     pub force_range_newtons: (f64, f64),
     /// Candidate links by name; `None`: every link a revolute joint moves.
     pub candidate_links: Option<Vec<LinkId>>,
+    /// Mode, particles and phases.
+    pub estimator: EstimatorChoice,
+    /// Seed of the surface sampling.
+    pub surface_seed: u64,
+    /// Positions of joints that are neither sensed nor fixed, by name.
+    pub other_joints: Vec<(String, f64)>,
+    /// How to show the posterior (`None`: keep the app's current choice).
+    pub view: Option<ViewOptions>,
+    /// The scene's title and description, kept for saving.
+    pub title: (String, String),
 }
 
 impl Default for StartSettings {
@@ -436,6 +503,11 @@ impl Default for StartSettings {
             noise: (0.05, 1),
             force_range_newtons: (1.0, 30.0),
             candidate_links: None,
+            estimator: EstimatorChoice::default(),
+            surface_seed: 0,
+            other_joints: Vec::new(),
+            view: None,
+            title: (String::new(), String::new()),
         }
     }
 }
@@ -671,6 +743,8 @@ impl Model {
             estimator: self.estimator,
             force_range_newtons: self.force_range_newtons,
             frame: self.replay.as_ref().map(|r| r.frame),
+            surface_seed: self.surface_seed,
+            other_joints: self.other_joints.clone(),
         }
     }
 
@@ -706,8 +780,42 @@ impl Model {
     #[must_use]
     pub fn joint_positions(&self) -> Vec<f64> {
         self.robot
-            .joint_positions(&self.q, &[])
+            .joint_positions(&self.q, &self.other_joints)
+            .or_else(|_| self.robot.joint_positions(&self.q, &[]))
             .unwrap_or_else(|_| vec![0.0; self.robot.joints.len()])
+    }
+
+    /// The model a robot opens with: its configuration, push and settings
+    /// (`view` when the settings name none).
+    #[must_use]
+    pub fn from_start(
+        robot: Robot,
+        q: Vec<f64>,
+        push: Option<Push>,
+        settings: StartSettings,
+        view: ViewOptions,
+    ) -> Self {
+        let joints = robot.sensed().len();
+        let candidate_links = settings
+            .candidate_links
+            .unwrap_or_else(|| robot.default_candidate_links());
+        Self {
+            robot: Arc::new(robot),
+            q,
+            push,
+            sigma: per_joint(&settings.sigma, joints),
+            surface_points: settings.surface_points,
+            candidate_links,
+            noise_sigma: settings.noise.0,
+            noise_seed: settings.noise.1,
+            force_range_newtons: settings.force_range_newtons,
+            estimator: settings.estimator,
+            surface_seed: settings.surface_seed,
+            other_joints: settings.other_joints,
+            title: settings.title,
+            view: settings.view.unwrap_or(view),
+            replay: None,
+        }
     }
 
     /// The push in the world: (point, force).
@@ -797,23 +905,8 @@ impl ProprioscopeApp {
             .as_ref()
             .map(|state| Renderer::new(&state.device, [640, 480]));
         let picker = Picker::new(&robot);
-        let robot_candidates = robot.default_candidate_links();
-        let joints = robot.sensed().len();
         let mut app = Self {
-            model: Model {
-                robot: Arc::new(robot),
-                q,
-                push,
-                sigma: per_joint(&settings.sigma, joints),
-                surface_points: settings.surface_points,
-                candidate_links: settings.candidate_links.unwrap_or(robot_candidates),
-                noise_sigma: settings.noise.0,
-                noise_seed: settings.noise.1,
-                force_range_newtons: settings.force_range_newtons,
-                estimator: EstimatorChoice::default(),
-                view: ViewOptions::default(),
-                replay: None,
-            },
+            model: Model::from_start(robot, q, push, settings, ViewOptions::default()),
             camera: OrbitCamera::default(),
             picker,
             worker: Worker::spawn(move || ctx.request_repaint()),
@@ -874,49 +967,39 @@ impl ProprioscopeApp {
         }
         match open_target_with(Some(target), None, &self.package_paths) {
             Ok(start) => {
-                let view = self.model.view;
-                let candidate_links = start
-                    .settings
-                    .candidate_links
-                    .clone()
-                    .unwrap_or_else(|| start.robot.default_candidate_links());
-                let joints = start.robot.sensed().len();
-                let model = Model {
-                    robot: Arc::new(start.robot),
-                    q: start.q,
-                    push: start.push,
-                    sigma: per_joint(&start.settings.sigma, joints),
-                    surface_points: start.settings.surface_points,
-                    candidate_links,
-                    noise_sigma: start.settings.noise.0,
-                    noise_seed: start.settings.noise.1,
-                    force_range_newtons: start.settings.force_range_newtons,
-                    estimator: EstimatorChoice::default(),
-                    view,
-                    replay: None,
-                };
+                let model = Model::from_start(start.robot, start.q, start.push, start.settings, self.model.view);
+                self.package_paths = start.package_paths;
                 self.replace_model(model, start.robot_spec);
             }
             Err(e) => self.error = Some(format!("could not open {target}: {e:#}")),
         }
     }
 
-    /// The current model as a scene file.
+    /// The current model as a scene file to be written at `scene_path`:
+    /// everything the app shows, a URDF robot and package folders named
+    /// relative to the scene's folder.
     #[must_use]
-    pub fn to_scene(&self) -> crate::io::scene::Scene {
+    pub fn to_scene(&self, scene_path: &std::path::Path) -> crate::io::scene::Scene {
         use crate::io::scene as sc;
         let m = &self.model;
         let positions = m.joint_positions();
         let pose = RobotPose::new(&m.robot, &positions);
+        let folder = scene_path.parent().unwrap_or(std::path::Path::new("."));
+        let relative = |p: &std::path::Path| sc::relative_path(p, folder).display().to_string();
+        let builtin = crate::io::builtin::is_builtin(&self.robot_spec);
         sc::Scene {
             version: sc::SCENE_VERSION,
-            name: String::new(),
-            description: "Saved from the app.".to_owned(),
-            robot: self.robot_spec.clone(),
-            package_paths: Vec::new(),
-            sensed_joints: None,
+            name: m.title.0.clone(),
+            description: m.title.1.clone(),
+            robot: if builtin {
+                self.robot_spec.clone()
+            } else {
+                relative(std::path::Path::new(&self.robot_spec))
+            },
+            package_paths: self.package_paths.iter().map(|p| relative(p)).collect(),
+            sensed_joints: (!builtin).then(|| m.robot.sensed_names().into_iter().map(str::to_owned).collect()),
             q: m.q.clone(),
-            other_joints: std::collections::BTreeMap::new(),
+            other_joints: m.other_joints.iter().cloned().collect(),
             candidate_links: (m.candidate_links != m.robot.default_candidate_links()).then(|| {
                 m.candidate_links
                     .iter()
@@ -924,7 +1007,7 @@ impl ProprioscopeApp {
                     .collect()
             }),
             surface_points: m.surface_points,
-            surface_seed: 0,
+            surface_seed: m.surface_seed,
             push: m.push_world(&pose).map(|(link, point, force)| sc::Push {
                 link: m.robot.links[link].name.clone(),
                 point_in_link: None,
@@ -962,13 +1045,20 @@ impl ProprioscopeApp {
                 force_min_newtons: m.force_range_newtons.0,
                 force_max_newtons: m.force_range_newtons.1,
             },
+            view: Some(sc::View {
+                log_scale: m.view.log_scale,
+                threshold: m.view.threshold,
+                red_green: m.view.red_green,
+                candidate_points: m.view.show_points,
+                joint_axes: m.view.show_axes,
+            }),
         }
     }
 
     /// Writes the current scene as JSON.
     pub fn save(&mut self, path: &std::path::Path) {
         let result = self
-            .to_scene()
+            .to_scene(path)
             .to_json()
             .map_err(|e| e.to_string())
             .and_then(|json| std::fs::write(path, json).map_err(|e| e.to_string()));
@@ -1087,7 +1177,7 @@ impl ProprioscopeApp {
             surface: SurfaceRequest {
                 links: self.model.candidate_links.clone(),
                 total_points: self.model.surface_points,
-                seed: 0,
+                seed: self.model.surface_seed,
             },
             settings: self.model.estimator_settings(),
             phase_sizes: self.model.estimator.phases.then_some(self.model.estimator.phase_sizes),
@@ -1117,6 +1207,13 @@ impl ProprioscopeApp {
     #[must_use]
     pub fn is_up_to_date(&self) -> bool {
         self.current_outcome().is_some_and(|o| o.generation == self.generation) && self.session_settled()
+    }
+
+    /// How the robot was named when opened: a built-in name or the
+    /// URDF's absolute path.
+    #[must_use]
+    pub fn robot_spec(&self) -> &str {
+        &self.robot_spec
     }
 
     /// The estimate shown: the latest one, if it was made for the current
@@ -1880,6 +1977,9 @@ mod tests {
             noise_seed: 1,
             force_range_newtons: (1.0, 30.0),
             estimator: EstimatorChoice::default(),
+            surface_seed: 0,
+            other_joints: Vec::new(),
+            title: (String::new(), String::new()),
             view: ViewOptions::default(),
             replay: None,
             robot: Arc::new(robot),

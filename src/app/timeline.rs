@@ -30,6 +30,7 @@ pub(super) struct SessionKey {
     candidate_links: Vec<LinkId>,
     estimator: super::EstimatorChoice,
     force_range_newtons: (f64, f64),
+    surface_seed: u64,
 }
 
 /// Metrics over all frames, and by the number of sensing joints.
@@ -89,6 +90,9 @@ impl ProprioscopeApp {
             noise_seed: old.noise_seed,
             force_range_newtons: old.force_range_newtons,
             estimator: old.estimator,
+            surface_seed: old.surface_seed,
+            other_joints: Vec::new(),
+            title: (String::new(), String::new()),
             view: old.view,
             replay: Some(Replay {
                 session: Arc::new(data),
@@ -130,6 +134,7 @@ impl ProprioscopeApp {
             candidate_links: m.candidate_links.clone(),
             estimator: m.estimator,
             force_range_newtons: m.force_range_newtons,
+            surface_seed: m.surface_seed,
         };
         if self.session_key.as_ref() != Some(&key) {
             self.session_generation += 1;
@@ -143,7 +148,7 @@ impl ProprioscopeApp {
                 surface: SurfaceRequest {
                     links: m.candidate_links.clone(),
                     total_points: m.surface_points,
-                    seed: 0,
+                    seed: m.surface_seed,
                 },
                 settings: m.estimator_settings(),
                 phase_sizes: m.estimator.phases.then_some(m.estimator.phase_sizes),

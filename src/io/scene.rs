@@ -66,6 +66,82 @@ pub struct Scene {
     /// Estimator settings. Default: see [`EstimatorSettings`].
     #[serde(default)]
     pub estimator: EstimatorSettings,
+    /// How the app shows the posterior. Default: the app's choice.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub view: Option<View>,
+}
+
+/// How the app shows the posterior (written when a scene is saved from it).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[allow(clippy::struct_excessive_bools)] // Independent display toggles, one checkbox each.
+pub struct View {
+    /// Log scale (else linear). Default: true.
+    #[serde(default = "default_true")]
+    pub log_scale: bool,
+    /// Fraction of the scale below which the surface stays grey, 0–1. Default: 0.
+    #[serde(default)]
+    pub threshold: f64,
+    /// The thesis' red-to-green map instead of viridis. Default: false.
+    #[serde(default)]
+    pub red_green: bool,
+    /// Draw the candidate points. Default: false.
+    #[serde(default)]
+    pub candidate_points: bool,
+    /// Draw every sensed joint's axis. Default: false.
+    #[serde(default)]
+    pub joint_axes: bool,
+}
+
+fn default_true() -> bool {
+    true
+}
+
+/// `path` made absolute, with `.` and `name/..` steps taken out (by
+/// name: links are not followed).
+#[must_use]
+pub fn normalized_path(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_owned());
+    let mut out = PathBuf::new();
+    for c in absolute.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                if !out.pop() {
+                    out.push(c);
+                }
+            }
+            other => out.push(other),
+        }
+    }
+    out
+}
+
+/// `target` written relative to the folder `base` (both normalized
+/// first): how a saved scene names its robot and package folders so that
+/// it opens from wherever the scene file is moved with them.
+#[must_use]
+pub fn relative_path(target: &Path, base: &Path) -> PathBuf {
+    let (target, base) = (normalized_path(target), normalized_path(base));
+    let t: Vec<_> = target.components().collect();
+    let b: Vec<_> = base.components().collect();
+    let common = t.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    if common == 0 {
+        return target;
+    }
+    let mut out = PathBuf::new();
+    for _ in common..b.len() {
+        out.push("..");
+    }
+    for c in &t[common..] {
+        out.push(c);
+    }
+    if out.as_os_str().is_empty() {
+        PathBuf::from(".")
+    } else {
+        out
+    }
 }
 
 fn default_surface_points() -> usize {
@@ -452,6 +528,14 @@ impl Scene {
             return Err(invalid(
                 "noise.sigma_newton_metres",
                 format!("{} is not a number ≥ 0", n.sigma_newton_metres),
+            ));
+        }
+        if let Some(view) = &self.view
+            && !(0.0..=1.0).contains(&view.threshold)
+        {
+            return Err(invalid(
+                "view.threshold",
+                format!("{} is not in [0, 1]", view.threshold),
             ));
         }
         self.estimator.validate(path)
