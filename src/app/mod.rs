@@ -1209,6 +1209,53 @@ impl ProprioscopeApp {
         self.current_outcome().is_some_and(|o| o.generation == self.generation) && self.session_settled()
     }
 
+    /// The model's invariants (what the monkey test checks after every
+    /// action): one q and one σ per sensed joint, all finite; candidate
+    /// links, the push's link and the shown estimate of this robot; the
+    /// session frame within the session.
+    pub fn check_invariants(&self) -> Result<(), String> {
+        let m = &self.model;
+        let joints = m.robot.sensed().len();
+        if m.q.len() != joints || m.sigma.len() != joints {
+            return Err(format!(
+                "{} q and {} σ for {joints} sensed joints",
+                m.q.len(),
+                m.sigma.len()
+            ));
+        }
+        if !m.q.iter().chain(&m.sigma).all(|v| v.is_finite()) {
+            return Err(format!("non-finite q {:?} or σ {:?}", m.q, m.sigma));
+        }
+        let links = m.robot.links.len();
+        if m.candidate_links.is_empty() || m.candidate_links.iter().any(|&l| l >= links) {
+            return Err(format!("candidate links {:?} of {links}", m.candidate_links));
+        }
+        if let Some(p) = m.push
+            && (p.link >= links || !p.force_newtons.is_finite() || !p.point_in_link.is_finite())
+        {
+            return Err(format!("push {p:?} on a robot of {links} links"));
+        }
+        if let Some(o) = self.current_outcome()
+            && let Ok(u) = &o.update
+            && (u.summary.map.link >= links || u.posterior.probability.iter().any(|p| !p.is_finite()))
+        {
+            return Err("the shown estimate does not fit the robot".to_owned());
+        }
+        if let Some(r) = &m.replay
+            && !r.session.frames.is_empty()
+            && r.frame >= r.session.frames.len()
+        {
+            return Err(format!("frame {} of {}", r.frame, r.session.frames.len()));
+        }
+        Ok(())
+    }
+
+    /// Where the 3-D view was last drawn in the window.
+    #[must_use]
+    pub fn view_rect(&self) -> Option<egui::Rect> {
+        self.view_rect
+    }
+
     /// How the robot was named when opened: a built-in name or the
     /// URDF's absolute path.
     #[must_use]
