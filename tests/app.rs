@@ -15,6 +15,21 @@ fn app_harness() -> Harness<'static, ProprioscopeApp> {
     proprioscope::app::headless_harness(open_target(None).unwrap(), [1200.0, 800.0])
 }
 
+/// Opens a scene, URDF or robot and runs frames until it is installed
+/// (or its error shown).
+fn open_and_wait(harness: &mut Harness<'_, ProprioscopeApp>, target: &str) {
+    harness.state_mut().open(target);
+    for _ in 0..1000 {
+        harness.step();
+        if !harness.state().is_opening() {
+            harness.run_steps(2);
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    panic!("{target} did not open within 10 s");
+}
+
 /// Runs frames until the newest estimate has arrived.
 fn settle(harness: &mut Harness<'_, ProprioscopeApp>) {
     proprioscope::app::settle(harness).unwrap();
@@ -153,21 +168,20 @@ fn opening_a_malformed_scene_shows_the_error_and_keeps_the_scene() {
     let bad = dir.join("broken.json");
     std::fs::write(&bad, r#"{"version": 1, "robot": "lwr4plus", "q": [0, 0], "colour": 3}"#).unwrap();
     let before = harness.state().model.q.clone();
-    harness.state_mut().open(bad.to_str().unwrap());
-    harness.run_steps(2);
+    open_and_wait(&mut harness, bad.to_str().unwrap());
     let error = harness.state().error.clone().unwrap();
     assert!(error.contains("broken.json") && error.contains("colour"), "{error}");
     assert_eq!(harness.state().model.q, before);
     // The message is on screen.
     assert!(harness.query_by_label_contains("colour").is_some());
     // A good scene opens and clears the error.
-    harness.state_mut().open(
+    open_and_wait(
+        &mut harness,
         Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("scenes/lwr-collision-2.json")
             .to_str()
             .unwrap(),
     );
-    harness.run_steps(2);
     assert!(harness.state().error.is_none());
     assert_eq!(harness.state().model.q, vec![0.0; 7]);
 }
@@ -180,7 +194,7 @@ fn a_saved_scene_opens_again_with_the_same_push() {
     harness.state_mut().save(&path);
     assert!(harness.state().error.is_none(), "{:?}", harness.state().error);
     let saved = harness.state().model.clone();
-    harness.state_mut().open(path.to_str().unwrap());
+    open_and_wait(&mut harness, path.to_str().unwrap());
     let reopened = &harness.state().model;
     assert_eq!(reopened.q, saved.q);
     let (a, b) = (saved.push.unwrap(), reopened.push.unwrap());
@@ -524,11 +538,11 @@ fn a_package_folder_added_in_the_app_resolves_package_uris() {
     .unwrap();
     let mut harness = app_harness();
     settle(&mut harness);
-    harness.state_mut().open(urdf.to_str().unwrap());
+    open_and_wait(&mut harness, urdf.to_str().unwrap());
     let error = harness.state().error.clone().unwrap();
     assert!(error.contains("tet.stl"), "{error}");
     harness.state_mut().package_paths.push(packages);
-    harness.state_mut().open(urdf.to_str().unwrap());
+    open_and_wait(&mut harness, urdf.to_str().unwrap());
     assert_eq!(harness.state().error, None);
     assert_eq!(harness.state().model.robot.name, "tet");
 }
@@ -632,8 +646,23 @@ fn switching_robots_from_the_menu_never_draws_the_old_estimate() {
         harness.get_by_label("Robot").click();
         harness.run_steps(2);
         harness.get_by_label(name).click();
-        // Frames drawn before the new estimate arrives must not use the old one.
-        harness.run_steps(3);
+        // Frames drawn while the robot opens and before its estimate
+        // arrives must not use the old robot's estimate.
+        harness.run_steps(1);
+        for _ in 0..1000 {
+            harness.step();
+            let app = harness.state();
+            if let Some(outcome) = app.current_outcome()
+                && let Ok(update) = &outcome.update
+            {
+                assert!(update.summary.map.link < app.model.robot.links.len());
+            }
+            if !app.is_opening() {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        harness.run_steps(2);
         let app = harness.state();
         assert_eq!(app.model.robot.name, name);
         if let Some(outcome) = app.current_outcome() {
@@ -681,7 +710,7 @@ fn assert_round_trip(harness: &mut Harness<'_, ProprioscopeApp>, name: &str) {
     assert!(harness.state().error.is_none(), "{:?}", harness.state().error);
     let before = harness.state().model.clone();
     let spec = harness.state().robot_spec().to_owned();
-    harness.state_mut().open(path.to_str().unwrap());
+    open_and_wait(harness, path.to_str().unwrap());
     assert!(harness.state().error.is_none(), "{:?}", harness.state().error);
     let after = harness.state().model.clone();
     assert_eq!(harness.state().robot_spec(), spec);

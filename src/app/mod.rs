@@ -887,6 +887,8 @@ pub struct ProprioscopeApp {
     pub visited_hits: usize,
     /// The session's metrics, with the estimation run they belong to.
     session_metrics: Option<((u64, usize), Option<timeline::SessionMetrics>)>,
+    /// A scene, URDF or robot being opened in the background.
+    opening: Option<worker::Background<AppStart>>,
 }
 
 impl ProprioscopeApp {
@@ -939,6 +941,7 @@ impl ProprioscopeApp {
             visited: std::collections::VecDeque::new(),
             pending: None,
             visited_hits: 0,
+            opening: None,
         };
         app.request_estimate();
         app
@@ -965,13 +968,38 @@ impl ProprioscopeApp {
             self.open_session(std::path::Path::new(target), None);
             return;
         }
-        match open_target_with(Some(target), None, &self.package_paths) {
+        // Reading a URDF and its meshes can take seconds: on a thread of
+        // its own, the current scene staying until it is there.
+        let owned = target.to_owned();
+        let package_paths = self.package_paths.clone();
+        let ctx = self.ctx.clone();
+        self.opening = Some(worker::Background::spawn(
+            target.to_owned(),
+            move || open_target_with(Some(&owned), None, &package_paths).map_err(|e| format!("{e:#}")),
+            move || ctx.request_repaint(),
+        ));
+    }
+
+    /// Whether a scene, URDF or robot is being opened in the background.
+    #[must_use]
+    pub fn is_opening(&self) -> bool {
+        self.opening.is_some()
+    }
+
+    /// Installs a scene, URDF or robot opened in the background (or shows
+    /// why it could not be opened).
+    fn poll_opening(&mut self) {
+        let Some(done) = self.opening.as_ref().and_then(worker::Background::poll) else {
+            return;
+        };
+        let target = self.opening.take().map(|o| o.what).unwrap_or_default();
+        match done {
             Ok(start) => {
                 let model = Model::from_start(start.robot, start.q, start.push, start.settings, self.model.view);
                 self.package_paths = start.package_paths;
                 self.replace_model(model, start.robot_spec);
             }
-            Err(e) => self.error = Some(format!("could not open {target}: {e:#}")),
+            Err(e) => self.error = Some(format!("could not open {target}: {e}")),
         }
     }
 
@@ -1206,7 +1234,9 @@ impl ProprioscopeApp {
     /// The newest estimate for the current model has arrived.
     #[must_use]
     pub fn is_up_to_date(&self) -> bool {
-        self.current_outcome().is_some_and(|o| o.generation == self.generation) && self.session_settled()
+        self.opening.is_none()
+            && self.current_outcome().is_some_and(|o| o.generation == self.generation)
+            && self.session_settled()
     }
 
     /// The model's invariants (what the monkey test checks after every
@@ -1966,12 +1996,15 @@ impl eframe::App for ProprioscopeApp {
                 self.outcome = Some(outcome);
             }
         }
-        self.status = if self.is_up_to_date() {
+        self.status = if let Some(opening) = &self.opening {
+            format!("opening {}…", opening.what)
+        } else if self.is_up_to_date() {
             String::new()
         } else {
             "estimating…".to_owned()
         };
         self.poll_loader();
+        self.poll_opening();
         self.update_session_estimates();
         let mut commands = self.playback_keys(ui.ctx());
         egui::Panel::top("menu").show(ui, |ui| self.menu_ui(ui));

@@ -121,6 +121,42 @@ impl Worker {
     }
 }
 
+/// One job on a thread of its own, supervised (a panic is its error),
+/// polled by the UI: how scenes, URDFs and robots are opened without
+/// freezing the window.
+pub struct Background<T> {
+    result: Receiver<Result<T, String>>,
+    /// What is being done, for the status line.
+    pub what: String,
+}
+
+impl<T: Send + 'static> Background<T> {
+    /// Starts `job`; `wake` is called when it is done.
+    pub fn spawn(
+        what: String,
+        job: impl FnOnce() -> Result<T, String> + Send + 'static,
+        wake: impl Fn() + Send + 'static,
+    ) -> Self {
+        let (tx, result) = channel();
+        std::thread::spawn(move || {
+            let done = crate::io::guard::isolated(job).and_then(|r| r);
+            let _ = tx.send(done);
+            wake();
+        });
+        Self { result, what }
+    }
+
+    /// The result, once it is there.
+    #[must_use]
+    pub fn poll(&self) -> Option<Result<T, String>> {
+        match self.result.try_recv() {
+            Ok(r) => Some(r),
+            Err(std::sync::mpsc::TryRecvError::Empty) => None,
+            Err(std::sync::mpsc::TryRecvError::Disconnected) => Some(Err("the loading thread stopped".to_owned())),
+        }
+    }
+}
+
 /// An outcome that reports `message` instead of an estimate.
 fn failed(request: &Request, message: String) -> Outcome {
     Outcome {
