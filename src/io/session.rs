@@ -466,13 +466,26 @@ fn frame_problem(f: &Frame, width: Option<usize>, last_t: f64) -> Option<(String
             return Some((format!("{name}[{j}]"), format!("{v} is missing or not finite")));
         }
     }
-    if let Truth::Contact { point, force, .. } = &f.truth
-        && point.iter().chain(force).any(|v| !v.is_finite())
-    {
-        return Some(("truth".to_owned(), "point or force is not finite".to_owned()));
+    if let Truth::Contact { point, force, .. } = &f.truth {
+        if point.iter().chain(force).any(|v| !v.is_finite()) {
+            return Some(("truth".to_owned(), "point or force is not finite".to_owned()));
+        }
+        // Beyond these the errors against them overflow (they printed inf).
+        if point.iter().any(|v| v.abs() > MAX_TRUTH_POINT_M) || force.iter().any(|v| v.abs() > MAX_TRUTH_FORCE_N) {
+            return Some((
+                "truth".to_owned(),
+                format!("point {point:?} or force {force:?} beyond {MAX_TRUTH_POINT_M} m or {MAX_TRUTH_FORCE_N} N"),
+            ));
+        }
     }
     None
 }
+
+/// The farthest a true contact point may be from the base, m.
+pub const MAX_TRUTH_POINT_M: f64 = 1000.0;
+
+/// The largest component of a true contact force, N.
+pub const MAX_TRUTH_FORCE_N: f64 = 1e6;
 
 /// A recording cut short (the program was killed while writing it): its
 /// header and every complete frame line, closed. `None` when the text is
@@ -638,6 +651,22 @@ mod tests {
         assert!(matches!(s.frames[0].truth, Truth::Contact { .. }));
         assert_eq!(s.frames[1].truth, Truth::NoContact);
         assert_eq!(s.frames[2].truth, Truth::Unknown);
+    }
+
+    /// A truth far beyond any arm made the errors against it overflow
+    /// (`estimate` printed inf).
+    #[test]
+    fn truths_beyond_reason_are_bad_frames() {
+        let text = JSON.replace("[1, 2, 3]", "[1e300, 2, 3]");
+        let e = Session::parse_json(&text, Path::new("s.json"))
+            .unwrap()
+            .check()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("frame 0") && e.contains("truth") && e.contains("beyond"),
+            "{e}"
+        );
     }
 
     #[test]
