@@ -151,6 +151,21 @@ fn push_through_a_joint_axis_gives_a_finite_answer_containing_the_truth() {
     credible_set_contains_truth(&scene, &estimator, &update);
 }
 
+#[test]
+fn torques_within_noise_are_not_refined_or_clustered() {
+    let scene = load("lwr-collision-3");
+    let (estimator, pushed) = estimate_scene(&scene, Some(0.05), 3000);
+    assert_eq!(pushed.summary.verdict, Verdict::Contact);
+    assert!(pushed.summary.refined);
+    assert!(!pushed.summary.clusters.is_empty());
+
+    let silent = vec![0.0; scene.robot.sensed().len()];
+    let update = estimator.update(&scene.robot, &scene.joint_positions, &silent).unwrap();
+    assert_eq!(update.summary.verdict, Verdict::NoContact);
+    assert!(!update.summary.refined);
+    assert!(update.summary.clusters.is_empty());
+    assert!(update.posterior.probability.iter().all(|p| p.is_finite()));
+}
 /// Per surface seed, the median position error on a shared session
 /// (σ = 0.05 N·m, 5000 points), and the share of frames called poorly
 /// explained over all seeds.

@@ -8,7 +8,8 @@ use crate::core::kinematics::RobotPose;
 use crate::core::phases::PhaseHierarchy;
 use crate::core::refine::{Measurement, refine};
 use crate::core::robot::{LinkId, Robot};
-use crate::core::summary::{Refinement, Summary, summarize_refined};
+use crate::core::special::chi_square_survival;
+use crate::core::summary::{NO_CONTACT_P, Refinement, Summary, summarize_refined};
 use crate::core::surface::{Surface, SurfaceError, SurfaceRequest};
 use crate::core::torque::TorqueModel;
 
@@ -65,7 +66,10 @@ impl Estimator {
             surface: &self.surface,
         };
         let posterior = estimate(&posed, tau, &self.settings, self.hierarchy.as_ref())?;
-        let refined = (self.settings.patches && self.settings.mode == Mode::Exact)
+        // Torques within noise of zero: there is no contact to place, so
+        // none is refined (the summary reports the most probable sample).
+        let no_contact = chi_square_survival(posterior.no_contact_chi2, posed.joints()) > NO_CONTACT_P;
+        let refined = (self.settings.patches && self.settings.mode == Mode::Exact && !no_contact)
             .then(|| {
                 let weights: Vec<f64> = self.settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
                 let measurement = Measurement {

@@ -259,7 +259,12 @@ pub fn summarize_refined(
         refined: refined.is_some(),
         per_link,
         credible90: credible_set(posterior, world, 0.9),
-        clusters: clusters(posterior, surface, pose, world),
+        // Without a contact there is nothing to cluster.
+        clusters: if verdict == Verdict::NoContact {
+            Vec::new()
+        } else {
+            clusters(posterior, surface, pose, world)
+        },
         fit,
     }
 }
