@@ -128,9 +128,18 @@ impl UnitTorqueSource for PosedSurface<'_> {
             return false;
         }
         out.resize(n);
-        for (k, (w, area)) in surface.window_m.iter().zip(&surface.area_m2).enumerate() {
-            out.window_m[k] = *w;
-            out.ln_area[k] = area.max(f64::MIN_POSITIVE).ln();
+        out.window_m.copy_from_slice(&surface.window_m);
+        // A link's points share one area: one `ln` per run, not per point.
+        let mut last: Option<(f64, f64)> = None;
+        for (ln_area, &area) in out.ln_area.iter_mut().zip(&surface.area_m2) {
+            *ln_area = match last {
+                Some((seen, value)) if seen.to_bits() == area.to_bits() => value,
+                _ => {
+                    let value = area.max(f64::MIN_POSITIVE).ln();
+                    last = Some((area, value));
+                    value
+                }
+            };
         }
         let lines = surface.push_lines.each_ref().map(Vec::as_slice);
         let tangents = surface.tangent_lines.each_ref().map(Vec::as_slice);

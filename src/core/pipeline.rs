@@ -47,6 +47,9 @@ impl Estimator {
         phase_sizes: Option<[usize; 2]>,
     ) -> Result<Self, SurfaceError> {
         let surface = Surface::sample(robot, request)?;
+        // The evidence's erfc fit is built on first use: here, not in the
+        // first update (a few milliseconds that would be that frame's).
+        let _ = crate::core::fastmath::ErfTable::get();
         let hierarchy = phase_sizes.map(|sizes| PhaseHierarchy::new(&surface, sizes, request.seed));
         Ok(Self {
             surface,
