@@ -630,37 +630,14 @@ pub fn estimate(
     // Relative masses with the branch-free `exp` (one vectorised loop).
     let relative: Vec<f64> = near.iter().map(|&i| scored.mass[i] - best_mass).collect();
     let weights: Vec<f64> = relative.iter().map(|&x| fastmath::exp(x)).collect();
-    let weight_sum: f64 = weights.iter().sum();
-    let total = best_mass + weight_sum.ln();
+    let total = best_mass + weights.iter().sum::<f64>().ln();
     // The smallest residual is among the likeliest points.
     let best_residual_chi2 = near
         .iter()
         .filter(|&&i| scored.mass[i].is_finite())
         .map(|&i| q.residual(last[i], scored.force[i]))
         .fold(f64::INFINITY, f64::min);
-    let (mut probability, mut display) = (vec![0.0; n], vec![0.0; n]);
-    let mut support = Vec::with_capacity(near.len());
-    // A point's probability is its weight over the sum (the weights were
-    // just computed); exact mode shows the same, particle modes their
-    // best particle.
-    let exact = scored.best.is_empty();
-    for (&i, &weight) in near.iter().zip(&weights) {
-        let k = last[i];
-        let p = if scored.mass[i] - total < NEGLIGIBLE_LOG_MASS {
-            0.0
-        } else {
-            weight / weight_sum
-        };
-        probability[k] = p;
-        display[k] = if exact { p } else { exp_or_zero(scored.best(i) - total) };
-        if probability[k] > 0.0 || display[k] > 0.0 {
-            support.push(k);
-        }
-    }
-    // `last` is in index order already; this keeps the promise if that changes.
-    if !support.is_sorted() {
-        support.sort_unstable();
-    }
+    let (probability, display, support) = spread_mass(&scored, &last, &near, &weights, total, n);
     let (log_likelihood, force_newtons) = if last.len() == n {
         // A full search scores every point in order: no scatter needed.
         (scored.mass, scored.force)
@@ -684,6 +661,47 @@ pub fn estimate(
         best_residual_chi2,
         no_contact_chi2,
     })
+}
+
+/// Per surface point: probability (a near point's weight over the sum of
+/// the weights, 0 below e^-60 of the total), the value shown (the same in
+/// exact mode, the best particle's otherwise) and the points with either.
+/// `near[i]` is the slot of `weights[i]`; `last[slot]` its point.
+fn spread_mass(
+    scored: &Scores,
+    last: &[usize],
+    near: &[usize],
+    weights: &[f64],
+    total: f64,
+    n: usize,
+) -> (Vec<f64>, Vec<f64>, Vec<usize>) {
+    let weight_sum: f64 = weights.iter().sum();
+    let (mut probability, mut display) = (vec![0.0; n], vec![0.0; n]);
+    let mut support = Vec::with_capacity(near.len());
+    let exact = scored.best.is_empty();
+    for (&i, &weight) in near.iter().zip(weights) {
+        let (Some(&k), Some(&mass)) = (last.get(i), scored.mass.get(i)) else {
+            continue;
+        };
+        let p = if mass - total < NEGLIGIBLE_LOG_MASS {
+            0.0
+        } else {
+            weight / weight_sum
+        };
+        let shown = if exact { p } else { exp_or_zero(scored.best(i) - total) };
+        if let (Some(pk), Some(dk)) = (probability.get_mut(k), display.get_mut(k)) {
+            *pk = p;
+            *dk = shown;
+        }
+        if p > 0.0 || shown > 0.0 {
+            support.push(k);
+        }
+    }
+    // `last` is in index order already; this keeps the promise if that changes.
+    if !support.is_sorted() {
+        support.sort_unstable();
+    }
+    (probability, display, support)
 }
 
 /// Each point's likelihood terms: patch-integrated in exact mode when the
