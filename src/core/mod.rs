@@ -22,4 +22,6 @@ pub mod smooth;
 pub mod special;
 pub mod summary;
 pub mod surface;
+pub mod synth;
+pub mod temporal;
 pub mod torque;

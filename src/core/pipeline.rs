@@ -11,6 +11,7 @@ use crate::core::robot::{LinkId, Robot};
 use crate::core::special::chi_square_survival;
 use crate::core::summary::{NO_CONTACT_P, Refinement, Summary, summarize_refined};
 use crate::core::surface::{Surface, SurfaceError, SurfaceRequest};
+use crate::core::temporal::{Belief, Filter, FrameLikelihood, Smoother, TemporalError, TemporalModel};
 use crate::core::torque::TorqueModel;
 
 /// Everything fixed across updates.
@@ -72,7 +73,26 @@ impl Estimator {
         // Torques within noise of zero: there is no contact to place, so
         // none is refined (the summary reports the most probable sample).
         let no_contact = chi_square_survival(posterior.no_contact_chi2, posed.joints()) > NO_CONTACT_P;
-        let refined = (self.settings.patches && self.settings.mode == Mode::Exact && !no_contact)
+        let summary = self.conclude(&torque_model, &pose, &posterior, tau, !no_contact, None);
+        Ok(Update {
+            pose,
+            posterior,
+            summary,
+        })
+    }
+
+    /// Refines (when asked and the settings allow) and summarises a
+    /// posterior of the torques `tau` at `pose`.
+    fn conclude(
+        &self,
+        torque_model: &TorqueModel,
+        pose: &RobotPose,
+        posterior: &Posterior,
+        tau: &[f64],
+        refine_contact: bool,
+        contact_probability: Option<f64>,
+    ) -> Summary {
+        let refined = (self.settings.patches && self.settings.mode == Mode::Exact && refine_contact)
             .then(|| {
                 let weights: Vec<f64> = self.settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
                 let measurement = Measurement {
@@ -80,23 +100,182 @@ impl Estimator {
                     weights: &weights,
                     force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
                 };
-                refine(&torque_model, &self.surface, &posterior, &measurement)
+                refine(torque_model, &self.surface, posterior, &measurement)
             })
             .flatten();
-        let summary = summarize_refined(
-            &posterior,
+        summarize_refined(
+            posterior,
             &self.surface,
-            &pose,
-            posed.joints(),
+            pose,
+            torque_model.sensed_count(),
             refined.as_ref().map(|contact| Refinement {
                 contact,
                 sensing_joints: torque_model.twists(contact.link).len(),
             }),
+            contact_probability,
+        )
+    }
+
+    /// What the temporal model needs of an update: its likelihoods.
+    #[must_use]
+    pub fn frame_likelihood(&self, update: &Update) -> FrameLikelihood {
+        FrameLikelihood::from_posterior(&update.posterior, &self.surface, self.uses_patches())
+    }
+
+    /// Whether posteriors integrate each sample's patch (exact mode with
+    /// patches): their samples are then weighed by area.
+    #[must_use]
+    pub fn uses_patches(&self) -> bool {
+        self.settings.patches && self.settings.mode == Mode::Exact
+    }
+
+    /// `update` (of the torques `tau`) seen through a temporal model's
+    /// `belief` at its frame: the posterior over samples becomes the
+    /// belief's (given a contact), the verdict follows its contact
+    /// probability, and the contact is refined at this frame's torques.
+    /// The frame's own likelihoods and magnitudes are kept.
+    #[must_use]
+    pub fn with_belief(&self, robot: &Robot, update: Update, tau: &[f64], belief: &Belief) -> Update {
+        let Some(probability) = belief.where_given_contact() else {
+            return update;
+        };
+        if probability.len() != update.posterior.probability.len() {
+            return update;
+        }
+        let contact_probability = belief.contact_probability();
+        let mut posterior = update.posterior;
+        let top = probability.iter().copied().fold(0.0, f64::max);
+        posterior.support = (0..probability.len())
+            .filter(|&k| probability.get(k).is_some_and(|&p| p > 0.0 && p >= 1e-26 * top))
+            .collect();
+        posterior.map_point = posterior
+            .support
+            .iter()
+            .copied()
+            .max_by(|&x, &y| probability[x].total_cmp(&probability[y]).then(y.cmp(&x)))
+            .unwrap_or(posterior.map_point);
+        posterior.display.clone_from(&probability);
+        posterior.probability = probability;
+        let torque_model = TorqueModel::new(robot, &update.pose, &self.links);
+        let summary = self.conclude(
+            &torque_model,
+            &update.pose,
+            &posterior,
+            tau,
+            contact_probability >= 0.5,
+            Some(contact_probability),
         );
-        Ok(Update {
-            pose,
+        Update {
+            pose: update.pose,
             posterior,
             summary,
-        })
+        }
     }
+}
+
+/// How a sequence of frames is estimated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Temporal {
+    /// Each frame alone.
+    #[default]
+    None,
+    /// Each frame with the ones before (causal, as live).
+    Filter,
+    /// Each frame with the whole sequence.
+    Smooth,
+}
+
+/// One frame of a sequence.
+#[derive(Debug, Clone, Copy)]
+pub struct SequenceFrame<'a> {
+    /// Time, s.
+    pub t_secs: f64,
+    /// Every joint's position (see [`Robot::joint_positions`]).
+    pub joint_positions: &'a [f64],
+    /// Measured torques, sensed order, N·m.
+    pub tau: &'a [f64],
+}
+
+/// Why a sequence could not be estimated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SequenceError {
+    /// A frame's estimate failed.
+    #[error("frame {frame}: {source}")]
+    Frame {
+        /// Frame number in the sequence (0-based).
+        frame: usize,
+        /// Why.
+        source: EstimateError,
+    },
+    /// The temporal model refused a frame.
+    #[error(transparent)]
+    Temporal(#[from] TemporalError),
+}
+
+/// Estimates `frames` in order, each alone or through `model`, and hands
+/// each frame's update, in order, with the milliseconds it cost, to
+/// `each`. Smoothing runs the per-frame estimate twice (once for the
+/// likelihoods, once for the summaries, so that nothing per frame is held
+/// but the smoother's store); its cost per frame is both passes and its
+/// share of the backward pass.
+///
+/// # Errors
+/// [`SequenceError`] for the first frame that fails.
+pub fn estimate_sequence(
+    estimator: &Estimator,
+    robot: &Robot,
+    model: Option<&TemporalModel>,
+    temporal: Temporal,
+    frames: &[SequenceFrame],
+    mut each: impl FnMut(usize, Update, f64),
+) -> Result<(), SequenceError> {
+    let update_of = |i: usize, f: &SequenceFrame| {
+        estimator
+            .update(robot, f.joint_positions, f.tau)
+            .map_err(|source| SequenceError::Frame { frame: i, source })
+    };
+    let ms = |t0: std::time::Instant| t0.elapsed().as_secs_f64() * 1e3;
+    match (model, temporal) {
+        (None, _) | (_, Temporal::None) => {
+            for (i, f) in frames.iter().enumerate() {
+                let t0 = std::time::Instant::now();
+                let update = update_of(i, f)?;
+                each(i, update, ms(t0));
+            }
+        }
+        (Some(model), Temporal::Filter) => {
+            let mut filter = Filter::new(model);
+            for (i, f) in frames.iter().enumerate() {
+                let t0 = std::time::Instant::now();
+                let update = update_of(i, f)?;
+                let belief = filter.step(f.t_secs, &estimator.frame_likelihood(&update))?;
+                let update = estimator.with_belief(robot, update, f.tau, belief);
+                each(i, update, ms(t0));
+            }
+        }
+        (Some(model), Temporal::Smooth) => {
+            let mut smoother = Smoother::new(model);
+            let mut first_ms = Vec::with_capacity(frames.len());
+            for (i, f) in frames.iter().enumerate() {
+                let t0 = std::time::Instant::now();
+                let update = update_of(i, f)?;
+                smoother.push(f.t_secs, &estimator.frame_likelihood(&update))?;
+                first_ms.push(ms(t0));
+            }
+            let t0 = std::time::Instant::now();
+            let beliefs = smoother.finish();
+            let backward_ms = ms(t0) / frames.len().max(1) as f64;
+            for (i, (f, belief)) in frames.iter().zip(&beliefs).enumerate() {
+                let t0 = std::time::Instant::now();
+                let update = update_of(i, f)?;
+                let update = estimator.with_belief(robot, update, f.tau, belief);
+                each(
+                    i,
+                    update,
+                    ms(t0) + backward_ms + first_ms.get(i).copied().unwrap_or(0.0),
+                );
+            }
+        }
+    }
+    Ok(())
 }

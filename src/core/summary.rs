@@ -130,6 +130,10 @@ pub struct Summary {
     pub clusters: Vec<Cluster>,
     /// Goodness of fit.
     pub fit: Fit,
+    /// The chance that there is a contact, from a temporal model (frames
+    /// before, and after when smoothing); `None` for a frame alone, whose
+    /// verdict comes from the χ² tests.
+    pub contact_probability: Option<f64>,
 }
 
 /// The contact hypothesis of surface point `k`.
@@ -179,7 +183,7 @@ fn refined_estimate(r: &RefinedContact, posterior: &Posterior, surface: &Surface
 /// Summarises a posterior of `joints` sensed joints.
 #[must_use]
 pub fn summarize(posterior: &Posterior, surface: &Surface, pose: &RobotPose, joints: usize) -> Summary {
-    summarize_refined(posterior, surface, pose, joints, None)
+    summarize_refined(posterior, surface, pose, joints, None, None)
 }
 
 /// A refined contact for [`summarize_refined`]: the contact and how many
@@ -196,7 +200,9 @@ pub struct Refinement<'a> {
 /// continuous surface: it is the reported contact, and the fit test uses
 /// its residual with one degree of freedom per sensed joint less the
 /// three it fits (two for the place, one for the magnitude; fewer when
-/// fewer joints sense its link).
+/// fewer joints sense its link). With a `contact_probability` (from the
+/// temporal model) the verdict is *no contact* below one half, whatever
+/// the χ² test of this frame alone says.
 #[must_use]
 pub fn summarize_refined(
     posterior: &Posterior,
@@ -204,6 +210,7 @@ pub fn summarize_refined(
     pose: &RobotPose,
     joints: usize,
     refined: Option<Refinement>,
+    contact_probability: Option<f64>,
 ) -> Summary {
     let (chi2, dof) = match refined {
         Some(r) => (r.contact.residual_chi2, joints.saturating_sub(r.sensing_joints.min(3))),
@@ -215,7 +222,11 @@ pub fn summarize_refined(
         p_value: if dof == 0 { 1.0 } else { chi_square_survival(chi2, dof) },
         no_contact_p: chi_square_survival(posterior.no_contact_chi2, joints),
     };
-    let verdict = if fit.no_contact_p > NO_CONTACT_P {
+    let no_contact = match contact_probability {
+        Some(p) => p < 0.5,
+        None => fit.no_contact_p > NO_CONTACT_P,
+    };
+    let verdict = if no_contact {
         Verdict::NoContact
     } else if fit.p_value < POOR_FIT_P {
         Verdict::PoorFit
@@ -266,6 +277,7 @@ pub fn summarize_refined(
             clusters(posterior, surface, pose, world)
         },
         fit,
+        contact_probability,
     }
 }
 
