@@ -7,14 +7,15 @@ use std::time::Instant;
 use anyhow::{Context as _, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use proprioscope::app::session::{FrameEstimate, frame_outcome, session_robot};
-use proprioscope::core::metrics::{FrameOutcome, Metrics, metrics, metrics_by_sensing_joints, percentile};
-use proprioscope::core::pipeline::{Estimator, Update};
+use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, metrics_by_sensing_joints, percentile};
+use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, Update, estimate_sequence};
 use proprioscope::core::robot::Robot;
 use proprioscope::core::summary::Verdict;
 use proprioscope::core::surface::SurfaceRequest;
+use proprioscope::core::temporal::TemporalModel;
 use proprioscope::io::session::{Session, Truth, kept_frame_numbers};
 
-use super::EstimatorArgs;
+use super::{EstimatorArgs, TemporalArgs};
 
 /// Options of `estimate`.
 #[derive(Debug, clap::Args)]
@@ -39,6 +40,9 @@ pub struct EstimateArgs {
     /// Estimator options.
     #[command(flatten)]
     pub estimator: EstimatorArgs,
+    /// Temporal model.
+    #[command(flatten)]
+    pub temporal: TemporalArgs,
 }
 
 /// The session, strictly or skipping bad frames; with each kept frame's
@@ -56,6 +60,20 @@ fn read_session(args: &EstimateArgs) -> Result<(Session, Vec<usize>)> {
         let all: Vec<usize> = (0..session.frames.len()).collect();
         (session, all)
     })
+}
+
+/// Every frame's joint positions, in the robot's order.
+fn joint_positions(robot: &Robot, session: &Session, file_frames: &[usize]) -> Result<Vec<Vec<f64>>> {
+    session
+        .frames
+        .iter()
+        .zip(file_frames)
+        .map(|(frame, i)| {
+            robot
+                .joint_positions(&frame.q, &[])
+                .with_context(|| format!("{}: frame {i} (t = {})", session.path.display(), frame.t))
+        })
+        .collect()
 }
 
 /// Runs the command.
@@ -89,6 +107,25 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
         )),
         None => None,
     };
+    let temporal: Temporal = args.temporal.temporal.into();
+    let model = match temporal {
+        Temporal::None => None,
+        Temporal::Filter | Temporal::Smooth => Some(
+            TemporalModel::new(&estimator.surface, args.temporal.settings(), estimator.uses_patches())
+                .context("--temporal")?,
+        ),
+    };
+    let positions = joint_positions(&robot, &session, &file_frames)?;
+    let sequence: Vec<SequenceFrame> = session
+        .frames
+        .iter()
+        .zip(&positions)
+        .map(|(frame, joint_positions)| SequenceFrame {
+            t_secs: frame.t,
+            joint_positions,
+            tau: &frame.tau,
+        })
+        .collect();
     let bar = ProgressBar::new(session.frames.len() as u64);
     bar.set_style(ProgressStyle::with_template(
         "{bar:40} {pos}/{len} frames, {per_sec}, eta {eta}",
@@ -96,40 +133,53 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
     let mut outcomes = Vec::new();
     let mut times_ms = Vec::new();
     let mut verdicts = [0usize; 3];
-    args.estimator.with_threads(|| -> Result<()> {
-        for (frame, &i) in session.frames.iter().zip(&file_frames) {
-            let frame_error = || format!("{}: frame {i} (t = {})", session.path.display(), frame.t);
-            let positions = robot.joint_positions(&frame.q, &[]).with_context(frame_error)?;
-            let t0 = Instant::now();
-            let update = estimator
-                .update(&robot, &positions, &frame.tau)
-                .with_context(frame_error)?;
-            let ms = t0.elapsed().as_secs_f64() * 1e3;
-            times_ms.push(ms);
-            verdicts[match update.summary.verdict {
-                Verdict::Contact => 0,
-                Verdict::NoContact => 1,
-                Verdict::PoorFit => 2,
-            }] += 1;
-            let outcome = frame_outcome(&robot, &FrameEstimate::of(&update, ms), &frame.truth);
-            if let Some(o) = outcome {
-                outcomes.push(o);
-            }
-            if let Some(w) = out.as_mut() {
-                writeln!(
-                    w,
-                    "{}",
-                    frame_json(&robot, i, frame.t, &update, ms, &frame.truth, outcome.as_ref())
-                )?;
-            }
-            bar.inc(1);
-        }
-        Ok(())
+    let mut called = Vec::with_capacity(session.frames.len());
+    let mut written: Result<()> = Ok(());
+    args.estimator.with_threads(|| {
+        estimate_sequence(
+            &estimator,
+            &robot,
+            model.as_ref(),
+            temporal,
+            &sequence,
+            |n, update, ms| {
+                let (Some(frame), Some(&i)) = (session.frames.get(n), file_frames.get(n)) else {
+                    return;
+                };
+                times_ms.push(ms);
+                verdicts[match update.summary.verdict {
+                    Verdict::Contact => 0,
+                    Verdict::NoContact => 1,
+                    Verdict::PoorFit => 2,
+                }] += 1;
+                called.push(update.summary.verdict != Verdict::NoContact);
+                let outcome = frame_outcome(&robot, &FrameEstimate::of(&update, ms), &frame.truth);
+                if let Some(o) = outcome {
+                    outcomes.push(o);
+                }
+                if let (Some(w), Ok(())) = (out.as_mut(), &written) {
+                    let line = frame_json(&robot, i, frame.t, &update, ms, &frame.truth, outcome.as_ref());
+                    written = writeln!(w, "{line}").context("writing --out");
+                }
+                bar.inc(1);
+            },
+        )
+        .with_context(|| session.path.display().to_string())
     })??;
+    written?;
     bar.finish_and_clear();
     if let Some(mut w) = out {
         w.flush()?;
     }
+    report(&session, &verdicts, &times_ms, &called)?;
+    if !outcomes.is_empty() {
+        print_metrics(&outcomes)?;
+    }
+    Ok(())
+}
+
+/// The verdict counts, times and detection record of a run.
+fn report(session: &Session, verdicts: &[usize; 3], times_ms: &[f64], called: &[bool]) -> Result<()> {
     outln!(
         "{} frames: {} contact, {} no contact, {} poorly explained",
         session.frames.len(),
@@ -140,12 +190,43 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
     let mean = times_ms.iter().sum::<f64>() / times_ms.len().max(1) as f64;
     outln!(
         "update time: mean {mean:.3} ms, median {:.3} ms",
-        percentile(&times_ms, 0.5)
+        percentile(times_ms, 0.5)
     );
-    if !outcomes.is_empty() {
-        print_metrics(&outcomes)?;
+    let truth: Vec<Option<bool>> = session
+        .frames
+        .iter()
+        .map(|f| match f.truth {
+            Truth::Contact { .. } => Some(true),
+            Truth::NoContact => Some(false),
+            Truth::Unknown => None,
+        })
+        .collect();
+    let found = detection(&truth, called);
+    if found.contact_frames + found.quiet_frames > 0 {
+        outln!(
+            "detection: {}/{} contact frames ({:.1} %), {}/{} false alarms ({:.1} %), onsets found after {}",
+            found.detected,
+            found.contact_frames,
+            100.0 * found.detection_rate(),
+            found.false_alarms,
+            found.quiet_frames,
+            100.0 * found.false_alarm_rate(),
+            onset_text(&found.onset_delays)
+        );
     }
     Ok(())
+}
+
+/// "0, 1, 2 frames" (a missed onset reads "missed").
+pub fn onset_text(delays: &[Option<usize>]) -> String {
+    if delays.is_empty() {
+        return "— (no onsets)".to_owned();
+    }
+    let parts: Vec<String> = delays
+        .iter()
+        .map(|d| d.map_or_else(|| "missed".to_owned(), |d| d.to_string()))
+        .collect();
+    format!("{} frames", parts.join(", "))
 }
 
 fn frame_json(
@@ -172,6 +253,7 @@ fn frame_json(
         "point": contact.then(|| s.map.point_world.to_array()),
         "force": contact.then(|| s.map.force_world.to_array()),
         "probability": s.map.probability,
+        "contact_probability": s.contact_probability,
         "refined": s.refined,
         "grid": contact.then(|| serde_json::json!({
             "link": robot.links[s.grid_map.link].name.clone(),

@@ -5,7 +5,9 @@ pub mod estimate;
 
 use anyhow::{Result, bail};
 use proprioscope::core::estimator::{EstimatorSettings, Mode, ParticleSettings, Sampling};
+use proprioscope::core::pipeline::Temporal;
 use proprioscope::core::robot::{LinkId, Robot};
+use proprioscope::core::temporal::TemporalSettings;
 
 /// A finite number (`inf` and `NaN`, which Rust's parser takes, are not).
 pub fn finite(text: &str) -> Result<f64, String> {
@@ -32,6 +34,60 @@ pub enum SamplingArg {
     Deterministic,
     /// Uniform random points and magnitudes.
     Random,
+}
+
+/// How frames of a session are combined, on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum TemporalArg {
+    /// Each frame alone.
+    None,
+    /// Each frame with the frames before it (causal, as live).
+    Filter,
+    /// Each frame with the whole recording (forward–backward).
+    Smooth,
+}
+
+impl From<TemporalArg> for Temporal {
+    fn from(t: TemporalArg) -> Self {
+        match t {
+            TemporalArg::None => Self::None,
+            TemporalArg::Filter => Self::Filter,
+            TemporalArg::Smooth => Self::Smooth,
+        }
+    }
+}
+
+/// Options of the temporal model (sessions).
+#[derive(Debug, Clone, clap::Args)]
+pub struct TemporalArgs {
+    /// Combine frames over time: `none` (each frame alone), `filter`
+    /// (with the frames before) or `smooth` (with the whole recording).
+    #[arg(long, value_enum, default_value = "none")]
+    pub temporal: TemporalArg,
+    /// Rate at which contacts begin, 1/s.
+    #[arg(long, default_value_t = TemporalSettings::default().onset_per_s, value_parser = finite)]
+    pub onset_rate: f64,
+    /// Rate at which a contact ends, 1/s (its mean duration is the inverse).
+    #[arg(long, default_value_t = TemporalSettings::default().release_per_s, value_parser = finite)]
+    pub release_rate: f64,
+    /// RMS slide of a contact along each surface direction after one second, m.
+    #[arg(long, default_value_t = TemporalSettings::default().slide_m_per_sqrt_s, value_parser = finite)]
+    pub slide: f64,
+    /// Rate at which a contact jumps to an unrelated place, 1/s.
+    #[arg(long, default_value_t = TemporalSettings::default().jump_per_s, value_parser = finite)]
+    pub jump_rate: f64,
+}
+
+impl TemporalArgs {
+    /// The model's settings.
+    pub fn settings(&self) -> TemporalSettings {
+        TemporalSettings {
+            onset_per_s: self.onset_rate,
+            release_per_s: self.release_rate,
+            slide_m_per_sqrt_s: self.slide,
+            jump_per_s: self.jump_rate,
+        }
+    }
 }
 
 /// Estimator options shared by `estimate` and `bench`.

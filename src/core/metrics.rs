@@ -119,6 +119,84 @@ pub fn metrics_by_sensing_joints(outcomes: &[FrameOutcome]) -> Vec<(usize, Metri
         .collect()
 }
 
+/// How well contacts were detected over a sequence of frames.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Detection {
+    /// Frames with a true contact.
+    pub contact_frames: usize,
+    /// Of these, frames called a contact.
+    pub detected: usize,
+    /// Frames known to have no contact.
+    pub quiet_frames: usize,
+    /// Of these, frames called a contact.
+    pub false_alarms: usize,
+    /// Per true onset (a contact frame after a known quiet one, or the
+    /// first frame), frames until the first frame called a contact
+    /// (`None` if none was while the contact lasted).
+    pub onset_delays: Vec<Option<usize>>,
+}
+
+impl Detection {
+    /// Share of contact frames called a contact (1 without any).
+    #[must_use]
+    pub fn detection_rate(&self) -> f64 {
+        if self.contact_frames == 0 {
+            1.0
+        } else {
+            self.detected as f64 / self.contact_frames as f64
+        }
+    }
+
+    /// Share of quiet frames called a contact (0 without any).
+    #[must_use]
+    pub fn false_alarm_rate(&self) -> f64 {
+        if self.quiet_frames == 0 {
+            0.0
+        } else {
+            self.false_alarms as f64 / self.quiet_frames as f64
+        }
+    }
+
+    /// The longest onset delay, frames (`None` if an onset was missed;
+    /// 0 without onsets).
+    #[must_use]
+    pub fn worst_onset_delay(&self) -> Option<usize> {
+        self.onset_delays.iter().try_fold(0, |worst, d| d.map(|d| d.max(worst)))
+    }
+}
+
+/// Detection over frames: `truth[i]` is `Some(true)` for a contact,
+/// `Some(false)` for none, `None` when unknown; `called[i]` whether the
+/// estimate said contact.
+#[must_use]
+pub fn detection(truth: &[Option<bool>], called: &[bool]) -> Detection {
+    let mut d = Detection::default();
+    for (i, (t, &c)) in truth.iter().zip(called).enumerate() {
+        match t {
+            Some(true) => {
+                d.contact_frames += 1;
+                d.detected += usize::from(c);
+                let onset = i == 0 || truth.get(i - 1).is_some_and(|p| *p == Some(false));
+                if onset {
+                    let delay = truth
+                        .iter()
+                        .zip(called)
+                        .skip(i)
+                        .take_while(|(t, _)| **t == Some(true))
+                        .position(|(_, c)| *c);
+                    d.onset_delays.push(delay);
+                }
+            }
+            Some(false) => {
+                d.quiet_frames += 1;
+                d.false_alarms += usize::from(c);
+            }
+            None => {}
+        }
+    }
+    d
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -148,6 +226,24 @@ mod tests {
         assert!((m.position_p90_m - 0.03).abs() < 1e-15);
         assert!((m.force_median_newtons - 1.0).abs() < 1e-12);
         assert!((m.link_accuracy - 0.5).abs() < 1e-15);
+    }
+
+    #[test]
+    fn detection_counts_hits_false_alarms_and_onset_delays() {
+        let (c, q) = (Some(true), Some(false));
+        let truth = [q, q, c, c, c, q, c, c, q, None, c];
+        let said = [false, true, false, false, true, false, false, false, false, true, true];
+        let d = detection(&truth, &said);
+        assert_eq!(
+            (d.contact_frames, d.detected, d.quiet_frames, d.false_alarms),
+            (6, 2, 4, 1)
+        );
+        // Onsets at 2 (found 2 frames late) and 6 (missed); 10 follows an
+        // unknown frame, so it is no onset.
+        assert_eq!(d.onset_delays, vec![Some(2), None]);
+        assert_eq!(d.worst_onset_delay(), None);
+        assert!((d.detection_rate() - 2.0 / 6.0).abs() < 1e-15);
+        assert!((d.false_alarm_rate() - 0.25).abs() < 1e-15);
     }
 
     #[test]

@@ -59,7 +59,7 @@ impl Default for TemporalSettings {
         Self {
             onset_per_s: 0.5,
             release_per_s: 2.0,
-            slide_m_per_sqrt_s: 0.02,
+            slide_m_per_sqrt_s: 0.01,
             jump_per_s: 0.2,
         }
     }
