@@ -224,6 +224,58 @@ fn estimate_writes_one_json_line_per_frame_and_a_summary() {
     assert!(lines[1]["point"].is_null());
 }
 
+/// `--temporal filter|smooth`: the same JSON lines plus each frame's
+/// contact probability, and the detection record; a bad rate is refused
+/// by name.
+#[test]
+fn estimate_over_time_adds_the_contact_probability() {
+    let session = temp("thesis-temporal.session.json", SESSION);
+    for temporal in ["filter", "smooth"] {
+        let out = session.with_extension(format!("{temporal}.jsonl"));
+        let (ok, stdout, stderr) = run(&[
+            "estimate",
+            session.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--n",
+            "3000",
+            "--sigma",
+            "0.01",
+            "--fmin",
+            "0.5",
+            "--fmax",
+            "3",
+            "--temporal",
+            temporal,
+        ]);
+        assert!(ok, "{stderr}");
+        assert!(stdout.contains("detection: 1/1 contact frames"), "{stdout}");
+        let lines: Vec<serde_json::Value> = std::fs::read_to_string(&out)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        assert_eq!(lines.len(), 2);
+        assert_eq!(lines[0]["verdict"], "contact", "{temporal}: {}", lines[0]);
+        assert!(lines[0]["contact_probability"].as_f64().unwrap() > 0.5, "{}", lines[0]);
+        assert!(
+            lines[0]["truth"]["position_error_m"].as_f64().unwrap() < 0.05,
+            "{}",
+            lines[0]
+        );
+        assert_eq!(lines[1]["verdict"], "no_contact", "{temporal}: {}", lines[1]);
+        assert!(lines[1]["contact_probability"].as_f64().unwrap() < 0.5, "{}", lines[1]);
+    }
+    let (ok, _, err) = run(&[
+        "estimate",
+        session.to_str().unwrap(),
+        "--temporal",
+        "smooth",
+        "--release-rate=-1",
+    ]);
+    assert!(!ok && err.contains("release rate"), "{err}");
+}
+
 #[test]
 fn a_session_going_back_in_time_is_refused_naming_the_frame() {
     let text = SESSION.replace(r#""t": 0.1"#, r#""t": -0.1"#);

@@ -571,11 +571,27 @@ pub fn estimate(
     settings: &EstimatorSettings,
     hierarchy: Option<&PhaseHierarchy>,
 ) -> Result<Posterior, EstimateError> {
+    estimate_keeping_forms(model, tau, settings, hierarchy, None)
+}
+
+/// [`estimate`], also handing over the per-point [`PatchForms`] it
+/// computed (left empty when it used none): what a temporal model needs
+/// besides the posterior, without computing them twice.
+///
+/// # Errors
+/// As [`estimate`].
+pub fn estimate_keeping_forms(
+    model: &impl UnitTorqueSource,
+    tau: &[f64],
+    settings: &EstimatorSettings,
+    hierarchy: Option<&PhaseHierarchy>,
+    forms_out: Option<&mut PatchForms>,
+) -> Result<Posterior, EstimateError> {
     validate(model, tau, settings)?;
     let n = model.points();
     let weights: Vec<f64> = settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
     let no_contact_chi2: f64 = weights.iter().zip(tau).map(|(w, t)| w * t * t).sum();
-    let (patches, a, b, terms) = likelihood_terms(model, tau, settings, &weights, no_contact_chi2);
+    let (patches, a, b, terms) = likelihood_terms(model, tau, settings, &weights, no_contact_chi2, forms_out);
     let q = Quadratic {
         a: &a,
         b: &b,
@@ -713,6 +729,7 @@ fn likelihood_terms(
     settings: &EstimatorSettings,
     weights: &[f64],
     c: f64,
+    forms_out: Option<&mut PatchForms>,
 ) -> (bool, Vec<f64>, Vec<f64>, PatchTerms) {
     let (mut a, mut b) = (Vec::new(), Vec::new());
     let mut forms = PatchForms::default();
@@ -726,8 +743,14 @@ fn likelihood_terms(
         patch_terms(&forms, c, range, &mut terms);
         a = std::mem::take(&mut terms.a);
         b = std::mem::take(&mut terms.b);
+        if let Some(out) = forms_out {
+            *out = forms;
+        }
     } else {
         model.quadratic_forms(weights, tau, &mut a, &mut b);
+        if let Some(out) = forms_out {
+            *out = PatchForms::default();
+        }
     }
     (patches, a, b, terms)
 }

@@ -2,16 +2,18 @@
 //! built once (they live in link frames), then each measurement is an
 //! update at its own configuration.
 
-use crate::core::contact::{PosedSurface, UnitTorqueSource as _};
-use crate::core::estimator::{EstimateError, EstimatorSettings, Mode, Posterior, estimate};
+use crate::core::contact::{PatchForms, PosedSurface, UnitTorqueSource as _};
+use crate::core::estimator::{EstimateError, EstimatorSettings, Mode, Posterior, estimate_keeping_forms};
 use crate::core::kinematics::RobotPose;
 use crate::core::phases::PhaseHierarchy;
-use crate::core::refine::{Measurement, refine};
+use crate::core::refine::{Measurement, contact_at_offsets, refine};
 use crate::core::robot::{LinkId, Robot};
 use crate::core::special::chi_square_survival;
 use crate::core::summary::{NO_CONTACT_P, Refinement, Summary, summarize_refined};
 use crate::core::surface::{Surface, SurfaceError, SurfaceRequest};
-use crate::core::temporal::{Belief, Filter, FrameLikelihood, Smoother, TemporalError, TemporalModel};
+use crate::core::temporal::{
+    Belief, Filter, FrameLikelihood, PatchInformation, Smoother, TemporalError, TemporalModel,
+};
 use crate::core::torque::TorqueModel;
 
 /// Everything fixed across updates.
@@ -63,17 +65,47 @@ impl Estimator {
     /// The posterior for torques `tau` measured at `joint_positions`
     /// (every joint's, see [`Robot::joint_positions`]).
     pub fn update(&self, robot: &Robot, joint_positions: &[f64], tau: &[f64]) -> Result<Update, EstimateError> {
+        self.update_with(robot, joint_positions, tau, None)
+    }
+
+    /// [`Estimator::update`] and what a temporal model needs of it (see
+    /// [`Estimator::frame_likelihood`]); the contact is not refined (the
+    /// temporal model's belief places it, see [`Estimator::with_belief`]).
+    ///
+    /// # Errors
+    /// As [`Estimator::update`].
+    pub fn update_for_sequence(
+        &self,
+        robot: &Robot,
+        joint_positions: &[f64],
+        tau: &[f64],
+    ) -> Result<(Update, FrameLikelihood), EstimateError> {
+        let mut forms = PatchForms::default();
+        let update = self.update_with(robot, joint_positions, tau, Some(&mut forms))?;
+        let likelihood = self.likelihood_of(&update, &forms);
+        Ok((update, likelihood))
+    }
+
+    fn update_with(
+        &self,
+        robot: &Robot,
+        joint_positions: &[f64],
+        tau: &[f64],
+        forms: Option<&mut PatchForms>,
+    ) -> Result<Update, EstimateError> {
         let pose = RobotPose::new(robot, joint_positions);
         let torque_model = TorqueModel::new(robot, &pose, &self.links);
         let posed = PosedSurface {
             torque_model: &torque_model,
             surface: &self.surface,
         };
-        let posterior = estimate(&posed, tau, &self.settings, self.hierarchy.as_ref())?;
+        let sequence = forms.is_some();
+        let posterior = estimate_keeping_forms(&posed, tau, &self.settings, self.hierarchy.as_ref(), forms)?;
         // Torques within noise of zero: there is no contact to place, so
         // none is refined (the summary reports the most probable sample).
+        // In a sequence the temporal belief places it.
         let no_contact = chi_square_survival(posterior.no_contact_chi2, posed.joints()) > NO_CONTACT_P;
-        let summary = self.conclude(&torque_model, &pose, &posterior, tau, !no_contact, None);
+        let summary = self.conclude(&torque_model, &pose, &posterior, tau, !no_contact && !sequence, None);
         Ok(Update {
             pose,
             posterior,
@@ -90,8 +122,12 @@ impl Estimator {
         posterior: &Posterior,
         tau: &[f64],
         refine_contact: bool,
-        contact_probability: Option<f64>,
+        belief: Option<BeliefAtFrame>,
     ) -> Summary {
+        let (contact_probability, offsets_m) = match belief {
+            Some(b) => (Some(b.contact_probability), b.offsets_m),
+            None => (None, None),
+        };
         let refined = (self.settings.patches && self.settings.mode == Mode::Exact && refine_contact)
             .then(|| {
                 let weights: Vec<f64> = self.settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
@@ -100,7 +136,10 @@ impl Estimator {
                     weights: &weights,
                     force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
                 };
-                refine(torque_model, &self.surface, posterior, &measurement)
+                match offsets_m {
+                    Some(offsets) => contact_at_offsets(torque_model, &self.surface, posterior, &measurement, offsets),
+                    None => refine(torque_model, &self.surface, posterior, &measurement),
+                }
             })
             .flatten();
         summarize_refined(
@@ -116,10 +155,33 @@ impl Estimator {
         )
     }
 
-    /// What the temporal model needs of an update: its likelihoods.
+    /// What the temporal model needs of an update of the torques `tau`:
+    /// its likelihoods and, with patches, what it says about the place of
+    /// the contact within each patch.
     #[must_use]
-    pub fn frame_likelihood(&self, update: &Update) -> FrameLikelihood {
-        FrameLikelihood::from_posterior(&update.posterior, &self.surface, self.uses_patches())
+    pub fn frame_likelihood(&self, robot: &Robot, update: &Update, tau: &[f64]) -> FrameLikelihood {
+        let mut forms = PatchForms::default();
+        if self.uses_patches() {
+            let torque_model = TorqueModel::new(robot, &update.pose, &self.links);
+            let posed = PosedSurface {
+                torque_model: &torque_model,
+                surface: &self.surface,
+            };
+            let weights: Vec<f64> = self.settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
+            if !posed.patch_forms(&weights, tau, &mut forms) {
+                forms = PatchForms::default();
+            }
+        }
+        self.likelihood_of(update, &forms)
+    }
+
+    fn likelihood_of(&self, update: &Update, forms: &PatchForms) -> FrameLikelihood {
+        let mut likelihood = FrameLikelihood::from_posterior(&update.posterior, &self.surface, self.uses_patches());
+        if self.uses_patches() && forms.a.len() == self.surface.len() {
+            let range = (self.settings.force_min_newtons, self.settings.force_max_newtons);
+            likelihood.patch = PatchInformation::from_forms(forms, -2.0 * likelihood.no_contact, range);
+        }
+        likelihood
     }
 
     /// Whether posteriors integrate each sample's patch (exact mode with
@@ -143,6 +205,7 @@ impl Estimator {
             return update;
         }
         let contact_probability = belief.contact_probability();
+        let probability_len = probability.len();
         let mut posterior = update.posterior;
         let top = probability.iter().copied().fold(0.0, f64::max);
         posterior.support = (0..probability.len())
@@ -157,13 +220,26 @@ impl Estimator {
         posterior.display.clone_from(&probability);
         posterior.probability = probability;
         let torque_model = TorqueModel::new(robot, &update.pose, &self.links);
+        // With offsets the place is the whole recording's: each frame's
+        // own refinement would wander along that frame's valley.
+        let offsets_m: Option<Vec<[f64; 2]>> = (belief.offsets.len() == probability_len).then(|| {
+            belief
+                .offsets
+                .iter()
+                .zip(&self.surface.window_m)
+                .map(|(offset, &rho)| offset.confined(rho).1.mean_m())
+                .collect()
+        });
         let summary = self.conclude(
             &torque_model,
             &update.pose,
             &posterior,
             tau,
             contact_probability >= 0.5,
-            Some(contact_probability),
+            Some(BeliefAtFrame {
+                contact_probability,
+                offsets_m: offsets_m.as_deref(),
+            }),
         );
         Update {
             pose: update.pose,
@@ -171,6 +247,16 @@ impl Estimator {
             summary,
         }
     }
+}
+
+/// What a temporal model believes at a frame, as a summary needs it.
+#[derive(Debug, Clone, Copy)]
+struct BeliefAtFrame<'a> {
+    /// Probability of a contact.
+    contact_probability: f64,
+    /// Each sample's believed offset along its tangents, m (the samples
+    /// are points when `None`).
+    offsets_m: Option<&'a [[f64; 2]]>,
 }
 
 /// How a sequence of frames is estimated.
@@ -234,6 +320,11 @@ pub fn estimate_sequence(
             .update(robot, f.joint_positions, f.tau)
             .map_err(|source| SequenceError::Frame { frame: i, source })
     };
+    let sequence_update_of = |i: usize, f: &SequenceFrame| {
+        estimator
+            .update_for_sequence(robot, f.joint_positions, f.tau)
+            .map_err(|source| SequenceError::Frame { frame: i, source })
+    };
     let ms = |t0: std::time::Instant| t0.elapsed().as_secs_f64() * 1e3;
     match (model, temporal) {
         (None, _) | (_, Temporal::None) => {
@@ -247,8 +338,8 @@ pub fn estimate_sequence(
             let mut filter = Filter::new(model);
             for (i, f) in frames.iter().enumerate() {
                 let t0 = std::time::Instant::now();
-                let update = update_of(i, f)?;
-                let belief = filter.step(f.t_secs, &estimator.frame_likelihood(&update))?;
+                let (update, likelihood) = sequence_update_of(i, f)?;
+                let belief = filter.step(f.t_secs, &likelihood)?;
                 let update = estimator.with_belief(robot, update, f.tau, belief);
                 each(i, update, ms(t0));
             }
@@ -258,8 +349,8 @@ pub fn estimate_sequence(
             let mut first_ms = Vec::with_capacity(frames.len());
             for (i, f) in frames.iter().enumerate() {
                 let t0 = std::time::Instant::now();
-                let update = update_of(i, f)?;
-                smoother.push(f.t_secs, &estimator.frame_likelihood(&update))?;
+                let (_, likelihood) = sequence_update_of(i, f)?;
+                smoother.push(f.t_secs, &likelihood)?;
                 first_ms.push(ms(t0));
             }
             let t0 = std::time::Instant::now();
@@ -267,7 +358,7 @@ pub fn estimate_sequence(
             let backward_ms = ms(t0) / frames.len().max(1) as f64;
             for (i, (f, belief)) in frames.iter().zip(&beliefs).enumerate() {
                 let t0 = std::time::Instant::now();
-                let update = update_of(i, f)?;
+                let (update, _) = sequence_update_of(i, f)?;
                 let update = estimator.with_belief(robot, update, f.tau, belief);
                 each(
                     i,

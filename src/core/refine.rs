@@ -348,6 +348,60 @@ fn centred_patch_log_mass(m: &Measurement, [u, d1, d2]: [&[f64]; 3], chi2: f64, 
     -0.5 * chi2 + ln_volume + ln_f
 }
 
+/// The contact that a temporal model places: in the region of the
+/// posterior with the most mass (as [`refine`]), its most probable sample
+/// moved by that sample's believed offset along its tangents
+/// (`offsets_m[k]`, m: what every frame of the contact says, not only
+/// this one), with this frame's best magnitude there. No search: the
+/// place is the whole recording's, the magnitude this frame's.
+#[must_use]
+pub fn contact_at_offsets(
+    model: &TorqueModel,
+    surface: &Surface,
+    posterior: &Posterior,
+    measurement: &Measurement,
+    offsets_m: &[[f64; 2]],
+) -> Option<RefinedContact> {
+    let support: &[usize] = if posterior.support.is_empty() {
+        std::slice::from_ref(&posterior.map_point)
+    } else {
+        &posterior.support
+    };
+    let weight = |k: usize| {
+        posterior
+            .probability
+            .get(k)
+            .copied()
+            .unwrap_or(0.0)
+            .max(f64::MIN_POSITIVE)
+    };
+    let best = regions(surface, support, weight, REGION_CELL_FRACTION)
+        .into_iter()
+        .next()?;
+    let start = best.top;
+    let link = *surface.link.get(start)?;
+    let shape = surface.shape(link)?;
+    let at = *surface.location.get(start)?;
+    let frame = shape.frame(at)?;
+    let [s1, s2] = offsets_m.get(start).copied().unwrap_or([0.0, 0.0]);
+    let moved = shape.walk(at, frame.tangents[0] * s1 + frame.tangents[1] * s2);
+    let state = State::at(model, shape, link, measurement, moved)?;
+    let window = surface.window_m.get(start).copied().unwrap_or(0.01).max(1e-4);
+    let [u, d1, d2] = &state.torques;
+    let patch_log_mass = centred_patch_log_mass(measurement, [u, d1, d2], state.chi2, state.f, window);
+    Some(RefinedContact {
+        link,
+        location: state.at,
+        point_in_link: state.frame.point,
+        inward_normal_in_link: state.frame.inward_normal,
+        force_newtons: state.f,
+        residual_chi2: state.chi2,
+        patch_log_mass,
+        start,
+        steps: 0,
+    })
+}
+
 /// Cells with less than this fraction of the heaviest cell's mass do not
 /// join regions (a region is where the posterior is, not its faint tails).
 const REGION_CELL_FRACTION: f64 = 1e-4;

@@ -3,9 +3,8 @@
 //! and comes and goes; estimating each frame alone throws that away.
 //!
 //! The hidden state of a frame is *no contact* or *a contact at surface
-//! sample k* (its magnitude is integrated out per frame, as in the
-//! per-frame posterior: it changes freely between frames, since presses
-//! ramp up and down within a few frames). Between frames `dt` apart:
+//! sample k* (its magnitude is free in every frame: presses ramp up and
+//! down within a few frames). Between frames `dt` apart:
 //!
 //! - a contact begins with probability `1 - e^{-λ_on dt}`, at a place drawn
 //!   from the surface prior (area-weighted);
@@ -17,17 +16,33 @@
 //!   release and a new press between two frames; it also keeps a wrong
 //!   early lock from lasting).
 //!
-//! The forward filter (what a live robot can know) and the forward–backward
-//! smoother (a recording: every frame uses all of it) are exact over the
-//! samples, in scaled probabilities (each frame's likelihoods divided by
-//! their largest), `O(samples × neighbours)` per frame.
+//! A contact that lasts keeps its place *within* its sample's patch too:
+//! per sample the model carries a Gaussian over the contact's offset along
+//! the sample's tangents (see [`PatchInformation`]), so that over a press
+//! the patch is integrated once, over the product of the frames'
+//! likelihoods, and the answer does not depend on where the samples fell.
+//! The push magnitude is profiled per frame with one Occam charge shared
+//! by every sample (a per-sample charge, multiplied over a hundred frames,
+//! would favour the places with the weakest levers).
+//!
+//! The forward filter (what a live robot can know) and the smoother (a
+//! recording: every frame uses all of it) are exact over the samples up to
+//! the offsets' moment matching, in scaled probabilities,
+//! `O(samples × neighbours)` per frame.
 
+use crate::core::contact::PatchForms;
 use crate::core::estimator::Posterior;
+use crate::core::fastmath;
 use crate::core::surface::{Surface, WINDOW_FRACTION};
 
 /// Neighbours are the samples of the same link within this many sample
 /// spacings (about 6–10 each for evenly spread samples).
 pub const NEIGHBOUR_SPACINGS: f64 = 1.8;
+
+/// How far from its sample (in patch widths ρ) a contact's offset may be
+/// believed to lie: samples are two widths apart, so a patch reaches half
+/// way past the middle to its neighbours.
+pub const PATCH_REACH: f64 = 1.5;
 
 /// Most Euler sub-steps of the random walk per frame interval; a gap
 /// longer than this many sub-steps spreads the contact less than the
@@ -296,8 +311,298 @@ impl SurfaceGraph {
 pub struct FrameLikelihood {
     /// No contact: `-½ Σ τ²/σ²`.
     pub no_contact: f64,
-    /// Per sample.
+    /// Per sample (integrated over its patch when `patch` is given).
     pub points: Vec<f64>,
+    /// Per sample, what the frame says about the place of the contact
+    /// within the sample's patch; empty when the samples are points.
+    pub patch: Vec<PatchInformation>,
+}
+
+/// What one frame says about the offset `s` (m, along the sample's two
+/// tangents) of a contact within a sample's patch:
+/// `ln L(s) ≈ ln L(0) + shiftᵀ s - ½ sᵀ information s`.
+///
+/// A contact that lasts keeps its offset: over a press the patch must be
+/// integrated once, over the product of the frames' likelihoods, not once
+/// per frame (the product of per-frame patch integrals lets a sample
+/// explain every frame with a different offset, and charges a contact
+/// that lies between samples its distance once per frame: over a
+/// hundred-frame press that makes the answer a property of the grid).
+/// With these terms the temporal model carries, per sample, a Gaussian
+/// over the offset and integrates it exactly.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PatchInformation {
+    /// `ln L(0)`: the sample's own log-likelihood (the magnitude
+    /// integrated out, no patch, no area), on the same scale as
+    /// [`FrameLikelihood::no_contact`].
+    pub point: f64,
+    /// `[m11, m12, m22]`, 1/m².
+    pub information: [f64; 3],
+    /// `[n1, n2]`, 1/m.
+    pub shift: [f64; 2],
+}
+
+impl PatchInformation {
+    /// Each sample's terms from a frame's [`PatchForms`], with push
+    /// magnitudes in `(f_min, f_max)` N: the magnitude is profiled out
+    /// (the offset's information is what is left of the tangents' once
+    /// the push direction's is taken away) and the offset scaled by the
+    /// sample's best magnitude `f₀`, as the per-frame patch integral does.
+    #[must_use]
+    pub fn from_forms(forms: &PatchForms, c: f64, (f_min, f_max): (f64, f64)) -> Vec<Self> {
+        let f = forms;
+        let f_max = f_max.max(f_min);
+        // The magnitude's Occam factor, `√(2π/a) / (f_max - f_min)`, taken
+        // at the frame's median `a` (of every 8th sample: the charge need
+        // only be the same for all): one charge for every sample (see the
+        // struct's docs).
+        let mut sensitive: Vec<f64> =
+            f.a.iter()
+                .step_by(8)
+                .copied()
+                .filter(|&a| a > 0.0 && a.is_finite())
+                .collect();
+        let a_typical = if sensitive.is_empty() {
+            1.0
+        } else {
+            let mid = sensitive.len() / 2;
+            *sensitive.select_nth_unstable_by(mid, f64::total_cmp).1
+        };
+        let occam = 0.5 * (std::f64::consts::TAU / a_typical).ln() - (f_max - f_min).max(f64::MIN_POSITIVE).ln();
+        let n = [
+            f.a.len(),
+            f.b.len(),
+            f.h1.len(),
+            f.h2.len(),
+            f.e1.len(),
+            f.e2.len(),
+            f.g11.len(),
+            f.g12.len(),
+            f.g22.len(),
+        ]
+        .into_iter()
+        .min()
+        .unwrap_or(0);
+        let (a_all, b_all, h1_all, h2_all) = (&f.a[..n], &f.b[..n], &f.h1[..n], &f.h2[..n]);
+        let (e1_all, e2_all) = (&f.e1[..n], &f.e2[..n]);
+        let (g11_all, g12_all, g22_all) = (&f.g11[..n], &f.g12[..n], &f.g22[..n]);
+        let mut out = Vec::with_capacity(f.a.len());
+        for k in 0..n {
+            let (a, b) = (a_all[k], b_all[k]);
+            if !(a > 0.0 && a.is_finite()) {
+                // Torques that do not see the push: no contact's fit.
+                out.push(Self {
+                    point: -0.5 * c + occam,
+                    ..Self::default()
+                });
+                continue;
+            }
+            let inv_a = 1.0 / a;
+            let f0 = (b * inv_a).clamp(f_min, f_max);
+            let chi2 = (c - 2.0 * b * f0 + a * f0 * f0).max(0.0);
+            let (h1, h2) = (h1_all[k], h2_all[k]);
+            let m11 = (g11_all[k] - h1 * h1 * inv_a).max(0.0);
+            let m22 = (g22_all[k] - h2 * h2 * inv_a).max(0.0);
+            // Rounding must not make the Schur complement indefinite.
+            let limit = (m11 * m22).sqrt();
+            let m12 = (g12_all[k] - h1 * h2 * inv_a).clamp(-limit, limit);
+            let f2 = f0 * f0;
+            out.push(Self {
+                point: -0.5 * chi2 + occam,
+                information: [f2 * m11, f2 * m12, f2 * m22],
+                shift: [f0 * (e1_all[k] - h1 * b * inv_a), f0 * (e2_all[k] - h2 * b * inv_a)],
+            });
+        }
+        out.resize(
+            f.a.len(),
+            Self {
+                point: f64::NEG_INFINITY,
+                ..Self::default()
+            },
+        );
+        out
+    }
+}
+
+/// A Gaussian over a contact's offset within its sample's patch, in
+/// information form: precision `[l11, l12, l22]` (1/m²) and
+/// precision × mean `[n1, n2]` (1/m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Offset {
+    /// Precision.
+    pub precision: [f64; 3],
+    /// Precision × mean.
+    pub shift: [f64; 2],
+}
+
+impl Offset {
+    /// The patch window of width `rho_m`: mean 0, variance ρ² each way.
+    #[must_use]
+    pub fn window(rho_m: f64) -> Self {
+        let q = 1.0 / (rho_m * rho_m);
+        Self {
+            precision: [q, 0.0, q],
+            shift: [0.0, 0.0],
+        }
+    }
+
+    /// `det` of the precision.
+    fn det(&self) -> f64 {
+        let [l11, l12, l22] = self.precision;
+        l11 * l22 - l12 * l12
+    }
+
+    /// `nᵀ Λ⁻¹ n` (0 when Λ is singular).
+    fn explained(&self) -> f64 {
+        let [l11, l12, l22] = self.precision;
+        let [n1, n2] = self.shift;
+        let det = self.det();
+        if det > 0.0 {
+            (l22 * n1 * n1 - 2.0 * l12 * n1 * n2 + l11 * n2 * n2) / det
+        } else {
+            0.0
+        }
+    }
+
+    /// The mean, m.
+    #[must_use]
+    pub fn mean_m(&self) -> [f64; 2] {
+        let [l11, l12, l22] = self.precision;
+        let [n1, n2] = self.shift;
+        let det = self.det();
+        if det > 0.0 {
+            [(l22 * n1 - l12 * n2) / det, (l11 * n2 - l12 * n1) / det]
+        } else {
+            [0.0, 0.0]
+        }
+    }
+
+    /// A frame's information taken in: returns `ln ∫ N(s; self) L(s) ds -
+    /// ln L(0)` less the change of [`Offset::confined`]'s charge (for a
+    /// reach of `reach_m`), and the Gaussian after it (not confined: it
+    /// keeps every frame's information). 0 and itself when a precision is
+    /// not positive definite. Two divisions and one `ln`: the filter does
+    /// this per sample and frame.
+    fn absorb_within(&self, frame: &PatchInformation, reach_m: f64) -> (f64, Self) {
+        let [l11, l12, l22] = self.precision;
+        let [n1, n2] = self.shift;
+        let [m11, m12, m22] = frame.information;
+        let (a11, a12, a22) = (l11 + m11, l12 + m12, l22 + m22);
+        let (p1, p2) = (n1 + frame.shift[0], n2 + frame.shift[1]);
+        let (d0, d1) = (l11 * l22 - l12 * l12, a11 * a22 - a12 * a12);
+        if !(d0 > 0.0 && d1 > 0.0 && d1.is_finite()) {
+            return (0.0, *self);
+        }
+        let (i0, i1) = (1.0 / d0, 1.0 / d1);
+        // Means, and nᵀΛ⁻¹n = n·μ.
+        let (u1, u2) = ((l22 * n1 - l12 * n2) * i0, (l11 * n2 - l12 * n1) * i0);
+        let (v1, v2) = ((a22 * p1 - a12 * p2) * i1, (a11 * p2 - a12 * p1) * i1);
+        let gain = 0.5 * (p1 * v1 + p2 * v2 - n1 * u1 - n2 * u2) - 0.5 * fastmath::ln(d1 * i0);
+        let charge = |(x1, x2): (f64, f64), (c11, c12, c22): (f64, f64, f64)| {
+            let r2 = x1 * x1 + x2 * x2;
+            if r2 > reach_m * reach_m {
+                let k = 1.0 - reach_m / r2.sqrt();
+                let (d1, d2) = (x1 * k, x2 * k);
+                0.5 * (c11 * d1 * d1 + 2.0 * c12 * d1 * d2 + c22 * d2 * d2)
+            } else {
+                0.0
+            }
+        };
+        let charged = charge((v1, v2), (a11, a12, a22)) - charge((u1, u2), (l11, l12, l22));
+        (
+            gain - charged,
+            Self {
+                precision: [a11, a12, a22],
+                shift: [p1, p2],
+            },
+        )
+    }
+
+    /// Kept within the patch: a linear model of the torques holds within
+    /// a patch, not beyond (extrapolated along the tangent plane it
+    /// explains torques that no point of the surface can: such offsets
+    /// belong to the neighbouring samples). A mean farther than
+    /// [`PATCH_REACH`] windows is moved to that distance, and the evidence
+    /// loses `½ (μ - s)ᵀ Λ (μ - s)`: the Laplace approximation of the
+    /// Gaussian confined to the disc. Returns that loss and the moved
+    /// Gaussian.
+    #[must_use]
+    pub fn confined(&self, rho_m: f64) -> (f64, Self) {
+        let [m1, m2] = self.mean_m();
+        let reach = PATCH_REACH * rho_m;
+        let r2 = m1 * m1 + m2 * m2;
+        if r2.is_nan() || r2 <= reach * reach {
+            return (0.0, *self);
+        }
+        let k = reach / r2.sqrt();
+        let (s1, s2) = (m1 * k, m2 * k);
+        let (d1, d2) = (m1 - s1, m2 - s2);
+        let [l11, l12, l22] = self.precision;
+        let penalty = 0.5 * (l11 * d1 * d1 + 2.0 * l12 * d1 * d2 + l22 * d2 * d2);
+        (
+            penalty,
+            Self {
+                precision: self.precision,
+                shift: [l11 * s1 + l12 * s2, l12 * s1 + l22 * s2],
+            },
+        )
+    }
+
+    /// This Gaussian with weight `own` mixed with the patch window with
+    /// weight `1 - own`, matched by its first two moments.
+    fn mixed_with_window(&self, own: f64, rho_m: f64) -> Self {
+        if own >= 1.0 {
+            return *self;
+        }
+        let det = self.det();
+        if own <= 0.0 || det <= 0.0 {
+            return Self::window(rho_m);
+        }
+        let [l11, l12, l22] = self.precision;
+        let (s11, s12, s22) = (l22 / det, -l12 / det, l11 / det);
+        let [m1, m2] = self.mean_m();
+        let r2 = rho_m * rho_m;
+        let w = 1.0 - own;
+        // Second moments about 0, then about the mixture's mean `own·m`.
+        let (a11, a12, a22) = (
+            own * (s11 + m1 * m1) + w * r2,
+            own * (s12 + m1 * m2),
+            own * (s22 + m2 * m2) + w * r2,
+        );
+        let (c1, c2) = (own * m1, own * m2);
+        let (v11, v12, v22) = (a11 - c1 * c1, a12 - c1 * c2, a22 - c2 * c2);
+        let vdet = v11 * v22 - v12 * v12;
+        if !(vdet > 0.0 && vdet.is_finite()) {
+            return Self::window(rho_m);
+        }
+        let (p11, p12, p22) = (v22 / vdet, -v12 / vdet, v11 / vdet);
+        Self {
+            precision: [p11, p12, p22],
+            shift: [p11 * c1 + p12 * c2, p12 * c1 + p22 * c2],
+        }
+    }
+}
+
+/// `ln ∫ N(s; f) N(s; b) / N(s; window) ds` for a forward and a backward
+/// belief's offsets of the same sample (0 when not defined).
+fn overlap(forward: &Offset, backward: &Offset, rho_m: f64) -> f64 {
+    let window = Offset::window(rho_m);
+    let both = Offset {
+        precision: [
+            forward.precision[0] + backward.precision[0] - window.precision[0],
+            forward.precision[1] + backward.precision[1],
+            forward.precision[2] + backward.precision[2] - window.precision[2],
+        ],
+        shift: [
+            forward.shift[0] + backward.shift[0],
+            forward.shift[1] + backward.shift[1],
+        ],
+    };
+    let (df, db, d, d0) = (forward.det(), backward.det(), both.det(), window.det());
+    if !(df > 0.0 && db > 0.0 && d > 0.0 && both.precision[0] > 0.0 && d.is_finite()) {
+        return 0.0;
+    }
+    0.5 * (both.explained() - forward.explained() - backward.explained()) + 0.5 * (df * db / (d * d0)).ln()
 }
 
 impl FrameLikelihood {
@@ -312,7 +617,7 @@ impl FrameLikelihood {
             .zip(&surface.area_m2)
             .map(|(&l, &area)| {
                 if patches {
-                    l - area.max(f64::MIN_POSITIVE).ln()
+                    l - fastmath::ln(area.max(f64::MIN_POSITIVE))
                 } else {
                     l
                 }
@@ -321,27 +626,17 @@ impl FrameLikelihood {
         Self {
             no_contact: -0.5 * posterior.no_contact_chi2,
             points,
+            patch: Vec::new(),
         }
     }
 
-    /// The largest value, and each value's `e^(value - largest)` (0 for
-    /// `-inf` and NaN).
-    fn scaled(&self) -> (f64, Vec<f64>) {
-        let top = self
-            .points
+    /// The largest value (no contact's at least).
+    fn top(&self) -> f64 {
+        self.points
             .iter()
             .copied()
             .filter(|l| !l.is_nan())
-            .fold(self.no_contact, f64::max);
-        let scale = |l: f64| {
-            let d = l - top;
-            // NaN, -inf and anything below e^-700 of the best: 0.
-            if d > -700.0 { d.exp() } else { 0.0 }
-        };
-        let mut out = Vec::with_capacity(self.points.len() + 1);
-        out.push(scale(self.no_contact));
-        out.extend(self.points.iter().map(|&l| scale(l)));
-        (top, out)
+            .fold(self.no_contact, f64::max)
     }
 }
 
@@ -353,6 +648,9 @@ pub struct Belief {
     pub no_contact: f64,
     /// Probability of a contact at each sample.
     pub points: Vec<f64>,
+    /// Given a contact at a sample, where within its patch (empty when the
+    /// samples are points).
+    pub offsets: Vec<Offset>,
 }
 
 impl Belief {
@@ -391,6 +689,11 @@ pub struct TemporalModel {
     graph: SurfaceGraph,
     /// Where a new contact lands: by area with patches, else uniform.
     prior: Vec<f64>,
+    /// Each sample's patch width, m (empty when the samples are points:
+    /// then no offsets are tracked).
+    window_m: Vec<f64>,
+    /// Each sample's hop rate per `ℓ²` (the sum of its graph weights).
+    hop_rate: Vec<f64>,
 }
 
 /// Transition probabilities over `dt`.
@@ -420,10 +723,20 @@ impl TemporalModel {
         } else {
             vec![1.0 / n.max(1) as f64; n]
         };
+        let graph = SurfaceGraph::new(surface);
+        let hop_rate = (0..n).map(|k| graph.neighbours(k).1.iter().sum()).collect();
+        let window_m =
+            if patches && surface.window_m.len() == n && surface.window_m.iter().all(|&w| w > 0.0 && w.is_finite()) {
+                surface.window_m.clone()
+            } else {
+                Vec::new()
+            };
         Ok(Self {
             settings,
-            graph: SurfaceGraph::new(surface),
+            graph,
             prior,
+            window_m,
+            hop_rate,
         })
     }
 
@@ -447,7 +760,13 @@ impl TemporalModel {
         Belief {
             no_contact: 1.0 - contact,
             points: self.prior.iter().map(|p| p * contact).collect(),
+            offsets: self.window_m.iter().map(|&w| Offset::window(w)).collect(),
         }
+    }
+
+    /// Whether offsets within the patches are tracked.
+    fn tracks_offsets(&self) -> bool {
+        !self.window_m.is_empty()
     }
 
     fn step(&self, dt_secs: f64) -> Step {
@@ -473,13 +792,46 @@ impl TemporalModel {
         self.graph.diffuse(&mut moved, self.slide_rate(), dt_secs, &mut scratch);
         let stay = (1.0 - s.release) * (1.0 - s.jump);
         let fresh = belief.no_contact * s.onset + (1.0 - s.release) * s.jump * contact;
+        let points: Vec<f64> = moved
+            .iter()
+            .zip(&self.prior)
+            .map(|(m, prior)| stay * m + fresh * prior)
+            .collect();
+        // A contact that stayed on its sample keeps its offset; one that
+        // arrived (a hop, a new press) is anywhere in the patch.
+        let offsets = if self.tracks_offsets() && belief.offsets.len() == points.len() {
+            let slide = self.slide_rate() * dt_secs;
+            points
+                .iter()
+                .enumerate()
+                .map(|(k, &predicted)| {
+                    let (Some(&before), Some(offset), Some(&rate), Some(&rho)) = (
+                        belief.points.get(k),
+                        belief.offsets.get(k),
+                        self.hop_rate.get(k),
+                        self.window_m.get(k),
+                    ) else {
+                        return Offset::window(1.0);
+                    };
+                    let kept = stay * before * fastmath::exp(-rate * slide);
+                    let own = if predicted > 0.0 { kept / predicted } else { 0.0 };
+                    // Nearly all its own or nearly all arrived: no mixing.
+                    if own > 1.0 - 1e-9 {
+                        *offset
+                    } else if own < 1e-9 {
+                        Offset::window(rho)
+                    } else {
+                        offset.mixed_with_window(own, rho)
+                    }
+                })
+                .collect()
+        } else {
+            self.initial().offsets
+        };
         Belief {
             no_contact: belief.no_contact * (1.0 - s.onset) + contact * s.release,
-            points: moved
-                .iter()
-                .zip(&self.prior)
-                .map(|(m, prior)| stay * m + fresh * prior)
-                .collect(),
+            points,
+            offsets,
         }
     }
 
@@ -500,38 +852,146 @@ impl TemporalModel {
                 .iter()
                 .map(|m| s.release * later.no_contact + stay * m + jump)
                 .collect(),
+            offsets: Vec::new(),
         }
     }
 
-    /// `predicted` after measuring `scaled` (the frame's likelihoods over
-    /// their largest, no contact first); if nothing predicted is
+    /// Each sample's log-likelihood given `predicted`'s offsets (the
+    /// frame's own when offsets are not tracked) and the offsets after it.
+    fn gains(&self, predicted: &Belief, likelihood: &FrameLikelihood) -> (Vec<f64>, Vec<Offset>) {
+        let n = likelihood.points.len();
+        let tracked = self.tracks_offsets()
+            && likelihood.patch.len() == n
+            && predicted.offsets.len() == n
+            && self.window_m.len() == n;
+        if !tracked {
+            return (likelihood.points.clone(), predicted.offsets.clone());
+        }
+        likelihood
+            .points
+            .iter()
+            .zip(&likelihood.patch)
+            .zip(predicted.offsets.iter().zip(&self.window_m))
+            .map(|((&l, frame), (offset, &rho))| {
+                if !l.is_finite() || !frame.point.is_finite() {
+                    return (l, *offset);
+                }
+                // The sample's own likelihood and the patch integrated
+                // over the contact's offset as believed so far.
+                // Beyond the patch's reach the Gaussian is charged, not
+                // moved: the charge so far is in the weight, and the
+                // Gaussian keeps every frame's information, so that what
+                // is charged over a press does not depend on the order
+                // the frames came in (the smoother's two halves combine).
+                let (gain, after) = offset.absorb_within(frame, PATCH_REACH * rho);
+                (frame.point + gain, after)
+            })
+            .unzip()
+    }
+
+    /// `predicted` after measuring `likelihood`; if nothing predicted is
     /// consistent with the measurement (all products 0), the measurement
     /// alone under the prior.
-    fn correct(&self, predicted: &Belief, scaled: &[f64]) -> Belief {
-        let (none, points) = scaled.split_first().unwrap_or((&0.0, &[]));
-        let mut out = Belief {
-            no_contact: predicted.no_contact * none,
-            points: predicted.points.iter().zip(points).map(|(p, l)| p * l).collect(),
+    fn correct(&self, predicted: &Belief, likelihood: &FrameLikelihood) -> Belief {
+        let weigh = |predicted: &Belief| {
+            let (gains, offsets) = self.gains(predicted, likelihood);
+            let top = gains
+                .iter()
+                .copied()
+                .filter(|l| !l.is_nan())
+                .fold(likelihood.no_contact, f64::max);
+            let scale = |l: f64| {
+                let d = l - top;
+                // NaN, -inf and anything below e^-700 of the best: 0.
+                if d > -700.0 { d.exp() } else { 0.0 }
+            };
+            let mut out = Belief {
+                no_contact: predicted.no_contact * scale(likelihood.no_contact),
+                points: predicted
+                    .points
+                    .iter()
+                    .zip(&gains)
+                    .map(|(p, &l)| p * scale(l))
+                    .collect(),
+                offsets,
+            };
+            let ok = out.normalize();
+            (ok, out)
         };
-        if out.normalize() {
+        let (ok, out) = weigh(predicted);
+        if ok {
             return out;
         }
-        let mut fresh = self.initial();
-        fresh.no_contact *= none;
-        for (p, l) in fresh.points.iter_mut().zip(points) {
-            *p *= l;
-        }
-        if fresh.normalize() { fresh } else { self.initial() }
+        let (ok, fresh) = weigh(&self.initial());
+        if ok { fresh } else { self.initial() }
+    }
+
+    /// The belief given every frame, from the forward filter's belief at
+    /// a frame and the backward filter's prediction for it (the frames
+    /// after it run backwards through the same model): their product
+    /// over the prior, offsets included.
+    fn combine(&self, forward: &Belief, backward: &Belief) -> Belief {
+        let contact = self.settings.stationary_contact().clamp(1e-300, 1.0 - 1e-16);
+        let ln = |x: f64| if x > 0.0 { x.ln() } else { f64::NEG_INFINITY };
+        let none = ln(forward.no_contact) + ln(backward.no_contact) - (1.0 - contact).ln();
+        let n = forward.points.len();
+        let tracked = forward.offsets.len() == n && backward.offsets.len() == n && self.window_m.len() == n;
+        let mut offsets = Vec::with_capacity(if tracked { n } else { 0 });
+        let logs: Vec<f64> = (0..n)
+            .map(|k| {
+                let (Some(&f), Some(&b), Some(&prior)) =
+                    (forward.points.get(k), backward.points.get(k), self.prior.get(k))
+                else {
+                    return f64::NEG_INFINITY;
+                };
+                let mut l = ln(f) + ln(b) - ln(prior * contact);
+                if tracked
+                    && let (Some(fo), Some(bo), Some(&rho)) =
+                        (forward.offsets.get(k), backward.offsets.get(k), self.window_m.get(k))
+                {
+                    let window = Offset::window(rho);
+                    let both = Offset {
+                        precision: [
+                            fo.precision[0] + bo.precision[0] - window.precision[0],
+                            fo.precision[1] + bo.precision[1],
+                            fo.precision[2] + bo.precision[2] - window.precision[2],
+                        ],
+                        shift: [fo.shift[0] + bo.shift[0], fo.shift[1] + bo.shift[1]],
+                    };
+                    // Each half was charged for its own reach; the whole is
+                    // charged for the whole's.
+                    l += overlap(fo, bo, rho) + fo.confined(rho).0 + bo.confined(rho).0 - both.confined(rho).0;
+                    offsets.push(both);
+                }
+                l
+            })
+            .collect();
+        let top = logs.iter().copied().filter(|l| !l.is_nan()).fold(none, f64::max);
+        let scale = |l: f64| {
+            let d = l - top;
+            if d > -700.0 { d.exp() } else { 0.0 }
+        };
+        let mut out = Belief {
+            no_contact: scale(none),
+            points: logs.iter().map(|&l| scale(l)).collect(),
+            offsets,
+        };
+        if out.normalize() { out } else { forward.clone() }
     }
 
     fn check(&self, frame: usize, likelihood: &FrameLikelihood) -> Result<(), TemporalError> {
-        if likelihood.points.len() == self.prior.len() {
+        let n = self.prior.len();
+        if likelihood.points.len() == n && (likelihood.patch.is_empty() || likelihood.patch.len() == n) {
             Ok(())
         } else {
             Err(TemporalError::WrongLength {
                 frame,
-                points: likelihood.points.len(),
-                expected: self.prior.len(),
+                points: if likelihood.points.len() == n {
+                    likelihood.patch.len()
+                } else {
+                    likelihood.points.len()
+                },
+                expected: n,
             })
         }
     }
@@ -587,24 +1047,129 @@ impl<'a> Filter<'a> {
             Some(b) => self.model.predict(b, dt),
             None => self.model.initial(),
         };
-        let (_, scaled) = likelihood.scaled();
         self.frames += 1;
         self.last_t_secs = Some(t_secs);
-        Ok(self.belief.insert(self.model.correct(&predicted, &scaled)))
+        Ok(self.belief.insert(self.model.correct(&predicted, likelihood)))
     }
 }
 
-/// The forward–backward smoother: frames are pushed in order (the forward
-/// pass runs as they come), then [`Smoother::finish`] gives every frame's
-/// belief given the whole recording. It holds each frame's scaled
-/// likelihoods and filtered belief in f32 (8 bytes per sample and frame,
-/// at most [`MAX_SMOOTHER_BYTES`]).
+/// The smoother: frames are pushed in order (the forward pass runs as
+/// they come), then [`Smoother::finish`] gives every frame's belief given
+/// the whole recording. Without offsets it passes messages backwards
+/// (exact); with offsets it runs a second filter backwards in time and
+/// combines the two (exact for a reversible model; ours is up to the
+/// prior's area weights and the moment-matched offsets). It holds each
+/// frame's likelihoods and filtered belief in f32 (8 bytes per sample and
+/// frame, 52 with offsets; at most [`MAX_SMOOTHER_BYTES`]).
 #[derive(Debug, Clone)]
 pub struct Smoother<'a> {
     filter: Filter<'a>,
     times: Vec<f64>,
-    scaled: Vec<Vec<f32>>,
-    filtered: Vec<Vec<f32>>,
+    frames: Vec<StoredFrame>,
+    filtered: Vec<StoredBelief>,
+}
+
+/// A frame's likelihoods in f32 (relative to `top`).
+#[derive(Debug, Clone)]
+struct StoredFrame {
+    top: f64,
+    no_contact: f32,
+    points: Vec<f32>,
+    patch: Vec<[f32; 6]>,
+}
+
+/// A belief in f32.
+#[derive(Debug, Clone)]
+struct StoredBelief {
+    no_contact: f32,
+    points: Vec<f32>,
+    offsets: Vec<[f32; 5]>,
+}
+
+impl StoredFrame {
+    fn of(likelihood: &FrameLikelihood) -> Self {
+        let top = likelihood.top();
+        // Relative log-likelihoods (f32 keeps 7 digits of a difference of
+        // a few hundred: plenty), -inf as is.
+        let rel = |l: f64| (l - top) as f32;
+        Self {
+            top,
+            no_contact: rel(likelihood.no_contact),
+            points: likelihood.points.iter().map(|&l| rel(l)).collect(),
+            patch: likelihood
+                .patch
+                .iter()
+                .map(|p| {
+                    let [m11, m12, m22] = p.information;
+                    let [n1, n2] = p.shift;
+                    [rel(p.point), m11 as f32, m12 as f32, m22 as f32, n1 as f32, n2 as f32]
+                })
+                .collect(),
+        }
+    }
+
+    fn likelihood(&self) -> FrameLikelihood {
+        FrameLikelihood {
+            no_contact: f64::from(self.no_contact) + self.top,
+            points: self.points.iter().map(|&l| f64::from(l) + self.top).collect(),
+            patch: self
+                .patch
+                .iter()
+                .map(|&[point, m11, m12, m22, n1, n2]| PatchInformation {
+                    point: f64::from(point) + self.top,
+                    information: [m11, m12, m22].map(f64::from),
+                    shift: [n1, n2].map(f64::from),
+                })
+                .collect(),
+        }
+    }
+
+    /// `e^(l - top)` per state, no contact first (the untracked smoother's
+    /// messages).
+    fn scaled(&self) -> Belief {
+        let e = |l: f32| {
+            let d = f64::from(l);
+            if d > -700.0 { d.exp() } else { 0.0 }
+        };
+        Belief {
+            no_contact: e(self.no_contact),
+            points: self.points.iter().map(|&l| e(l)).collect(),
+            offsets: Vec::new(),
+        }
+    }
+}
+
+impl StoredBelief {
+    fn of(belief: &Belief) -> Self {
+        Self {
+            no_contact: belief.no_contact as f32,
+            points: belief.points.iter().map(|&p| p as f32).collect(),
+            offsets: belief
+                .offsets
+                .iter()
+                .map(|o| {
+                    let [l11, l12, l22] = o.precision;
+                    let [n1, n2] = o.shift;
+                    [l11 as f32, l12 as f32, l22 as f32, n1 as f32, n2 as f32]
+                })
+                .collect(),
+        }
+    }
+
+    fn belief(&self) -> Belief {
+        Belief {
+            no_contact: f64::from(self.no_contact),
+            points: self.points.iter().map(|&p| f64::from(p)).collect(),
+            offsets: self
+                .offsets
+                .iter()
+                .map(|&[l11, l12, l22, n1, n2]| Offset {
+                    precision: [l11, l12, l22].map(f64::from),
+                    shift: [n1, n2].map(f64::from),
+                })
+                .collect(),
+        }
+    }
 }
 
 impl<'a> Smoother<'a> {
@@ -614,7 +1179,7 @@ impl<'a> Smoother<'a> {
         Self {
             filter: Filter::new(model),
             times: Vec::new(),
-            scaled: Vec::new(),
+            frames: Vec::new(),
             filtered: Vec::new(),
         }
     }
@@ -625,7 +1190,10 @@ impl<'a> Smoother<'a> {
     /// As [`Filter::step`], and [`TemporalError::TooLarge`] past the store's limit.
     pub fn push(&mut self, t_secs: f64, likelihood: &FrameLikelihood) -> Result<&Belief, TemporalError> {
         let points = likelihood.points.len();
-        let bytes = (self.times.len() + 1).saturating_mul(points + 1).saturating_mul(8);
+        let per_value = if likelihood.patch.is_empty() { 8 } else { 52 };
+        let bytes = (self.times.len() + 1)
+            .saturating_mul(points + 1)
+            .saturating_mul(per_value);
         if bytes > MAX_SMOOTHER_BYTES {
             return Err(TemporalError::TooLarge {
                 frames: self.times.len() + 1,
@@ -634,13 +1202,9 @@ impl<'a> Smoother<'a> {
             });
         }
         let belief = self.filter.step(t_secs, likelihood)?;
-        let (_, scaled) = likelihood.scaled();
         self.times.push(t_secs);
-        self.scaled.push(scaled.iter().map(|&v| v as f32).collect());
-        let mut stored = Vec::with_capacity(points + 1);
-        stored.push(belief.no_contact as f32);
-        stored.extend(belief.points.iter().map(|&p| p as f32));
-        self.filtered.push(stored);
+        self.frames.push(StoredFrame::of(likelihood));
+        self.filtered.push(StoredBelief::of(belief));
         Ok(belief)
     }
 
@@ -659,52 +1223,74 @@ impl<'a> Smoother<'a> {
     /// Every frame's belief given all frames, in order.
     #[must_use]
     pub fn finish(self) -> Vec<Belief> {
+        let tracked = self.filter.model.tracks_offsets() && self.frames.iter().all(|f| !f.patch.is_empty());
+        if tracked { self.two_filters() } else { self.messages() }
+    }
+
+    fn dt(&self, t: usize) -> f64 {
+        match (self.times.get(t + 1), self.times.get(t)) {
+            (Some(a), Some(b)) => (a - b).max(0.0),
+            _ => 0.0,
+        }
+    }
+
+    /// Forward filter × a filter run backwards in time, over the prior.
+    fn two_filters(self) -> Vec<Belief> {
         let model = self.filter.model;
-        let to_belief = |v: &[f32]| {
-            let (none, points) = v.split_first().unwrap_or((&0.0, &[]));
-            Belief {
-                no_contact: f64::from(*none),
-                points: points.iter().map(|&p| f64::from(p)).collect(),
-            }
-        };
+        let n = self.times.len();
+        let mut out: Vec<Belief> = Vec::with_capacity(n);
+        let mut backward: Option<Belief> = None;
+        for t in (0..n).rev() {
+            let (Some(forward), Some(frame)) = (self.filtered.get(t), self.frames.get(t)) else {
+                continue;
+            };
+            let predicted = match &backward {
+                Some(b) => model.predict(b, self.dt(t)),
+                None => model.initial(),
+            };
+            out.push(model.combine(&forward.belief(), &predicted));
+            backward = Some(model.correct(&predicted, &frame.likelihood()));
+        }
+        out.reverse();
+        out
+    }
+
+    /// Forward–backward messages (samples as points).
+    fn messages(self) -> Vec<Belief> {
+        let model = self.filter.model;
         let n = self.times.len();
         let mut out: Vec<Belief> = Vec::with_capacity(n);
         // β of the last frame is 1 everywhere.
-        let points = self.filtered.first().map_or(0, |f| f.len().saturating_sub(1));
-        let mut beta = Belief {
+        let points = self.filtered.first().map_or(0, |f| f.points.len());
+        let ones = Belief {
             no_contact: 1.0,
             points: vec![1.0; points],
+            offsets: Vec::new(),
         };
+        let mut beta = ones.clone();
         for t in (0..n).rev() {
-            let (Some(alpha), Some(scaled)) = (self.filtered.get(t), self.scaled.get(t)) else {
+            let (Some(alpha), Some(frame)) = (self.filtered.get(t), self.frames.get(t)) else {
                 continue;
             };
-            let mut smoothed = to_belief(alpha);
+            let mut smoothed = alpha.belief();
             smoothed.no_contact *= beta.no_contact;
             for (s, b) in smoothed.points.iter_mut().zip(&beta.points) {
                 *s *= b;
             }
             if !smoothed.normalize() {
-                smoothed = to_belief(alpha);
+                smoothed = alpha.belief();
             }
             out.push(smoothed);
             if t > 0 {
                 // The message for frame t-1: this frame's likelihood times β.
-                let mut later = to_belief(scaled);
+                let mut later = frame.scaled();
                 later.no_contact *= beta.no_contact;
                 for (l, b) in later.points.iter_mut().zip(&beta.points) {
                     *l *= b;
                 }
-                let dt = match (self.times.get(t), self.times.get(t - 1)) {
-                    (Some(a), Some(b)) => (a - b).max(0.0),
-                    _ => 0.0,
-                };
-                let mut next = model.backward(&later, dt);
+                let mut next = model.backward(&later, self.dt(t - 1));
                 if !next.normalize() {
-                    next = Belief {
-                        no_contact: 1.0,
-                        points: vec![1.0; points],
-                    };
+                    next = ones.clone();
                 }
                 beta = next;
             }
@@ -741,9 +1327,12 @@ mod tests {
     }
 
     fn model(n: usize, settings: TemporalSettings) -> TemporalModel {
+        let graph = chain(n);
         TemporalModel {
             settings,
-            graph: chain(n),
+            hop_rate: (0..n).map(|k| graph.neighbours(k).1.iter().sum()).collect(),
+            window_m: Vec::new(),
+            graph,
             prior: (0..n)
                 .map(|k| (k + 1) as f64)
                 .map(|w| w / (n * (n + 1) / 2) as f64)
@@ -850,22 +1439,27 @@ mod tests {
             FrameLikelihood {
                 no_contact: -1.0,
                 points: vec![-3.0, -0.5, -2.0, -4.0],
+                patch: Vec::new(),
             },
             FrameLikelihood {
                 no_contact: -6.0,
                 points: vec![-1.0, -0.2, -5.0, -9.0],
+                patch: Vec::new(),
             },
             FrameLikelihood {
                 no_contact: -2.0,
                 points: vec![-2.5, -1.5, -0.3, f64::NEG_INFINITY],
+                patch: Vec::new(),
             },
             FrameLikelihood {
                 no_contact: -0.1,
                 points: vec![-3.0, -3.0, -1.0, -2.0],
+                patch: Vec::new(),
             },
             FrameLikelihood {
                 no_contact: -4.0,
                 points: vec![-0.4, -2.0, -2.0, -0.1],
+                patch: Vec::new(),
             },
         ];
         (times, frames)
@@ -934,6 +1528,7 @@ mod tests {
         let favour = |k: usize, strength: f64| FrameLikelihood {
             no_contact: -strength,
             points: (0..4).map(|j| if j == k { 0.0 } else { -strength }).collect(),
+            patch: Vec::new(),
         };
         for i in 0..40 {
             let b = filter.step(f64::from(i) * 0.005, &favour(2, 3.0)).unwrap();
@@ -945,6 +1540,7 @@ mod tests {
         let quiet = FrameLikelihood {
             no_contact: 0.0,
             points: vec![-3.0; 4],
+            patch: Vec::new(),
         };
         let mut p = 1.0;
         for i in 40..50 {
@@ -968,6 +1564,7 @@ mod tests {
         let short = FrameLikelihood {
             no_contact: 0.0,
             points: vec![0.0; 2],
+            patch: Vec::new(),
         };
         assert!(matches!(
             filter.step(0.0, &short),
@@ -976,6 +1573,7 @@ mod tests {
         let ok = FrameLikelihood {
             no_contact: 0.0,
             points: vec![0.0; 3],
+            patch: Vec::new(),
         };
         filter.step(1.0, &ok).unwrap();
         assert!(matches!(filter.step(0.5, &ok), Err(TemporalError::BadTime { .. })));
@@ -984,8 +1582,144 @@ mod tests {
         let none = FrameLikelihood {
             no_contact: -1e9,
             points: vec![f64::NEG_INFINITY; 3],
+            patch: Vec::new(),
         };
         let b = filter.step(2.0, &none).unwrap();
         assert!(b.no_contact.is_finite() && (b.no_contact - 1.0).abs() < 1e-12);
+    }
+
+    type Integrand<'a> = &'a dyn Fn(f64, f64) -> f64;
+
+    /// `∫ f(s) ds` over a square of half-width `half` (m) about 0.
+    fn integrate_2d(half: f64, f: impl Fn(f64, f64) -> f64) -> f64 {
+        let steps = 600;
+        let h = 2.0 * half / f64::from(steps);
+        let mut total = 0.0;
+        for i in 0..steps {
+            for j in 0..steps {
+                let x = -half + (f64::from(i) + 0.5) * h;
+                let y = -half + (f64::from(j) + 0.5) * h;
+                total += f(x, y);
+            }
+        }
+        total * h * h
+    }
+
+    fn density(o: &Offset, x: f64, y: f64) -> f64 {
+        let [l11, l12, l22] = o.precision;
+        let [m1, m2] = o.mean_m();
+        let (dx, dy) = (x - m1, y - m2);
+        (o.det().sqrt() / std::f64::consts::TAU) * (-0.5 * (l11 * dx * dx + 2.0 * l12 * dx * dy + l22 * dy * dy)).exp()
+    }
+
+    /// Offsets against brute-force integration over the plane: a frame
+    /// absorbed, a forward and a backward belief combined, a mixture with
+    /// the window matched by its moments.
+    #[test]
+    fn offsets_integrate_as_brute_force_does() {
+        let rho = 0.004;
+        let prior = Offset {
+            precision: [9e4, 2e4, 5e4],
+            shift: [120.0, -40.0],
+        };
+        let frame = PatchInformation {
+            point: 0.0,
+            information: [3e5, -1e5, 8e4],
+            shift: [900.0, 150.0],
+        };
+        let (gain, after) = prior.absorb_within(&frame, f64::INFINITY);
+        let brute = integrate_2d(0.03, |x, y| {
+            let [m11, m12, m22] = frame.information;
+            let l = frame.shift[0] * x + frame.shift[1] * y - 0.5 * (m11 * x * x + 2.0 * m12 * x * y + m22 * y * y);
+            density(&prior, x, y) * l.exp()
+        });
+        assert!((gain - brute.ln()).abs() < 1e-4, "{gain} vs {}", brute.ln());
+        let backward = Offset {
+            precision: [2e5, -3e4, 1.5e5],
+            shift: [-300.0, 500.0],
+        };
+        let window = Offset::window(rho);
+        let brute = integrate_2d(0.03, |x, y| {
+            density(&after, x, y) * density(&backward, x, y) / density(&window, x, y)
+        });
+        let got = overlap(&after, &backward, rho);
+        assert!((got - brute.ln()).abs() < 1e-4, "{got} vs {}", brute.ln());
+        let own = 0.7;
+        let mixed = after.mixed_with_window(own, rho);
+        let moments = |f: &dyn Fn(f64, f64) -> f64| {
+            let of = |o: &Offset| integrate_2d(0.03, |x, y| density(o, x, y) * f(x, y));
+            (of(&mixed), own * of(&after) + (1.0 - own) * of(&window))
+        };
+        let tests: [(&str, Integrand, f64); 5] = [
+            ("x", &|x, _| x, 1e-6),
+            ("y", &|_, y| y, 1e-6),
+            ("xx", &|x, _| x * x, 1e-8),
+            ("xy", &|x, y| x * y, 1e-8),
+            ("yy", &|_, y| y * y, 1e-8),
+        ];
+        for (name, f, tol) in tests {
+            let (got, want) = moments(f);
+            assert!((got - want).abs() < tol, "{name}: {got} vs {want}");
+        }
+    }
+
+    /// A mean beyond the patch's reach is brought back to it, at a cost.
+    #[test]
+    fn offsets_stay_within_the_patch() {
+        let rho = 0.005;
+        let far = Offset {
+            precision: [1e6, 0.0, 1e6],
+            shift: [1e6 * 0.03, 0.0],
+        };
+        let (penalty, kept) = far.confined(rho);
+        let [m1, m2] = kept.mean_m();
+        assert!((m1 - PATCH_REACH * rho).abs() < 1e-12 && m2.abs() < 1e-12, "{m1} {m2}");
+        let d = 0.03 - PATCH_REACH * rho;
+        assert!((penalty - 0.5 * 1e6 * d * d).abs() < 1e-9, "{penalty}");
+        let near = Offset::window(rho);
+        assert_eq!(near.confined(rho), (0.0, near));
+        // Absorbing a frame that pulls the mean out of reach charges the
+        // change of the confinement's cost, and keeps the Gaussian whole.
+        let pull = PatchInformation {
+            point: 0.0,
+            information: [4e5, 0.0, 4e5],
+            shift: [4e5 * 0.02, 0.0],
+        };
+        let start = Offset::window(rho);
+        let (free, whole) = start.absorb_within(&pull, f64::INFINITY);
+        let (kept, same) = start.absorb_within(&pull, PATCH_REACH * rho);
+        assert_eq!(whole, same);
+        let expected = free - (whole.confined(rho).0 - start.confined(rho).0);
+        assert!(whole.confined(rho).0 > 1.0);
+        assert!((kept - expected).abs() < 1e-9, "{kept} vs {expected}");
+    }
+
+    /// The magnitude is profiled per frame with one Occam charge for all
+    /// samples: two samples that explain the torques equally well score
+    /// the same whatever their lever arms (a per-sample charge would
+    /// favour the weaker lever by `ln 2` per frame here, a hundred-frame
+    /// press by 69 nats).
+    #[test]
+    fn equally_good_fits_score_the_same_whatever_the_lever() {
+        // τ = (2, 0) with σ = 1: sample 0 has u = (1, 0), sample 1 u = (0.5, 0).
+        let forms = PatchForms {
+            a: vec![1.0, 0.25],
+            b: vec![2.0, 1.0],
+            h1: vec![0.0; 2],
+            h2: vec![0.0; 2],
+            e1: vec![0.0; 2],
+            e2: vec![0.0; 2],
+            g11: vec![1.0; 2],
+            g12: vec![0.0; 2],
+            g22: vec![1.0; 2],
+            window_m: vec![0.01; 2],
+            ln_area: vec![0.0; 2],
+        };
+        let info = PatchInformation::from_forms(&forms, 4.0, (0.5, 10.0));
+        assert!((info[0].point - info[1].point).abs() < 1e-12, "{info:?}");
+        // Both fit exactly (f = 2 and 4): χ² = 0, so only the charge is
+        // left, at the upper median `a` (1).
+        let charge = 0.5 * std::f64::consts::TAU.ln() - 9.5_f64.ln();
+        assert!((info[0].point - charge).abs() < 1e-12, "{info:?}");
     }
 }
