@@ -12,10 +12,10 @@ use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, Update, e
 use proprioscope::core::robot::Robot;
 use proprioscope::core::summary::Verdict;
 use proprioscope::core::surface::SurfaceRequest;
-use proprioscope::core::temporal::TemporalModel;
+use proprioscope::core::temporal::{MAX_SMOOTHER_BYTES, TemporalModel, is_continuous_recording, smoother_bytes};
 use proprioscope::io::session::{Session, Truth, kept_frame_numbers};
 
-use super::{EstimatorArgs, TemporalArgs};
+use super::{EstimatorArgs, TemporalArg, TemporalArgs};
 
 /// Options of `estimate`.
 #[derive(Debug, clap::Args)]
@@ -76,6 +76,23 @@ fn joint_positions(robot: &Robot, session: &Session, file_frames: &[usize]) -> R
         .collect()
 }
 
+/// `--temporal`, with `auto` decided for this session (and said on stderr).
+fn chosen_temporal(args: &EstimateArgs, session: &Session, points: usize, patches: bool) -> Temporal {
+    if args.temporal.temporal != TemporalArg::Auto {
+        return args.temporal.temporal.into();
+    }
+    let times: Vec<f64> = session.frames.iter().map(|f| f.t).collect();
+    let (chosen, why) = if !is_continuous_recording(&times, &args.temporal.settings()) {
+        (Temporal::None, "frames further apart than a contact lasts: each alone")
+    } else if smoother_bytes(times.len(), points, patches) > MAX_SMOOTHER_BYTES {
+        (Temporal::Filter, "a recording too long to smooth in memory: filtered")
+    } else {
+        (Temporal::Smooth, "a recording: smoothed")
+    };
+    eprintln!("--temporal auto: {why} (choose with --temporal none|filter|smooth)");
+    chosen
+}
+
 /// Runs the command.
 pub fn run(args: &EstimateArgs) -> Result<()> {
     let (session, file_frames) = read_session(args)?;
@@ -107,7 +124,7 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
         )),
         None => None,
     };
-    let temporal: Temporal = args.temporal.temporal.into();
+    let temporal = chosen_temporal(args, &session, estimator.surface.len(), estimator.uses_patches());
     let model = match temporal {
         Temporal::None => None,
         Temporal::Filter | Temporal::Smooth => Some(

@@ -39,6 +39,9 @@ pub enum SamplingArg {
 /// How frames of a session are combined, on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum TemporalArg {
+    /// `smooth` for a recording (frames closer than a contact lasts, see
+    /// `core::temporal::is_continuous_recording`), else `none`.
+    Auto,
     /// Each frame alone.
     None,
     /// Each frame with the frames before it (causal, as live).
@@ -50,7 +53,7 @@ pub enum TemporalArg {
 impl From<TemporalArg> for Temporal {
     fn from(t: TemporalArg) -> Self {
         match t {
-            TemporalArg::None => Self::None,
+            TemporalArg::Auto | TemporalArg::None => Self::None,
             TemporalArg::Filter => Self::Filter,
             TemporalArg::Smooth => Self::Smooth,
         }
@@ -61,8 +64,10 @@ impl From<TemporalArg> for Temporal {
 #[derive(Debug, Clone, clap::Args)]
 pub struct TemporalArgs {
     /// Combine frames over time: `none` (each frame alone), `filter`
-    /// (with the frames before) or `smooth` (with the whole recording).
-    #[arg(long, value_enum, default_value = "none")]
+    /// (with the frames before), `smooth` (with the whole recording) or
+    /// `auto` (`smooth` when the frames are a recording, closer together
+    /// than a contact lasts; `none` for sets of unrelated frames).
+    #[arg(long, value_enum, default_value = "auto")]
     pub temporal: TemporalArg,
     /// Rate at which contacts begin, 1/s.
     #[arg(long, default_value_t = TemporalSettings::default().onset_per_s, value_parser = finite)]

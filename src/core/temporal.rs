@@ -997,6 +997,37 @@ impl TemporalModel {
     }
 }
 
+/// Bytes the [`Smoother`] holds for `frames` frames of `points` samples
+/// (with offsets tracked or not).
+#[must_use]
+pub fn smoother_bytes(frames: usize, points: usize, offsets: bool) -> usize {
+    frames
+        .saturating_mul(points.saturating_add(1))
+        .saturating_mul(if offsets { 52 } else { 8 })
+}
+
+/// Whether frames at `times_secs` form a recording that the temporal
+/// model connects: a contact outlives the median interval between frames
+/// with probability at least ½ (`dt ≤ ln 2 / λ_off`: 0.35 s by default;
+/// frames a second apart, as in a set of unrelated pushes, are not).
+#[must_use]
+pub fn is_continuous_recording(times_secs: &[f64], settings: &TemporalSettings) -> bool {
+    let mut intervals: Vec<f64> = times_secs
+        .windows(2)
+        .filter_map(|w| match w {
+            [a, b] => Some(b - a),
+            _ => None,
+        })
+        .filter(|dt| dt.is_finite())
+        .collect();
+    if intervals.is_empty() {
+        return false;
+    }
+    let mid = intervals.len() / 2;
+    let median = *intervals.select_nth_unstable_by(mid, f64::total_cmp).1;
+    median * settings.release_per_s <= std::f64::consts::LN_2
+}
+
 /// Checks that `t_secs` follows `previous` and gives the interval.
 fn interval(frame: usize, previous: Option<f64>, t_secs: f64) -> Result<f64, TemporalError> {
     let bad = |previous_secs: f64| TemporalError::BadTime {
@@ -1190,10 +1221,7 @@ impl<'a> Smoother<'a> {
     /// As [`Filter::step`], and [`TemporalError::TooLarge`] past the store's limit.
     pub fn push(&mut self, t_secs: f64, likelihood: &FrameLikelihood) -> Result<&Belief, TemporalError> {
         let points = likelihood.points.len();
-        let per_value = if likelihood.patch.is_empty() { 8 } else { 52 };
-        let bytes = (self.times.len() + 1)
-            .saturating_mul(points + 1)
-            .saturating_mul(per_value);
+        let bytes = smoother_bytes(self.times.len() + 1, points, !likelihood.patch.is_empty());
         if bytes > MAX_SMOOTHER_BYTES {
             return Err(TemporalError::TooLarge {
                 frames: self.times.len() + 1,
@@ -1721,5 +1749,16 @@ mod tests {
         // left, at the upper median `a` (1).
         let charge = 0.5 * std::f64::consts::TAU.ln() - 9.5_f64.ln();
         assert!((info[0].point - charge).abs() < 1e-12, "{info:?}");
+    }
+
+    #[test]
+    fn recordings_are_told_from_sets_of_unrelated_frames() {
+        let d = TemporalSettings::default();
+        let at = |dt: f64| (0..10).map(|i| f64::from(i) * dt).collect::<Vec<_>>();
+        assert!(is_continuous_recording(&at(0.005), &d));
+        assert!(is_continuous_recording(&at(0.3), &d));
+        assert!(!is_continuous_recording(&at(0.4), &d));
+        assert!(!is_continuous_recording(&at(1.0), &d));
+        assert!(!is_continuous_recording(&[0.0], &d));
     }
 }
