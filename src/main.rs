@@ -82,6 +82,10 @@ enum Command {
     Estimate(cli::estimate::EstimateArgs),
     /// Speed against accuracy of estimator configurations (table and PNG plot).
     Bench(cli::bench::BenchArgs),
+    /// Writes a session drawn from the model itself (the built-in LWR
+    /// pressed, with truth): presses that hold or slide, come and go,
+    /// with friction, bias and noise as asked.
+    Synth(cli::synth::SynthArgs),
     /// Links and joints of a robot (built-in name or URDF path).
     RobotInfo {
         /// `simple6`, `lwr4plus` or a URDF file.
@@ -192,6 +196,7 @@ fn run(cli: Cli) -> Result<()> {
         Some(Command::Torques(args)) => torques(&args),
         Some(Command::Estimate(args)) => cli::estimate::run(&args),
         Some(Command::Bench(args)) => cli::bench::run(&args),
+        Some(Command::Synth(args)) => cli::synth::run(&args),
         Some(Command::RobotInfo { robot, package_paths }) => robot_info(&robot, package_paths),
         Some(Command::Surface { scene, points }) => surface(&scene, points),
         Some(Command::ExportAssets { root }) => export_assets(&root),

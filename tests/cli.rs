@@ -276,6 +276,39 @@ fn estimate_over_time_adds_the_contact_probability() {
     assert!(!ok && err.contains("release rate"), "{err}");
 }
 
+/// `synth` writes a session with truth that `estimate` reads; with
+/// `--bias auto` the estimated offsets are printed per joint.
+#[test]
+fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
+    let dir = std::env::temp_dir().join(format!("proprioscope-synth-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let session = dir.join("synth.session.json");
+    let (ok, _, err) = run(&[
+        "synth",
+        session.to_str().unwrap(),
+        "--seconds",
+        "2",
+        "--rate",
+        "50",
+        "--seed",
+        "4",
+        "--bias",
+        "0.3",
+        "--links",
+        "lwr_5_link,lwr_6_link",
+    ]);
+    assert!(ok, "{err}");
+    let (ok, out, err) = run(&["estimate", session.to_str().unwrap(), "--bias", "auto", "--n", "1000"]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("bias (estimated, N·m") && out.contains("lwr_joint_7"),
+        "{out}"
+    );
+    assert!(out.contains("median pos. error"), "{out}");
+    let (ok, _, err) = run(&["synth", session.to_str().unwrap(), "--links", "no_such_link"]);
+    assert!(!ok && err.contains("no_such_link"), "{err}");
+}
+
 #[test]
 fn a_session_going_back_in_time_is_refused_naming_the_frame() {
     let text = SESSION.replace(r#""t": 0.1"#, r#""t": -0.1"#);

@@ -7,6 +7,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use proprioscope::app::session::{FrameEstimate, frame_outcome, session_robot};
+use proprioscope::core::bias::{estimate_bias, without_bias};
 use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, metrics_by_sensing_joints, percentile};
 use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, Update, estimate_sequence};
 use proprioscope::core::robot::Robot;
@@ -37,12 +38,26 @@ pub struct EstimateArgs {
     /// last whole frame. Output frames keep their numbers in the file.
     #[arg(long)]
     pub skip_bad_frames: bool,
+    /// Torque bias: `none`, or `auto` to estimate each joint's offset from
+    /// the session (the mode of its readings: what it reads with nothing
+    /// touching) and take it off every frame.
+    #[arg(long, value_enum, default_value = "none")]
+    pub bias: BiasArg,
     /// Estimator options.
     #[command(flatten)]
     pub estimator: EstimatorArgs,
     /// Temporal model.
     #[command(flatten)]
     pub temporal: TemporalArgs,
+}
+
+/// `--bias`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BiasArg {
+    /// Torques as measured.
+    None,
+    /// Each joint's offset estimated from the session and taken off.
+    Auto,
 }
 
 /// The session, strictly or skipping bad frames; with each kept frame's
@@ -74,6 +89,24 @@ fn joint_positions(robot: &Robot, session: &Session, file_frames: &[usize]) -> R
                 .with_context(|| format!("{}: frame {i} (t = {})", session.path.display(), frame.t))
         })
         .collect()
+}
+
+/// Every frame's torques, with `--bias auto` less the estimated bias
+/// (printed).
+fn debiased_torques(args: &EstimateArgs, robot: &Robot, session: &Session, sigma: &[f64]) -> Result<Vec<Vec<f64>>> {
+    let refs: Vec<&[f64]> = session.frames.iter().map(|f| f.tau.as_slice()).collect();
+    if args.bias == BiasArg::None {
+        return Ok(refs.iter().map(|t| t.to_vec()).collect());
+    }
+    let bias = estimate_bias(&refs, sigma).with_context(|| format!("--bias auto on {}", session.path.display()))?;
+    let named: Vec<String> = robot
+        .sensed_names()
+        .iter()
+        .zip(&bias)
+        .map(|(name, b)| format!("{name} {b:+.4}"))
+        .collect();
+    outln!("bias (estimated, N·m, taken off every frame): {}", named.join(", "));
+    Ok(without_bias(&refs, &bias))
 }
 
 /// `--temporal`, with `auto` decided for this session (and said on stderr).
@@ -133,14 +166,16 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
         ),
     };
     let positions = joint_positions(&robot, &session, &file_frames)?;
+    let taus = debiased_torques(args, &robot, &session, &estimator.settings.sigma)?;
     let sequence: Vec<SequenceFrame> = session
         .frames
         .iter()
         .zip(&positions)
-        .map(|(frame, joint_positions)| SequenceFrame {
+        .zip(&taus)
+        .map(|((frame, joint_positions), tau)| SequenceFrame {
             t_secs: frame.t,
             joint_positions,
-            tau: &frame.tau,
+            tau,
         })
         .collect();
     let bar = ProgressBar::new(session.frames.len() as u64);

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod estimate;
+pub mod synth;
 
 use anyhow::{Result, bail};
 use proprioscope::core::estimator::{EstimatorSettings, Mode, ParticleSettings, Sampling};

@@ -2,6 +2,7 @@
 //!
 //! Pure math on `glam` f64 types, SI units, no I/O and no UI.
 
+pub mod bias;
 pub mod builtin;
 pub mod bvh;
 pub mod contact;

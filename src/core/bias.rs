@@ -1,0 +1,209 @@
+//! Torque bias: a per-joint offset that real external-torque signals carry
+//! (model error, joint friction: non-zero readings with nothing touching).
+//!
+//! Without contact a joint reads its bias plus noise, frame after frame:
+//! the readings pile up in a peak σ wide. A contact spreads them (its
+//! torque changes with the press and the pose), and a joint that the
+//! touched link does not move reads its bias too. So the bias is the
+//! densest place of each joint's readings: the mode of a Gaussian kernel
+//! density as wide as the noise, found among the readings and polished by
+//! mean shift. It needs no estimate of the contacts, and holds as long as
+//! no single contact holds one joint at one torque for longer than the
+//! recording spends without contact.
+
+/// Why a bias could not be estimated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BiasError {
+    /// Fewer than two frames.
+    #[error("estimating a torque bias needs at least 2 frames, got {frames}")]
+    TooFewFrames {
+        /// Frames given.
+        frames: usize,
+    },
+    /// A frame has a different number of joints than σ.
+    #[error("frame {frame}: {got} torques for {expected} joints")]
+    WrongLength {
+        /// Frame number (0-based).
+        frame: usize,
+        /// Torques in it.
+        got: usize,
+        /// Joints (σ's length).
+        expected: usize,
+    },
+    /// A σ is not a positive finite number.
+    #[error("joint {joint}: σ = {sigma} must be a finite number > 0")]
+    BadSigma {
+        /// Joint (0-based, sensed order).
+        joint: usize,
+        /// Its σ, N·m.
+        sigma: f64,
+    },
+}
+
+/// Mean-shift steps that polish the mode (each moves it to the kernel
+/// mean of the readings around it; a few suffice at σ resolution).
+const MEAN_SHIFT_STEPS: usize = 20;
+
+/// Readings further than this many kernel widths do not count.
+const KERNEL_REACH: f64 = 4.0;
+
+/// Each sensed joint's bias (N·m) from the torques of every frame
+/// (`taus[frame][joint]`) and the joints' noise σ (N·m): the mode of the
+/// joint's readings (see the module docs). Non-finite readings are left
+/// out.
+///
+/// # Errors
+/// [`BiasError`] for fewer than two frames, a frame of the wrong length
+/// or a σ that is not positive.
+pub fn estimate_bias(taus: &[&[f64]], sigma: &[f64]) -> Result<Vec<f64>, BiasError> {
+    if taus.len() < 2 {
+        return Err(BiasError::TooFewFrames { frames: taus.len() });
+    }
+    for (joint, &s) in sigma.iter().enumerate() {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(BiasError::BadSigma { joint, sigma: s });
+        }
+    }
+    if let Some((frame, tau)) = taus.iter().enumerate().find(|(_, t)| t.len() != sigma.len()) {
+        return Err(BiasError::WrongLength {
+            frame,
+            got: tau.len(),
+            expected: sigma.len(),
+        });
+    }
+    Ok(sigma
+        .iter()
+        .enumerate()
+        .map(|(joint, &h)| {
+            let mut values: Vec<f64> = taus
+                .iter()
+                .filter_map(|t| t.get(joint).copied())
+                .filter(|v| v.is_finite())
+                .collect();
+            values.sort_unstable_by(f64::total_cmp);
+            mode(&values, h)
+        })
+        .collect())
+}
+
+/// The mode of the kernel density (width `h`) of sorted `values` (0 when
+/// empty).
+fn mode(values: &[f64], h: f64) -> f64 {
+    let reach = KERNEL_REACH * h;
+    let density = |x: f64| -> f64 {
+        let lo = values.partition_point(|&v| v < x - reach);
+        let hi = values.partition_point(|&v| v <= x + reach);
+        values
+            .get(lo..hi)
+            .unwrap_or(&[])
+            .iter()
+            .map(|&v| {
+                let z = (v - x) / h;
+                (-0.5 * z * z).exp()
+            })
+            .sum()
+    };
+    // The densest reading (the lowest among equals: deterministic).
+    let mut best = (f64::NEG_INFINITY, 0.0);
+    for &x in values {
+        let d = density(x);
+        if d > best.0 {
+            best = (d, x);
+        }
+    }
+    let mut x = best.1;
+    for _ in 0..MEAN_SHIFT_STEPS {
+        let lo = values.partition_point(|&v| v < x - reach);
+        let hi = values.partition_point(|&v| v <= x + reach);
+        let (mut weight, mut sum) = (0.0, 0.0);
+        for &v in values.get(lo..hi).unwrap_or(&[]) {
+            let z = (v - x) / h;
+            let w = (-0.5 * z * z).exp();
+            weight += w;
+            sum += w * v;
+        }
+        if weight <= 0.0 {
+            break;
+        }
+        let next = sum / weight;
+        if (next - x).abs() < 1e-6 * h {
+            x = next;
+            break;
+        }
+        x = next;
+    }
+    x
+}
+
+/// `taus` with `bias` taken off every frame.
+#[must_use]
+pub fn without_bias(taus: &[&[f64]], bias: &[f64]) -> Vec<Vec<f64>> {
+    taus.iter()
+        .map(|t| {
+            t.iter()
+                .zip(bias.iter().chain(std::iter::repeat(&0.0)))
+                .map(|(v, b)| v - b)
+                .collect()
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::rng::Rng;
+
+    /// Readings: 40 % of frames at the bias, the rest spread by contacts
+    /// (one joint's contact torques held near a second value for 20 %).
+    #[test]
+    fn the_bias_is_the_densest_reading() {
+        let mut rng = Rng::new(3);
+        let bias = [0.3, -0.25, 0.0];
+        let sigma = [0.05, 0.05, 0.1];
+        let frames: Vec<Vec<f64>> = (0..1000)
+            .map(|i| {
+                bias.iter()
+                    .zip(&sigma)
+                    .enumerate()
+                    .map(|(j, (&b, &s))| {
+                        let contact = match i % 10 {
+                            0..=3 => 0.0,
+                            4 | 5 if j == 0 => 1.2,
+                            _ => rng.uniform_in(-3.0, 3.0),
+                        };
+                        b + contact + s * rng.normal()
+                    })
+                    .collect()
+            })
+            .collect();
+        let refs: Vec<&[f64]> = frames.iter().map(Vec::as_slice).collect();
+        let got = estimate_bias(&refs, &sigma).unwrap();
+        for ((g, b), s) in got.iter().zip(&bias).zip(&sigma) {
+            // 400 frames of noise σ: the mode is good to a fraction of σ.
+            assert!((g - b).abs() < 0.3 * s, "{got:?} vs {bias:?}");
+        }
+        let clean = without_bias(&refs, &got);
+        assert!((clean[0][0] - (frames[0][0] - got[0])).abs() < 1e-15);
+    }
+
+    #[test]
+    fn bad_inputs_are_errors() {
+        let one = [0.0, 0.0];
+        assert!(matches!(
+            estimate_bias(&[&one], &[0.05, 0.05]),
+            Err(BiasError::TooFewFrames { frames: 1 })
+        ));
+        assert!(matches!(
+            estimate_bias(&[&one, &[0.0]], &[0.05, 0.05]),
+            Err(BiasError::WrongLength { frame: 1, .. })
+        ));
+        assert!(matches!(
+            estimate_bias(&[&one, &one], &[0.05, 0.0]),
+            Err(BiasError::BadSigma { joint: 1, .. })
+        ));
+        // Non-finite readings are left out.
+        let nan = [f64::NAN, 0.1];
+        let got = estimate_bias(&[&one, &nan, &one], &[0.05, 0.05]).unwrap();
+        assert!(got.iter().all(|b| b.is_finite()), "{got:?}");
+    }
+}
