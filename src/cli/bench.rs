@@ -9,11 +9,12 @@ use anyhow::{Context as _, Result, anyhow};
 use glam::DVec3;
 use proprioscope::core::estimator::{EstimatorSettings, Mode, ParticleSettings, Sampling};
 use proprioscope::core::kinematics::RobotPose;
-use proprioscope::core::metrics::{FrameOutcome, Metrics, metrics, percentile};
-use proprioscope::core::pipeline::Estimator;
+use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, percentile};
+use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, estimate_sequence};
 use proprioscope::core::rng::Rng;
 use proprioscope::core::robot::{JointKind, Robot};
 use proprioscope::core::surface::{Surface, SurfaceRequest};
+use proprioscope::core::temporal::{TemporalModel, TemporalSettings, is_continuous_recording};
 use proprioscope::core::torque::joint_torques;
 use proprioscope::io::builtin::load_robot;
 use proprioscope::io::urdf::{MeshSelection, UrdfOptions};
@@ -313,6 +314,10 @@ struct SessionRun {
     medians_m: Vec<f64>,
     poor_fit: usize,
     frames: usize,
+    detected: usize,
+    contact_frames: usize,
+    false_alarms: usize,
+    quiet_frames: usize,
 }
 
 /// Per-frame p50/p99 and the spread of the median error over surface
@@ -320,16 +325,16 @@ struct SessionRun {
 /// grid of points it refines (at the same and at seven times the points).
 fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
     use proprioscope::app::session::session_robot;
-    use proprioscope::core::summary::Verdict;
     use proprioscope::io::session::{Session, Truth};
     let session = Session::read(path)?;
     let robot = session_robot(&session, None, &args.package_paths, &[])?;
-    let sensed = robot.sensed().len();
     let mut runs = Vec::new();
-    for (label, points, patches) in [
-        ("refined (patches)", 5000, true),
-        ("grid of points", 5000, false),
-        ("grid of points", 35_000, false),
+    for (label, points, patches, temporal) in [
+        ("refined (patches)", 5000, true, Temporal::None),
+        ("filtered over time", 5000, true, Temporal::Filter),
+        ("smoothed over time", 5000, true, Temporal::Smooth),
+        ("grid of points", 5000, false, Temporal::None),
+        ("grid of points", 35_000, false, Temporal::None),
     ] {
         let mut run = SessionRun {
             label,
@@ -338,43 +343,65 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
             medians_m: Vec::new(),
             poor_fit: 0,
             frames: 0,
+            detected: 0,
+            contact_frames: 0,
+            false_alarms: 0,
+            quiet_frames: 0,
         };
+        let positions = session
+            .frames
+            .iter()
+            .map(|frame| robot.joint_positions(&frame.q, &[]))
+            .collect::<Result<Vec<_>, _>>()?;
+        let sequence: Vec<SequenceFrame> = session
+            .frames
+            .iter()
+            .zip(&positions)
+            .map(|(frame, joint_positions)| SequenceFrame {
+                t_secs: frame.t,
+                joint_positions,
+                tau: &frame.tau,
+            })
+            .collect();
+        let times: Vec<f64> = session.frames.iter().map(|f| f.t).collect();
+        let truth: Vec<Option<bool>> = session
+            .frames
+            .iter()
+            .map(|f| match f.truth {
+                Truth::Contact { .. } => Some(true),
+                Truth::NoContact => Some(false),
+                Truth::Unknown => None,
+            })
+            .collect();
+        if temporal != Temporal::None && !is_continuous_recording(&times, &TemporalSettings::default()) {
+            // Unrelated frames: nothing to connect over time.
+            continue;
+        }
         for &seed in &args.seeds {
             eprintln!("{}: {label}, {points} points, seed {seed} …", path.display());
-            let settings = EstimatorSettings {
-                sigma: vec![args.noise; sensed],
-                force_min_newtons: 1.0,
-                force_max_newtons: 30.0,
-                mode: Mode::Exact,
-                phase_alpha: None,
+            let how = How {
+                robot: &robot,
+                points,
                 patches,
-            };
-            let request = SurfaceRequest {
-                links: robot.default_candidate_links(),
-                total_points: points,
+                temporal,
                 seed,
+                sigma: args.noise,
             };
-            let estimator = Estimator::new(&robot, &request, settings, None)?;
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-            let errors = pool.install(|| -> Result<Vec<f64>> {
-                let mut errors = Vec::new();
-                for frame in &session.frames {
-                    let positions = robot.joint_positions(&frame.q, &[])?;
-                    let t0 = Instant::now();
-                    let update = estimator.update(&robot, &positions, &frame.tau)?;
-                    run.times_us.push(t0.elapsed().as_secs_f64() * 1e6);
-                    run.frames += 1;
-                    run.poor_fit += usize::from(update.summary.verdict == Verdict::PoorFit);
-                    if let Truth::Contact { point, .. } = &frame.truth {
-                        errors.push(update.summary.map.point_world.distance(DVec3::from_array(*point)));
-                    }
-                }
-                Ok(errors)
-            })?;
-            run.medians_m.push(percentile(&errors, 0.5));
+            seed_run(&how, &session, &sequence, &truth, &mut run)?;
         }
         runs.push(run);
     }
+    Ok(session_text(path, &session, args, &runs))
+}
+
+/// The table of a session's runs.
+fn session_text(
+    path: &Path,
+    session: &proprioscope::io::session::Session,
+    args: &BenchArgs,
+    runs: &[SessionRun],
+) -> String {
+    use proprioscope::io::session::Truth;
     let name = path
         .file_name()
         .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
@@ -389,9 +416,9 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
         args.noise,
         args.seeds
     );
-    out.push_str("| estimator | points | p50 [µs] | p99 [µs] | max [µs] | median pos. error per seed [mm] | spread [mm] | poorly explained |\n");
-    out.push_str("|---|---:|---:|---:|---:|---|---:|---:|\n");
-    for r in &runs {
+    out.push_str("| estimator | points | p50 [µs] | p99 [µs] | max [µs] | median pos. error per seed [mm] | spread [mm] | poorly explained | contact frames called | false alarms |\n");
+    out.push_str("|---|---:|---:|---:|---:|---|---:|---:|---:|---:|\n");
+    for r in runs {
         let (lo, hi) = r
             .medians_m
             .iter()
@@ -401,7 +428,7 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
         let per_seed: Vec<String> = r.medians_m.iter().map(|m| format!("{:.1}", m * 1e3)).collect();
         let _ = writeln!(
             out,
-            "| {} | {} | {:.0} | {:.0} | {:.0} | {} | {:.1} | {:.1} % |",
+            "| {} | {} | {:.0} | {:.0} | {:.0} | {} | {:.1} | {:.1} % | {:.1} % | {:.1} % |",
             r.label,
             r.points,
             percentile(&r.times_us, 0.5),
@@ -409,10 +436,86 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
             r.times_us.iter().copied().fold(0.0, f64::max),
             per_seed.join(", "),
             (hi - lo) * 1e3,
-            100.0 * r.poor_fit as f64 / r.frames.max(1) as f64
+            100.0 * r.poor_fit as f64 / r.frames.max(1) as f64,
+            100.0 * r.detected as f64 / r.contact_frames.max(1) as f64,
+            100.0 * r.false_alarms as f64 / r.quiet_frames.max(1) as f64
         );
     }
-    Ok(out)
+    out
+}
+
+/// One estimator configuration on a session at one surface seed.
+struct How<'a> {
+    robot: &'a Robot,
+    points: usize,
+    patches: bool,
+    temporal: Temporal,
+    seed: u64,
+    sigma: f64,
+}
+
+/// Runs `how` over `sequence` on one thread and adds its times, errors
+/// and detection record to `run`.
+fn seed_run(
+    how: &How,
+    session: &proprioscope::io::session::Session,
+    sequence: &[SequenceFrame],
+    truth: &[Option<bool>],
+    run: &mut SessionRun,
+) -> Result<()> {
+    use proprioscope::core::summary::Verdict;
+    use proprioscope::io::session::Truth;
+    let robot = how.robot;
+    let settings = EstimatorSettings {
+        sigma: vec![how.sigma; robot.sensed().len()],
+        force_min_newtons: 1.0,
+        force_max_newtons: 30.0,
+        mode: Mode::Exact,
+        phase_alpha: None,
+        patches: how.patches,
+    };
+    let request = SurfaceRequest {
+        links: robot.default_candidate_links(),
+        total_points: how.points,
+        seed: how.seed,
+    };
+    let estimator = Estimator::new(robot, &request, settings, None)?;
+    let model = match how.temporal {
+        Temporal::None => None,
+        _ => Some(TemporalModel::new(
+            &estimator.surface,
+            TemporalSettings::default(),
+            estimator.uses_patches(),
+        )?),
+    };
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    let (errors, called) = pool.install(|| -> Result<(Vec<f64>, Vec<bool>)> {
+        let (mut errors, mut called) = (Vec::new(), Vec::new());
+        estimate_sequence(
+            &estimator,
+            robot,
+            model.as_ref(),
+            how.temporal,
+            sequence,
+            |i, update, ms| {
+                run.times_us.push(ms * 1e3);
+                run.frames += 1;
+                run.poor_fit += usize::from(update.summary.verdict == Verdict::PoorFit);
+                called.push(update.summary.verdict != Verdict::NoContact);
+                if let Some(Truth::Contact { point, .. }) = session.frames.get(i).map(|f| &f.truth) {
+                    errors.push(update.summary.map.point_world.distance(DVec3::from_array(*point)));
+                }
+            },
+        )?;
+        Ok((errors, called))
+    })?;
+    let found = detection(truth, &called);
+    run.detected += found.detected;
+    run.contact_frames += found.contact_frames;
+    run.false_alarms += found.false_alarms;
+    run.quiet_frames += found.quiet_frames;
+    run.medians_m.push(percentile(&errors, 0.5));
+    Ok(())
 }
 
 /// N as the thesis counts it: surface points in exact mode, particles otherwise.
