@@ -502,6 +502,40 @@ fn session_replay_matches_its_snapshot() {
     harness.snapshot_options("session", &options);
 }
 
+/// A recording opens smoothed (as `estimate --temporal auto`), every
+/// frame with its contact probability; choosing "each frame alone" in the
+/// timeline re-estimates the frames alone, without one.
+#[test]
+fn a_recording_is_smoothed_and_can_be_estimated_frame_by_frame() {
+    use proprioscope::core::pipeline::Temporal;
+    let path = demo_session("over-time.session.json", 0.5);
+    let mut harness = session_harness(&path);
+    {
+        let app = harness.state();
+        assert_eq!(app.model.replay.as_ref().unwrap().over_time, Temporal::Smooth);
+        assert!(
+            app.session_estimates
+                .iter()
+                .all(|e| e.is_some_and(|e| e.contact_probability.is_some_and(|p| (0.0..=1.0).contains(&p)))),
+            "{:?}",
+            app.session_estimates
+        );
+    }
+    harness.get_by_label("over time").click();
+    harness.run();
+    harness.get_by_label("each frame alone").click();
+    settle(&mut harness);
+    let app = harness.state();
+    assert_eq!(app.model.replay.as_ref().unwrap().over_time, Temporal::None);
+    assert!(
+        app.session_estimates
+            .iter()
+            .all(|e| e.is_some_and(|e| e.contact_probability.is_none())),
+        "{:?}",
+        app.session_estimates
+    );
+}
+
 #[test]
 fn session_metrics_export_as_json() {
     let path = demo_session("metrics.session.json", 0.5);

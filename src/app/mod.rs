@@ -227,6 +227,7 @@ use glam::{DVec3, Vec2};
 use crate::core::estimator::{EstimatorSettings, Mode};
 use crate::core::kinematics::RobotPose;
 use crate::core::picking::Picker;
+use crate::core::pipeline::Temporal;
 use crate::core::robot::{LinkId, Robot};
 use crate::core::summary::Verdict;
 use crate::core::surface::SurfaceRequest;
@@ -347,6 +348,9 @@ pub struct Replay {
     pub looping: bool,
     /// Session time the playback has reached, s.
     pub clock_secs: f64,
+    /// How the session's frames are estimated: each alone, with the
+    /// frames before (filtered) or with the whole session (smoothed).
+    pub over_time: Temporal,
 }
 
 /// Slowest and fastest playback.
@@ -555,6 +559,8 @@ pub enum Command {
     SetSpeed(f64),
     /// Loop at the end (true) or stop.
     SetLoop(bool),
+    /// Estimate the session's frames alone, filtered or smoothed.
+    SetOverTime(Temporal),
     /// Advance playback by this much wall-clock time, s.
     Tick(f64),
 }
@@ -648,6 +654,11 @@ impl Model {
             Command::SetLoop(on) => {
                 if let Some(r) = &mut self.replay {
                     r.looping = on;
+                }
+            }
+            Command::SetOverTime(temporal) => {
+                if let Some(r) = &mut self.replay {
+                    r.over_time = temporal;
                 }
             }
             Command::Tick(dt_secs) => self.tick(dt_secs),

@@ -13,10 +13,11 @@ use rayon::prelude::*;
 
 use crate::core::estimator::EstimatorSettings;
 use crate::core::metrics::{FrameOutcome, Metrics, metrics, metrics_by_sensing_joints};
-use crate::core::pipeline::{Estimator, Update};
+use crate::core::pipeline::{Estimator, SequenceFrame, Temporal, Update, estimate_sequence_while};
 use crate::core::robot::{LinkId, Robot};
 use crate::core::summary::Verdict;
 use crate::core::surface::SurfaceRequest;
+use crate::core::temporal::{TemporalModel, TemporalSettings};
 use crate::io::builtin::load_robot;
 use crate::io::session::{Frame, FrameProblem, Session, Truth};
 use crate::io::urdf::{MeshSelection, UrdfOptions};
@@ -96,6 +97,9 @@ pub struct FrameEstimate {
     pub p_max: f64,
     /// Time the update took, ms.
     pub update_ms: f64,
+    /// The chance of a contact from the frames estimated together (none
+    /// for a frame alone).
+    pub contact_probability: Option<f64>,
 }
 
 impl FrameEstimate {
@@ -111,6 +115,7 @@ impl FrameEstimate {
             probability: map.probability,
             p_max: update.posterior.display.get(map.point).copied().unwrap_or(0.0),
             update_ms,
+            contact_probability: update.summary.contact_probability,
         }
     }
 }
@@ -262,8 +267,10 @@ pub struct EstimateJob {
     /// Phase sizes, with phases.
     pub phase_sizes: Option<[usize; 2]>,
     /// The frame to start from (the one on screen); the rest follow in
-    /// order, wrapping around.
+    /// order, wrapping around (frames estimated together go in order).
     pub first: usize,
+    /// Each frame alone, or together (filtered, smoothed).
+    pub over_time: Temporal,
 }
 
 /// One frame estimated in the background.
@@ -324,6 +331,15 @@ impl SessionWorker {
                     }
                 };
                 let frames = &job.session.frames;
+                if job.over_time != Temporal::None {
+                    match estimate_together(&job, &estimator, &inbox, &outbox, &wake) {
+                        Together::Newer(newer) => next = Some(newer),
+                        Together::Done => {}
+                        Together::Gone => return,
+                    }
+                    wake();
+                    continue;
+                }
                 let estimate_frame = |index: usize| -> Estimated {
                     // A panic on one frame fails that frame, not the thread.
                     let estimate = crate::io::guard::isolated(|| {
@@ -389,6 +405,124 @@ impl SessionWorker {
     pub fn drain(&self) -> impl Iterator<Item = Estimated> + '_ {
         self.results.try_iter()
     }
+}
+
+/// How a job of frames estimated together ended.
+enum Together {
+    /// Every frame was sent (or the job failed, also sent).
+    Done,
+    /// A newer job arrived first.
+    Newer(EstimateJob),
+    /// The app is gone.
+    Gone,
+}
+
+/// Estimates `job`'s frames together (filtered or smoothed), in order,
+/// sending each as it is done; a newer job stops it between frames. A
+/// failure (or a panic) fails every frame not yet sent.
+fn estimate_together(
+    job: &EstimateJob,
+    estimator: &Estimator,
+    inbox: &Receiver<EstimateJob>,
+    outbox: &Sender<Estimated>,
+    wake: &impl Fn(),
+) -> Together {
+    let frames = &job.session.frames;
+    let mut newer: Option<EstimateJob> = None;
+    let sent = std::cell::RefCell::new(vec![false; frames.len()]);
+    let gone = std::cell::Cell::new(false);
+    let mut last_wake = Instant::now();
+    let result = crate::io::guard::isolated(|| -> Result<bool, String> {
+        let positions = frames
+            .iter()
+            .map(|f| job.robot.joint_positions(&f.q, &[]).map_err(|e| e.to_string()))
+            .collect::<Result<Vec<_>, _>>()?;
+        let sequence: Vec<SequenceFrame> = frames
+            .iter()
+            .zip(&positions)
+            .map(|(f, p)| SequenceFrame {
+                t_secs: f.t,
+                joint_positions: p,
+                tau: &f.tau,
+            })
+            .collect();
+        let model = TemporalModel::new(
+            &estimator.surface,
+            TemporalSettings::default(),
+            estimator.uses_patches(),
+        )
+        .map_err(|e| e.to_string())?;
+        estimate_sequence_while(
+            estimator,
+            &job.robot,
+            (Some(&model), job.over_time),
+            &sequence,
+            || {
+                if let Some(job) = inbox.try_iter().last() {
+                    newer = Some(job);
+                }
+                newer.is_none() && !gone.get()
+            },
+            |frame, update, ms| {
+                let estimated = Estimated {
+                    generation: job.generation,
+                    frame,
+                    estimate: Ok(FrameEstimate::of(&update, ms)),
+                };
+                if outbox.send(estimated).is_err() {
+                    gone.set(true);
+                }
+                if let Some(s) = sent.borrow_mut().get_mut(frame) {
+                    *s = true;
+                }
+                if last_wake.elapsed().as_secs_f64() > 0.1 {
+                    wake();
+                    last_wake = Instant::now();
+                }
+            },
+            // A frame that cannot be estimated is counted and left out;
+            // the frames around it carry the contact over.
+            |frame, error| {
+                eprintln!("proprioscope: estimating session frame {frame} failed: {error}");
+                let failed = Estimated {
+                    generation: job.generation,
+                    frame,
+                    estimate: Err(error.to_string()),
+                };
+                if outbox.send(failed).is_err() {
+                    gone.set(true);
+                }
+                if let Some(s) = sent.borrow_mut().get_mut(frame) {
+                    *s = true;
+                }
+                true
+            },
+        )
+        .map_err(|e| e.to_string())
+    });
+    if gone.get() {
+        return Together::Gone;
+    }
+    if let Some(job) = newer {
+        return Together::Newer(job);
+    }
+    let failure = match result {
+        Ok(Ok(_)) => return Together::Done,
+        Ok(Err(e)) => e,
+        Err(panic) => format!("the estimator failed: {panic}"),
+    };
+    eprintln!("proprioscope: estimating the session over time failed: {failure}");
+    for (frame, _) in sent.into_inner().iter().enumerate().filter(|(_, s)| !**s) {
+        let failed = Estimated {
+            generation: job.generation,
+            frame,
+            estimate: Err(failure.clone()),
+        };
+        if outbox.send(failed).is_err() {
+            return Together::Gone;
+        }
+    }
+    Together::Done
 }
 
 /// The metrics of the frames with a known contact and an estimate: over

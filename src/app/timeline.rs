@@ -10,9 +10,11 @@ use eframe::egui;
 use super::session::{self, EstimateJob, FrameEstimate, Loader, SessionData};
 use super::{Command, Model, ProprioscopeApp, Replay, SPEED_RANGE, per_joint};
 use crate::core::kinematics::RobotPose;
+use crate::core::pipeline::Temporal;
 use crate::core::robot::{LinkId, Robot};
 use crate::core::summary::Verdict;
 use crate::core::surface::SurfaceRequest;
+use crate::core::temporal::{TemporalSettings, is_continuous_recording};
 use crate::io::session::{Frame, Recorder, Truth};
 
 /// While recording, a frame at least this often even when nothing moves.
@@ -31,6 +33,7 @@ pub(super) struct SessionKey {
     estimator: super::EstimatorChoice,
     force_range_newtons: (f64, f64),
     surface_seed: u64,
+    over_time: Temporal,
 }
 
 /// Metrics over all frames, and by the number of sensing joints.
@@ -76,6 +79,14 @@ impl ProprioscopeApp {
 
     fn install_session(&mut self, data: SessionData, robot: Robot, spec: String) {
         let joints = robot.sensed().len();
+        // As `estimate --temporal auto`: a recording is smoothed, a set of
+        // unrelated frames estimated frame by frame.
+        let times: Vec<f64> = data.frames.iter().map(|f| f.t).collect();
+        let over_time = if is_continuous_recording(&times, &TemporalSettings::default()) {
+            Temporal::Smooth
+        } else {
+            Temporal::None
+        };
         let candidate_links = robot.default_candidate_links();
         let q = data.frames.first().map_or_else(|| vec![0.0; joints], |f| f.q.clone());
         let old = &self.model;
@@ -101,6 +112,7 @@ impl ProprioscopeApp {
                 speed: 1.0,
                 looping: false,
                 clock_secs: 0.0,
+                over_time,
             }),
         };
         let first = self.first_frame.take().unwrap_or(0);
@@ -127,14 +139,8 @@ impl ProprioscopeApp {
             return;
         };
         let m = &self.model;
-        let key = SessionKey {
-            session: Arc::as_ptr(&replay.session) as usize,
-            sigma: m.sigma.clone(),
-            surface_points: m.surface_points,
-            candidate_links: m.candidate_links.clone(),
-            estimator: m.estimator,
-            force_range_newtons: m.force_range_newtons,
-            surface_seed: m.surface_seed,
+        let Some(key) = self.current_session_key() else {
+            return;
         };
         if self.session_key.as_ref() != Some(&key) {
             self.session_generation += 1;
@@ -153,6 +159,7 @@ impl ProprioscopeApp {
                 settings: m.estimator_settings(),
                 phase_sizes: m.estimator.phases.then_some(m.estimator.phase_sizes),
                 first: replay.frame,
+                over_time: replay.over_time,
             });
             self.session_key = Some(key);
         }
@@ -185,6 +192,22 @@ impl ProprioscopeApp {
         }
     }
 
+    /// What the session's estimates depend on now (`None` without a session).
+    fn current_session_key(&self) -> Option<SessionKey> {
+        let m = &self.model;
+        let replay = m.replay.as_ref()?;
+        Some(SessionKey {
+            session: Arc::as_ptr(&replay.session) as usize,
+            sigma: m.sigma.clone(),
+            surface_points: m.surface_points,
+            candidate_links: m.candidate_links.clone(),
+            estimator: m.estimator,
+            force_range_newtons: m.force_range_newtons,
+            surface_seed: m.surface_seed,
+            over_time: replay.over_time,
+        })
+    }
+
     /// Frames estimated in the background so far.
     #[must_use]
     pub fn session_estimated(&self) -> usize {
@@ -203,6 +226,7 @@ impl ProprioscopeApp {
         self.loader.is_none()
             && (self.model.replay.is_none()
                 || (self.session_key.is_some()
+                    && self.session_key == self.current_session_key()
                     && self.session_done + self.session_failures.len() >= self.session_estimates.len()))
     }
 
@@ -277,6 +301,24 @@ impl ProprioscopeApp {
             if ui.checkbox(&mut looping, "loop").changed() {
                 commands.push(Command::SetLoop(looping));
             }
+            let name = |t: Temporal| match t {
+                Temporal::None => "each frame alone",
+                Temporal::Filter => "filtered (frames before)",
+                Temporal::Smooth => "smoothed (whole session)",
+            };
+            egui::ComboBox::new("over-time", "over time")
+                .selected_text(name(replay.over_time))
+                .show_ui(ui, |ui| {
+                    for t in [Temporal::None, Temporal::Filter, Temporal::Smooth] {
+                        if ui.selectable_label(replay.over_time == t, name(t)).clicked() && replay.over_time != t {
+                            commands.push(Command::SetOverTime(t));
+                        }
+                    }
+                })
+                .response
+                .on_hover_text(
+                    "how the session's frames are estimated: a contact lasts, so frames together say more than alone",
+                );
             if let Some(frame) = frames.get(replay.frame) {
                 let file_frame = replay.session.file_frames.get(replay.frame).copied().unwrap_or(0);
                 ui.label(format!(
@@ -361,12 +403,20 @@ impl ProprioscopeApp {
                 })
                 .collect(),
         )];
-        let probability_lines = vec![(
+        let mut probability_lines = vec![(
             "MAP probability".to_owned(),
             sampled()
                 .filter_map(|(f, e)| Some([f.t, e.as_ref()?.probability]))
-                .collect(),
+                .collect::<Vec<_>>(),
         )];
+        if replay.over_time != Temporal::None {
+            probability_lines.push((
+                "contact probability".to_owned(),
+                sampled()
+                    .filter_map(|(f, e)| Some([f.t, e.as_ref()?.contact_probability?]))
+                    .collect(),
+            ));
+        }
         let height = (ui.available_height() - 24.0).max(150.0);
         let mut clicked = None;
         ui.columns(4, |columns| {
@@ -374,7 +424,15 @@ impl ProprioscopeApp {
                 ("plot-torques", "measured torque [N·m]", torque_lines),
                 ("plot-force", "force [N]: estimated, true", force_lines),
                 ("plot-error", "position error [mm]", error_lines),
-                ("plot-probability", "MAP probability", probability_lines),
+                (
+                    "plot-probability",
+                    if replay.over_time == Temporal::None {
+                        "MAP probability"
+                    } else {
+                        "MAP and contact probability"
+                    },
+                    probability_lines,
+                ),
             ];
             for (ui, (id, title, lines)) in columns.iter_mut().zip(plots) {
                 ui.label(title);

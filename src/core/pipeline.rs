@@ -313,32 +313,70 @@ pub fn estimate_sequence(
     model: Option<&TemporalModel>,
     temporal: Temporal,
     frames: &[SequenceFrame],
-    mut each: impl FnMut(usize, Update, f64),
+    each: impl FnMut(usize, Update, f64),
 ) -> Result<(), SequenceError> {
-    let update_of = |i: usize, f: &SequenceFrame| {
-        estimator
-            .update(robot, f.joint_positions, f.tau)
-            .map_err(|source| SequenceError::Frame { frame: i, source })
-    };
-    let sequence_update_of = |i: usize, f: &SequenceFrame| {
-        estimator
-            .update_for_sequence(robot, f.joint_positions, f.tau)
-            .map_err(|source| SequenceError::Frame { frame: i, source })
-    };
+    estimate_sequence_while(estimator, robot, (model, temporal), frames, || true, each, |_, _| false).map(|_| ())
+}
+
+/// [`estimate_sequence`], asking `keep_going` before each frame's work
+/// (both passes when smoothing), and handing each frame whose estimate
+/// fails to `failed`: if it returns true the frame is left out (no
+/// update for it; the temporal model goes on from the frames around it),
+/// else the sequence stops with the error. `Ok(false)` when `keep_going`
+/// said no (a newer request in an app), `Ok(true)` when done.
+///
+/// # Errors
+/// [`SequenceError`] for a frame `failed` does not skip, or one the
+/// temporal model refuses.
+pub fn estimate_sequence_while(
+    estimator: &Estimator,
+    robot: &Robot,
+    (model, temporal): (Option<&TemporalModel>, Temporal),
+    frames: &[SequenceFrame],
+    mut keep_going: impl FnMut() -> bool,
+    mut each: impl FnMut(usize, Update, f64),
+    mut failed: impl FnMut(usize, &EstimateError) -> bool,
+) -> Result<bool, SequenceError> {
+    // `Ok(None)`: failed and skipped.
+    fn checked<T>(
+        i: usize,
+        result: Result<T, EstimateError>,
+        failed: &mut impl FnMut(usize, &EstimateError) -> bool,
+    ) -> Result<Option<T>, SequenceError> {
+        match result {
+            Ok(value) => Ok(Some(value)),
+            Err(source) if failed(i, &source) => Ok(None),
+            Err(source) => Err(SequenceError::Frame { frame: i, source }),
+        }
+    }
     let ms = |t0: std::time::Instant| t0.elapsed().as_secs_f64() * 1e3;
     match (model, temporal) {
         (None, _) | (_, Temporal::None) => {
             for (i, f) in frames.iter().enumerate() {
+                if !keep_going() {
+                    return Ok(false);
+                }
                 let t0 = std::time::Instant::now();
-                let update = update_of(i, f)?;
-                each(i, update, ms(t0));
+                if let Some(update) = checked(i, estimator.update(robot, f.joint_positions, f.tau), &mut failed)? {
+                    each(i, update, ms(t0));
+                }
             }
         }
         (Some(model), Temporal::Filter) => {
             let mut filter = Filter::new(model);
             for (i, f) in frames.iter().enumerate() {
+                if !keep_going() {
+                    return Ok(false);
+                }
                 let t0 = std::time::Instant::now();
-                let (update, likelihood) = sequence_update_of(i, f)?;
+                let Some((update, likelihood)) = checked(
+                    i,
+                    estimator.update_for_sequence(robot, f.joint_positions, f.tau),
+                    &mut failed,
+                )?
+                else {
+                    continue;
+                };
                 let belief = filter.step(f.t_secs, &likelihood)?;
                 let update = estimator.with_belief(robot, update, f.tau, belief);
                 each(i, update, ms(t0));
@@ -346,27 +384,48 @@ pub fn estimate_sequence(
         }
         (Some(model), Temporal::Smooth) => {
             let mut smoother = Smoother::new(model);
-            let mut first_ms = Vec::with_capacity(frames.len());
+            // The frames pushed, and what each cost.
+            let mut pushed: Vec<(usize, f64)> = Vec::with_capacity(frames.len());
             for (i, f) in frames.iter().enumerate() {
+                if !keep_going() {
+                    return Ok(false);
+                }
                 let t0 = std::time::Instant::now();
-                let (_, likelihood) = sequence_update_of(i, f)?;
+                let Some((_, likelihood)) = checked(
+                    i,
+                    estimator.update_for_sequence(robot, f.joint_positions, f.tau),
+                    &mut failed,
+                )?
+                else {
+                    continue;
+                };
                 smoother.push(f.t_secs, &likelihood)?;
-                first_ms.push(ms(t0));
+                pushed.push((i, ms(t0)));
             }
             let t0 = std::time::Instant::now();
             let beliefs = smoother.finish();
-            let backward_ms = ms(t0) / frames.len().max(1) as f64;
-            for (i, (f, belief)) in frames.iter().zip(&beliefs).enumerate() {
+            let backward_ms = ms(t0) / pushed.len().max(1) as f64;
+            for (&(i, first_ms), belief) in pushed.iter().zip(&beliefs) {
+                if !keep_going() {
+                    return Ok(false);
+                }
+                let Some(f) = frames.get(i) else {
+                    continue;
+                };
                 let t0 = std::time::Instant::now();
-                let (update, _) = sequence_update_of(i, f)?;
-                let update = estimator.with_belief(robot, update, f.tau, belief);
-                each(
+                // It succeeded in the first pass; the same inputs again.
+                let Some((update, _)) = checked(
                     i,
-                    update,
-                    ms(t0) + backward_ms + first_ms.get(i).copied().unwrap_or(0.0),
-                );
+                    estimator.update_for_sequence(robot, f.joint_positions, f.tau),
+                    &mut failed,
+                )?
+                else {
+                    continue;
+                };
+                let update = estimator.with_belief(robot, update, f.tau, belief);
+                each(i, update, ms(t0) + backward_ms + first_ms);
             }
         }
     }
-    Ok(())
+    Ok(true)
 }
