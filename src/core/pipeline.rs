@@ -29,6 +29,16 @@ pub struct Estimator {
     pub settings: EstimatorSettings,
 }
 
+/// A measurement's posterior awaiting a temporal model's belief (see
+/// [`Estimator::update_for_sequence`], [`Estimator::with_belief`]).
+#[derive(Debug, Clone)]
+pub struct PendingUpdate {
+    /// The robot at the measurement's configuration.
+    pub pose: RobotPose,
+    /// The frame's own posterior over the surface points.
+    pub posterior: Posterior,
+}
+
 /// One measurement's result.
 #[derive(Debug, Clone)]
 pub struct Update {
@@ -65,12 +75,18 @@ impl Estimator {
     /// The posterior for torques `tau` measured at `joint_positions`
     /// (every joint's, see [`Robot::joint_positions`]).
     pub fn update(&self, robot: &Robot, joint_positions: &[f64], tau: &[f64]) -> Result<Update, EstimateError> {
-        self.update_with(robot, joint_positions, tau, None)
+        let (pose, torque_model, posterior) = self.posterior_at(robot, joint_positions, tau, None)?;
+        let summary = self.conclude_alone(&torque_model, &pose, &posterior, tau);
+        Ok(Update {
+            pose,
+            posterior,
+            summary,
+        })
     }
 
-    /// [`Estimator::update`] and what a temporal model needs of it (see
-    /// [`Estimator::frame_likelihood`]); the contact is not refined (the
-    /// temporal model's belief places it, see [`Estimator::with_belief`]).
+    /// The posterior of an update and what a temporal model needs of it
+    /// (see [`Estimator::frame_likelihood`]), not yet summarised: the
+    /// temporal model's belief places the contact ([`Estimator::with_belief`]).
     ///
     /// # Errors
     /// As [`Estimator::update`].
@@ -79,38 +95,42 @@ impl Estimator {
         robot: &Robot,
         joint_positions: &[f64],
         tau: &[f64],
-    ) -> Result<(Update, FrameLikelihood), EstimateError> {
+    ) -> Result<(PendingUpdate, FrameLikelihood), EstimateError> {
         let mut forms = PatchForms::default();
-        let update = self.update_with(robot, joint_positions, tau, Some(&mut forms))?;
-        let likelihood = self.likelihood_of(&update, &forms);
-        Ok((update, likelihood))
+        let (pose, _, posterior) = self.posterior_at(robot, joint_positions, tau, Some(&mut forms))?;
+        let likelihood = self.likelihood_of(&posterior, &forms);
+        Ok((PendingUpdate { pose, posterior }, likelihood))
     }
 
-    fn update_with(
+    fn posterior_at(
         &self,
         robot: &Robot,
         joint_positions: &[f64],
         tau: &[f64],
         forms: Option<&mut PatchForms>,
-    ) -> Result<Update, EstimateError> {
+    ) -> Result<(RobotPose, TorqueModel, Posterior), EstimateError> {
         let pose = RobotPose::new(robot, joint_positions);
         let torque_model = TorqueModel::new(robot, &pose, &self.links);
         let posed = PosedSurface {
             torque_model: &torque_model,
             surface: &self.surface,
         };
-        let sequence = forms.is_some();
         let posterior = estimate_keeping_forms(&posed, tau, &self.settings, self.hierarchy.as_ref(), forms)?;
-        // Torques within noise of zero: there is no contact to place, so
-        // none is refined (the summary reports the most probable sample).
-        // In a sequence the temporal belief places it.
-        let no_contact = chi_square_survival(posterior.no_contact_chi2, posed.joints()) > NO_CONTACT_P;
-        let summary = self.conclude(&torque_model, &pose, &posterior, tau, !no_contact && !sequence, None);
-        Ok(Update {
-            pose,
-            posterior,
-            summary,
-        })
+        Ok((pose, torque_model, posterior))
+    }
+
+    /// A frame's summary from its own posterior: the contact refined
+    /// unless the torques are within noise of zero (there is no contact
+    /// to place; the summary reports the most probable sample).
+    fn conclude_alone(
+        &self,
+        torque_model: &TorqueModel,
+        pose: &RobotPose,
+        posterior: &Posterior,
+        tau: &[f64],
+    ) -> Summary {
+        let no_contact = chi_square_survival(posterior.no_contact_chi2, torque_model.sensed_count()) > NO_CONTACT_P;
+        self.conclude(torque_model, pose, posterior, tau, !no_contact, None)
     }
 
     /// Refines (when asked and the settings allow) and summarises a
@@ -172,11 +192,11 @@ impl Estimator {
                 forms = PatchForms::default();
             }
         }
-        self.likelihood_of(update, &forms)
+        self.likelihood_of(&update.posterior, &forms)
     }
 
-    fn likelihood_of(&self, update: &Update, forms: &PatchForms) -> FrameLikelihood {
-        let mut likelihood = FrameLikelihood::from_posterior(&update.posterior, &self.surface, self.uses_patches());
+    fn likelihood_of(&self, posterior: &Posterior, forms: &PatchForms) -> FrameLikelihood {
+        let mut likelihood = FrameLikelihood::from_posterior(posterior, &self.surface, self.uses_patches());
         if self.uses_patches() && forms.a.len() == self.surface.len() {
             let range = (self.settings.force_min_newtons, self.settings.force_max_newtons);
             likelihood.patch = PatchInformation::from_forms(forms, -2.0 * likelihood.no_contact, range);
@@ -197,13 +217,19 @@ impl Estimator {
     /// probability, and the contact is refined at this frame's torques.
     /// The frame's own likelihoods and magnitudes are kept.
     #[must_use]
-    pub fn with_belief(&self, robot: &Robot, update: Update, tau: &[f64], belief: &Belief) -> Update {
-        let Some(probability) = belief.where_given_contact() else {
-            return update;
+    pub fn with_belief(&self, robot: &Robot, update: PendingUpdate, tau: &[f64], belief: &Belief) -> Update {
+        let torque_model = TorqueModel::new(robot, &update.pose, &self.links);
+        let probability = belief
+            .where_given_contact()
+            .filter(|p| p.len() == update.posterior.probability.len());
+        let Some(probability) = probability else {
+            let summary = self.conclude_alone(&torque_model, &update.pose, &update.posterior, tau);
+            return Update {
+                pose: update.pose,
+                posterior: update.posterior,
+                summary,
+            };
         };
-        if probability.len() != update.posterior.probability.len() {
-            return update;
-        }
         let contact_probability = belief.contact_probability();
         let probability_len = probability.len();
         let mut posterior = update.posterior;
@@ -219,7 +245,6 @@ impl Estimator {
             .unwrap_or(posterior.map_point);
         posterior.display.clone_from(&probability);
         posterior.probability = probability;
-        let torque_model = TorqueModel::new(robot, &update.pose, &self.links);
         // With offsets the place is the whole recording's: each frame's
         // own refinement would wander along that frame's valley.
         let offsets_m: Option<Vec<[f64; 2]>> = (belief.offsets.len() == probability_len).then(|| {
