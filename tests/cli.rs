@@ -305,6 +305,27 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
         "{out}"
     );
     assert!(out.contains("median pos. error"), "{out}");
+    // Windows shorter than the session: a drifting offset, first → last.
+    let (ok, out, err) = run(&[
+        "estimate",
+        session.to_str().unwrap(),
+        "--bias",
+        "auto",
+        "--bias-window",
+        "0.5",
+        "--n",
+        "1000",
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains(" → "), "{out}");
+    let (ok, _, err) = run(&[
+        "estimate",
+        session.to_str().unwrap(),
+        "--bias",
+        "auto",
+        "--bias-window=-1",
+    ]);
+    assert!(!ok && err.contains("bias window"), "{err}");
     let (ok, _, err) = run(&["synth", session.to_str().unwrap(), "--links", "no_such_link"]);
     assert!(!ok && err.contains("no_such_link"), "{err}");
 }

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use proprioscope::app::session::{FrameEstimate, frame_outcome, session_robot};
-use proprioscope::core::bias::{estimate_bias, without_bias};
+use proprioscope::core::bias::{estimate_drifting_bias, without_drifting_bias};
 use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, metrics_by_sensing_joints, percentile};
 use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, Update, estimate_sequence};
 use proprioscope::core::robot::Robot;
@@ -43,6 +43,11 @@ pub struct EstimateArgs {
     /// touching) and take it off every frame.
     #[arg(long, value_enum, default_value = "none")]
     pub bias: BiasArg,
+    /// With `--bias auto`, the offset may drift: it is estimated over
+    /// windows of this many seconds, half a window apart, and interpolated
+    /// (a session no longer than one window gets one offset).
+    #[arg(long, default_value_t = 30.0, value_parser = super::finite)]
+    pub bias_window: f64,
     /// Estimator options.
     #[command(flatten)]
     pub estimator: EstimatorArgs,
@@ -98,15 +103,29 @@ fn debiased_torques(args: &EstimateArgs, robot: &Robot, session: &Session, sigma
     if args.bias == BiasArg::None {
         return Ok(refs.iter().map(|t| t.to_vec()).collect());
     }
-    let bias = estimate_bias(&refs, sigma).with_context(|| format!("--bias auto on {}", session.path.display()))?;
+    let times: Vec<f64> = session.frames.iter().map(|f| f.t).collect();
+    let bias = estimate_drifting_bias(&times, &refs, sigma, args.bias_window)
+        .with_context(|| format!("--bias auto on {}", session.path.display()))?;
+    let (Some(first), Some(last)) = (bias.first(), bias.last()) else {
+        return Ok(Vec::new());
+    };
     let named: Vec<String> = robot
         .sensed_names()
         .iter()
-        .zip(&bias)
-        .map(|(name, b)| format!("{name} {b:+.4}"))
+        .zip(first.iter().zip(last))
+        .map(|(name, (a, b))| {
+            if (a - b).abs() < 5e-5 {
+                format!("{name} {a:+.4}")
+            } else {
+                format!("{name} {a:+.4} → {b:+.4}")
+            }
+        })
         .collect();
-    outln!("bias (estimated, N·m, taken off every frame): {}", named.join(", "));
-    Ok(without_bias(&refs, &bias))
+    outln!(
+        "bias (estimated, N·m, first → last frame when it drifts; taken off every frame): {}",
+        named.join(", ")
+    );
+    Ok(without_drifting_bias(&refs, &bias))
 }
 
 /// `--temporal`, with `auto` decided for this session (and said on stderr).
