@@ -1659,7 +1659,11 @@ impl ProprioscopeApp {
         ui.painter().text(
             rect.left_bottom() + egui::vec2(8.0, -8.0),
             egui::Align2::LEFT_BOTTOM,
-            "arrows: 2 cm per newton (red: the push, green: the most probable contact)",
+            if self.over_time_estimate().is_some() {
+                "arrows, 2 cm/N: red the push, green this frame's best, blue over time"
+            } else {
+                "arrows, 2 cm/N: red the push, green the most probable contact"
+            },
             egui::FontId::default(),
             egui::Color32::LIGHT_GRAY,
         );
@@ -1920,7 +1924,28 @@ impl ProprioscopeApp {
                 [0.3, 1.0, 0.5, 1.0],
             );
         }
+        if let Some(e) = self.over_time_estimate()
+            && e.verdict != Verdict::NoContact
+        {
+            arrow(
+                &mut frame.lines,
+                e.point_world,
+                e.force_world,
+                0.02 * e.force_world.length().max(1.0),
+                [0.35, 0.6, 1.0, 1.0],
+            );
+        }
         frame
+    }
+
+    /// The session frame's estimate from the frames together (filtered or
+    /// smoothed), once the background has it.
+    fn over_time_estimate(&self) -> Option<session::FrameEstimate> {
+        let replay = self.model.replay.as_ref()?;
+        if replay.over_time == Temporal::None {
+            return None;
+        }
+        self.session_estimates.get(replay.frame).copied().flatten()
     }
 
     fn view_ui(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) -> Vec<Command> {
