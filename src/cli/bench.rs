@@ -325,7 +325,7 @@ struct SessionRun {
 /// grid of points it refines (at the same and at seven times the points).
 fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
     use proprioscope::app::session::session_robot;
-    use proprioscope::io::session::{Session, Truth};
+    use proprioscope::io::session::Session;
     let session = Session::read(path)?;
     let robot = session_robot(&session, None, &args.package_paths, &[])?;
     let mut runs = Vec::new();
@@ -364,15 +364,7 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
             })
             .collect();
         let times: Vec<f64> = session.frames.iter().map(|f| f.t).collect();
-        let truth: Vec<Option<bool>> = session
-            .frames
-            .iter()
-            .map(|f| match f.truth {
-                Truth::Contact { .. } => Some(true),
-                Truth::NoContact => Some(false),
-                Truth::Unknown => None,
-            })
-            .collect();
+        let truth: Vec<Option<bool>> = session.frames.iter().map(|f| f.truth.has_contact()).collect();
         if temporal != Temporal::None && !is_continuous_recording(&times, &TemporalSettings::default()) {
             // Unrelated frames: nothing to connect over time.
             continue;

@@ -263,15 +263,7 @@ fn report(session: &Session, verdicts: &[usize; 3], times_ms: &[f64], called: &[
         "update time: mean {mean:.3} ms, median {:.3} ms",
         percentile(times_ms, 0.5)
     );
-    let truth: Vec<Option<bool>> = session
-        .frames
-        .iter()
-        .map(|f| match f.truth {
-            Truth::Contact { .. } => Some(true),
-            Truth::NoContact => Some(false),
-            Truth::Unknown => None,
-        })
-        .collect();
+    let truth: Vec<Option<bool>> = session.frames.iter().map(|f| f.truth.has_contact()).collect();
     let found = detection(&truth, called);
     if found.contact_frames + found.quiet_frames > 0 {
         outln!(

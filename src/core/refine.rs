@@ -7,7 +7,7 @@
 use glam::DVec3;
 
 use crate::core::estimator::Posterior;
-use crate::core::regions::regions;
+use crate::core::regions::{Region, regions};
 use crate::core::robot::LinkId;
 use crate::core::smooth::{MeshPoint, SurfaceFrame};
 use crate::core::special::ln_erf_difference;
@@ -348,6 +348,27 @@ fn centred_patch_log_mass(m: &Measurement, [u, d1, d2]: [&[f64]; 3], chi2: f64, 
     -0.5 * chi2 + ln_volume + ln_f
 }
 
+/// The region of the posterior with the most mass (its support, or its
+/// most probable sample when it lists none).
+fn best_region(surface: &Surface, posterior: &Posterior) -> Option<Region> {
+    let support: &[usize] = if posterior.support.is_empty() {
+        std::slice::from_ref(&posterior.map_point)
+    } else {
+        &posterior.support
+    };
+    let weight = |k: usize| {
+        posterior
+            .probability
+            .get(k)
+            .copied()
+            .unwrap_or(0.0)
+            .max(f64::MIN_POSITIVE)
+    };
+    regions(surface, support, weight, REGION_CELL_FRACTION)
+        .into_iter()
+        .next()
+}
+
 /// The contact that a temporal model places: in the region of the
 /// posterior with the most mass (as [`refine`]), its most probable sample
 /// moved by that sample's believed offset along its tangents
@@ -362,22 +383,7 @@ pub fn contact_at_offsets(
     measurement: &Measurement,
     offsets_m: &[[f64; 2]],
 ) -> Option<RefinedContact> {
-    let support: &[usize] = if posterior.support.is_empty() {
-        std::slice::from_ref(&posterior.map_point)
-    } else {
-        &posterior.support
-    };
-    let weight = |k: usize| {
-        posterior
-            .probability
-            .get(k)
-            .copied()
-            .unwrap_or(0.0)
-            .max(f64::MIN_POSITIVE)
-    };
-    let best = regions(surface, support, weight, REGION_CELL_FRACTION)
-        .into_iter()
-        .next()?;
+    let best = best_region(surface, posterior)?;
     let start = best.top;
     let link = *surface.link.get(start)?;
     let shape = surface.shape(link)?;
@@ -421,22 +427,7 @@ pub fn refine(
     posterior: &Posterior,
     measurement: &Measurement,
 ) -> Option<RefinedContact> {
-    let support: &[usize] = if posterior.support.is_empty() {
-        std::slice::from_ref(&posterior.map_point)
-    } else {
-        &posterior.support
-    };
-    let weight = |k: usize| {
-        posterior
-            .probability
-            .get(k)
-            .copied()
-            .unwrap_or(0.0)
-            .max(f64::MIN_POSITIVE)
-    };
-    let best = regions(surface, support, weight, REGION_CELL_FRACTION)
-        .into_iter()
-        .next()?;
+    let best = best_region(surface, posterior)?;
     let central = refine_from(model, surface, measurement, best.central, best.centre_in_link);
     if best.top == best.central {
         return central;

@@ -23,6 +23,18 @@ pub enum Truth {
     },
 }
 
+impl Truth {
+    /// Whether the frame is known to have a contact (`None`: not recorded).
+    #[must_use]
+    pub fn has_contact(&self) -> Option<bool> {
+        match self {
+            Self::Contact { .. } => Some(true),
+            Self::NoContact => Some(false),
+            Self::Unknown => None,
+        }
+    }
+}
+
 /// One frame of a session.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Frame {
