@@ -160,6 +160,32 @@ impl State {
     }
 }
 
+impl State {
+    /// The contact found here, its patch mass taken over a window of
+    /// `window_m`, from sample `start` in `steps` steps.
+    fn contact(
+        &self,
+        link: LinkId,
+        measurement: &Measurement,
+        window_m: f64,
+        start: usize,
+        steps: usize,
+    ) -> RefinedContact {
+        let [u, d1, d2] = &self.torques;
+        RefinedContact {
+            link,
+            location: self.at,
+            point_in_link: self.frame.point,
+            inward_normal_in_link: self.frame.inward_normal,
+            force_newtons: self.f,
+            residual_chi2: self.chi2,
+            patch_log_mass: centred_patch_log_mass(measurement, [u, d1, d2], self.chi2, self.f, window_m),
+            start,
+            steps,
+        }
+    }
+}
+
 /// The search on one link's surface.
 struct Search<'a> {
     model: &'a TorqueModel,
@@ -301,19 +327,7 @@ fn refine_from(
     let mut state = search.state(*surface.location.get(start)?)?;
     let mut steps = search.descend(&mut state);
     steps += search.slide(&mut state, centre);
-    let [u, d1, d2] = &state.torques;
-    let patch_log_mass = centred_patch_log_mass(measurement, [u, d1, d2], state.chi2, state.f, search.trust);
-    Some(RefinedContact {
-        link,
-        location: state.at,
-        point_in_link: state.frame.point,
-        inward_normal_in_link: state.frame.inward_normal,
-        force_newtons: state.f,
-        residual_chi2: state.chi2,
-        patch_log_mass,
-        start,
-        steps,
-    })
+    Some(state.contact(link, measurement, search.trust, start, steps))
 }
 
 /// ln of the posterior mass of a Gaussian patch of width `window_m`
@@ -393,19 +407,7 @@ pub fn contact_at_offsets(
     let moved = shape.walk(at, frame.tangents[0] * s1 + frame.tangents[1] * s2);
     let state = State::at(model, shape, link, measurement, moved)?;
     let window = surface.window_m.get(start).copied().unwrap_or(0.01).max(1e-4);
-    let [u, d1, d2] = &state.torques;
-    let patch_log_mass = centred_patch_log_mass(measurement, [u, d1, d2], state.chi2, state.f, window);
-    Some(RefinedContact {
-        link,
-        location: state.at,
-        point_in_link: state.frame.point,
-        inward_normal_in_link: state.frame.inward_normal,
-        force_newtons: state.f,
-        residual_chi2: state.chi2,
-        patch_log_mass,
-        start,
-        steps: 0,
-    })
+    Some(state.contact(link, measurement, window, start, 0))
 }
 
 /// Cells with less than this fraction of the heaviest cell's mass do not
