@@ -1914,10 +1914,21 @@ impl ProprioscopeApp {
                 crate::render::scene::line(&mut frame.lines, p.as_vec3(), (p - n * 0.012).as_vec3(), colour);
             }
         }
-        if let Some((_, u)) = heat {
+        self.estimate_arrows(heat.map(|(_, u)| u), &mut frame.lines);
+        frame
+    }
+
+    /// The frame's most probable contact (green) and, over time, the
+    /// frames' together (blue).
+    fn estimate_arrows(
+        &self,
+        update: Option<&crate::core::pipeline::Update>,
+        lines: &mut Vec<crate::render::renderer::LineVertex>,
+    ) {
+        if let Some(u) = update {
             let m = u.summary.map;
             arrow(
-                &mut frame.lines,
+                lines,
                 m.point_world,
                 m.force_world,
                 0.02 * m.force_newtons.max(1.0),
@@ -1928,19 +1939,18 @@ impl ProprioscopeApp {
             && e.verdict != Verdict::NoContact
         {
             arrow(
-                &mut frame.lines,
+                lines,
                 e.point_world,
                 e.force_world,
                 0.02 * e.force_world.length().max(1.0),
                 [0.35, 0.6, 1.0, 1.0],
             );
         }
-        frame
     }
 
     /// The session frame's estimate from the frames together (filtered or
     /// smoothed), once the background has it.
-    fn over_time_estimate(&self) -> Option<session::FrameEstimate> {
+    pub(super) fn over_time_estimate(&self) -> Option<session::FrameEstimate> {
         let replay = self.model.replay.as_ref()?;
         if replay.over_time == Temporal::None {
             return None;

@@ -328,6 +328,17 @@ impl ProprioscopeApp {
                     frames.len()
                 ));
             }
+            if let Some(e) = self.over_time_estimate() {
+                let p = e.contact_probability.unwrap_or(0.0);
+                let text = if e.verdict == Verdict::NoContact {
+                    format!("over time: no contact (p = {p:.2})")
+                } else {
+                    let link = self.model.robot.links.get(e.link).map_or("?", |l| l.name.as_str());
+                    format!("over time: {link}, {:.1} N (p = {p:.2})", e.force_world.length())
+                };
+                ui.colored_label(egui::Color32::from_rgb(90, 155, 255), text)
+                    .on_hover_text("the blue arrow: where the frames together place the contact");
+            }
         });
         let mut frame = replay.frame;
         ui.spacing_mut().slider_width = (ui.available_width() - 80.0).max(100.0);
