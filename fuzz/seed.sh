@@ -36,3 +36,14 @@ text = "\n".join(lines)
 open(sys.argv[2], "w").write(text[: len(text) * 2 // 3])
 PY
 done
+mkdir -p corpus/live
+for f in "$shared"/sessions/*.session.json; do
+    # A live stream: a header line, then a frame a line.
+    python3 - "$f" corpus/live/"$(basename "$f")" <<'PY' || true
+import json, sys
+s = json.load(open(sys.argv[1]))
+frames = s.pop("frames")[:20]
+lines = [json.dumps(s)] + [json.dumps(fr) for fr in frames]
+open(sys.argv[2], "w").write("\n".join(lines) + "\n")
+PY
+done

@@ -86,6 +86,9 @@ enum Command {
     /// pressed, with truth): presses that hold or slide, come and go,
     /// with friction, bias and noise as asked.
     Synth(cli::synth::SynthArgs),
+    /// Sends a recorded session to a TCP address as a live source, a JSON
+    /// line a frame at the pace of its times (see `estimate --live`).
+    Stream(cli::live::StreamArgs),
     /// Links and joints of a robot (built-in name or URDF path).
     RobotInfo {
         /// `simple6`, `lwr4plus` or a URDF file.
@@ -197,6 +200,7 @@ fn run(cli: Cli) -> Result<()> {
         Some(Command::Estimate(args)) => cli::estimate::run(&args),
         Some(Command::Bench(args)) => cli::bench::run(&args),
         Some(Command::Synth(args)) => cli::synth::run(&args),
+        Some(Command::Stream(args)) => cli::live::stream(&args),
         Some(Command::RobotInfo { robot, package_paths }) => robot_info(&robot, package_paths),
         Some(Command::Surface { scene, points }) => surface(&scene, points),
         Some(Command::ExportAssets { root }) => export_assets(&root),

@@ -21,8 +21,20 @@ use super::{EstimatorArgs, TemporalArg, TemporalArgs};
 /// Options of `estimate`.
 #[derive(Debug, clap::Args)]
 pub struct EstimateArgs {
-    /// A session file (`.json`, or `.csv` with --robot).
-    pub session: PathBuf,
+    /// A session file (`.json`, or `.csv` with --robot); or use --live.
+    #[arg(required_unless_present = "live")]
+    pub session: Option<PathBuf>,
+    /// Read frames as they arrive instead: listen on this TCP address
+    /// (e.g. `127.0.0.1:7878`) for JSON lines in the session format (an
+    /// optional header line, then a frame a line; see `stream`), and
+    /// estimate each with the frames before it (`--temporal none` for
+    /// each alone). Needs --robot unless the header names it.
+    #[arg(long, conflicts_with = "session")]
+    pub live: Option<String>,
+    /// With --live: stop after this many frames (default: run until
+    /// killed; a closed connection waits for the next).
+    #[arg(long, requires = "live")]
+    pub live_frames: Option<usize>,
     /// The robot (built-in name or URDF), overriding the session's.
     #[arg(long)]
     pub robot: Option<String>,
@@ -67,16 +79,16 @@ pub enum BiasArg {
 
 /// The session, strictly or skipping bad frames; with each kept frame's
 /// number in the file.
-fn read_session(args: &EstimateArgs) -> Result<(Session, Vec<usize>)> {
+fn read_session(args: &EstimateArgs, path: &std::path::Path) -> Result<(Session, Vec<usize>)> {
     Ok(if args.skip_bad_frames {
-        let (session, problems) = Session::read_skipping_bad_frames(&args.session)?;
+        let (session, problems) = Session::read_skipping_bad_frames(path)?;
         for p in &problems {
-            eprintln!("{}: skipped {p}", args.session.display());
+            eprintln!("{}: skipped {p}", path.display());
         }
         let kept = kept_frame_numbers(session.frames.len(), &problems);
         (session, kept)
     } else {
-        let session = Session::read(&args.session)?;
+        let session = Session::read(path)?;
         let all: Vec<usize> = (0..session.frames.len()).collect();
         (session, all)
     })
@@ -147,7 +159,18 @@ fn chosen_temporal(args: &EstimateArgs, session: &Session, points: usize, patche
 
 /// Runs the command.
 pub fn run(args: &EstimateArgs) -> Result<()> {
-    let (session, file_frames) = read_session(args)?;
+    if let Some(address) = &args.live {
+        return super::live::run(args, address);
+    }
+    let Some(path) = args.session.as_deref() else {
+        anyhow::bail!("give a session file or --live ADDR");
+    };
+    run_session(args, path)
+}
+
+/// Estimates the session file at `path`.
+fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
+    let (session, file_frames) = read_session(args, path)?;
     let robot = session_robot(
         &session,
         args.robot.as_deref(),
@@ -164,7 +187,7 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
     let estimator = Estimator::new(&robot, &request, resolved.settings, resolved.phase_sizes)?;
     eprintln!(
         "{}: {} frames; {} surface points on {} links, sampled in {:.0} ms",
-        args.session.display(),
+        path.display(),
         session.frames.len(),
         estimator.surface.len(),
         estimator.links.len(),
@@ -292,7 +315,7 @@ pub fn onset_text(delays: &[Option<usize>]) -> String {
     format!("{} frames", parts.join(", "))
 }
 
-fn frame_json(
+pub(super) fn frame_json(
     robot: &Robot,
     frame: usize,
     t: f64,

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod estimate;
+pub mod live;
 pub mod synth;
 
 use anyhow::{Result, bail};

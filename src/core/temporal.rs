@@ -1050,9 +1050,40 @@ fn interval(frame: usize, previous: Option<f64>, t_secs: f64) -> Result<f64, Tem
 #[derive(Debug, Clone)]
 pub struct Filter<'a> {
     model: &'a TemporalModel,
+    state: FilterState,
+}
+
+/// What a forward filter carries from frame to frame, apart from its
+/// model (for a caller that owns the model beside it, e.g. a live stream).
+#[derive(Debug, Clone, Default)]
+pub struct FilterState {
     belief: Option<Belief>,
     last_t_secs: Option<f64>,
     frames: usize,
+}
+
+impl FilterState {
+    /// Takes the frame at `t_secs` through `model` and returns the belief
+    /// after it.
+    ///
+    /// # Errors
+    /// [`TemporalError::WrongLength`], [`TemporalError::BadTime`].
+    pub fn step(
+        &mut self,
+        model: &TemporalModel,
+        t_secs: f64,
+        likelihood: &FrameLikelihood,
+    ) -> Result<&Belief, TemporalError> {
+        model.check(self.frames, likelihood)?;
+        let dt = interval(self.frames, self.last_t_secs, t_secs)?;
+        let predicted = match &self.belief {
+            Some(b) => model.predict(b, dt),
+            None => model.initial(),
+        };
+        self.frames += 1;
+        self.last_t_secs = Some(t_secs);
+        Ok(self.belief.insert(model.correct(&predicted, likelihood)))
+    }
 }
 
 impl<'a> Filter<'a> {
@@ -1061,9 +1092,7 @@ impl<'a> Filter<'a> {
     pub fn new(model: &'a TemporalModel) -> Self {
         Self {
             model,
-            belief: None,
-            last_t_secs: None,
-            frames: 0,
+            state: FilterState::default(),
         }
     }
 
@@ -1072,15 +1101,7 @@ impl<'a> Filter<'a> {
     /// # Errors
     /// [`TemporalError::WrongLength`], [`TemporalError::BadTime`].
     pub fn step(&mut self, t_secs: f64, likelihood: &FrameLikelihood) -> Result<&Belief, TemporalError> {
-        self.model.check(self.frames, likelihood)?;
-        let dt = interval(self.frames, self.last_t_secs, t_secs)?;
-        let predicted = match &self.belief {
-            Some(b) => self.model.predict(b, dt),
-            None => self.model.initial(),
-        };
-        self.frames += 1;
-        self.last_t_secs = Some(t_secs);
-        Ok(self.belief.insert(self.model.correct(&predicted, likelihood)))
+        self.state.step(self.model, t_secs, likelihood)
     }
 }
 

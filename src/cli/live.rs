@@ -1,0 +1,248 @@
+//! Live sessions: `estimate --live ADDR` reads frames as they arrive over
+//! TCP, and `stream SESSION --to ADDR` replays a recording as such a
+//! source (demos, tests).
+
+use std::io::{BufRead as _, BufReader, Read as _, Write as _};
+use std::net::{TcpListener, TcpStream};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, Result, bail};
+use proprioscope::app::session::{FrameEstimate, frame_outcome, session_robot};
+use proprioscope::core::pipeline::{Estimator, Temporal};
+use proprioscope::core::surface::SurfaceRequest;
+use proprioscope::core::temporal::{FilterState, TemporalModel};
+use proprioscope::io::session::{LiveLine, LiveReader, MAX_LIVE_LINE_BYTES, Session};
+
+use super::TemporalArg;
+use super::estimate::{EstimateArgs, frame_json};
+
+/// Options of `stream`.
+#[derive(Debug, clap::Args)]
+pub struct StreamArgs {
+    /// The recording to send (a session file, JSON or CSV with --robot).
+    pub session: PathBuf,
+    /// Where to send it: a TCP address something listens on (e.g.
+    /// `estimate --live`).
+    #[arg(long)]
+    pub to: String,
+    /// Playback speed: 1 is real time by the frames' `t`, 0 as fast as
+    /// the connection takes.
+    #[arg(long, default_value_t = 1.0, value_parser = super::finite)]
+    pub rate: f64,
+    /// How long to keep trying to connect, s.
+    #[arg(long, default_value_t = 10.0, value_parser = super::finite)]
+    pub wait: f64,
+}
+
+/// Sends a session as a live source: the header line, then a frame a line
+/// at the pace of its times.
+pub fn stream(args: &StreamArgs) -> Result<()> {
+    if args.rate < 0.0 {
+        bail!("--rate {}: must be ≥ 0", args.rate);
+    }
+    let session = Session::read(&args.session)?;
+    let deadline = Instant::now() + Duration::from_secs_f64(args.wait.clamp(0.0, 3600.0));
+    let mut connection = loop {
+        match TcpStream::connect(&args.to) {
+            Ok(c) => break c,
+            Err(e) if Instant::now() >= deadline => {
+                return Err(e).with_context(|| format!("connecting to {}", args.to));
+            }
+            Err(_) => std::thread::sleep(Duration::from_millis(50)),
+        }
+    };
+    // A robot file named relative to the session means nothing to the
+    // receiver: send where it is.
+    let robot = session.robot.as_ref().map(|r| {
+        let beside = session.path.parent().map(|dir| dir.join(r));
+        match beside {
+            Some(path) if path.is_file() => std::fs::canonicalize(&path).unwrap_or(path).display().to_string(),
+            _ => r.clone(),
+        }
+    });
+    let header = serde_json::json!({
+        "format": "contact-session",
+        "version": 1,
+        "robot": robot,
+        "joints": session.joints,
+    });
+    writeln!(connection, "{header}").context("sending the header")?;
+    let started = Instant::now();
+    let first_t = session.frames.first().map_or(0.0, |f| f.t);
+    for frame in &session.frames {
+        if args.rate > 0.0 {
+            let due = (frame.t - first_t) / args.rate;
+            let now = started.elapsed().as_secs_f64();
+            if due > now {
+                std::thread::sleep(Duration::from_secs_f64((due - now).min(3600.0)));
+            }
+        }
+        let mut value = serde_json::json!({ "t": frame.t, "q": frame.q, "tau": frame.tau });
+        match &frame.truth {
+            proprioscope::io::session::Truth::Unknown => {}
+            proprioscope::io::session::Truth::NoContact => value["truth"] = serde_json::Value::Null,
+            proprioscope::io::session::Truth::Contact { link, point, force } => {
+                value["truth"] = serde_json::json!({ "link": link, "point": point, "force": force });
+            }
+        }
+        writeln!(connection, "{value}").context("sending a frame")?;
+    }
+    eprintln!(
+        "{}: sent {} frames to {}",
+        args.session.display(),
+        session.frames.len(),
+        args.to
+    );
+    Ok(())
+}
+
+/// What a live estimate keeps between frames.
+struct Live {
+    robot: proprioscope::core::robot::Robot,
+    estimator: Estimator,
+    model: Option<TemporalModel>,
+    filter: FilterState,
+}
+
+/// `estimate --live ADDR`.
+pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
+    let listener = TcpListener::bind(address).with_context(|| format!("listening on {address}"))?;
+    eprintln!("listening on {address}");
+    let mut out: Box<dyn std::io::Write> = match &args.out {
+        Some(path) => Box::new(std::io::BufWriter::new(
+            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
+        )),
+        None => Box::new(std::io::stdout().lock()),
+    };
+    let temporal = match args.temporal.temporal {
+        TemporalArg::None => Temporal::None,
+        // Live, only the frames before can be used.
+        TemporalArg::Auto | TemporalArg::Filter | TemporalArg::Smooth => Temporal::Filter,
+    };
+    let mut reader = LiveReader::new(None);
+    let mut robot_name: Option<String> = args.robot.clone();
+    let mut live: Option<Live> = None;
+    let mut done = 0usize;
+    let wanted = args.live_frames.unwrap_or(usize::MAX);
+    while done < wanted {
+        let (connection, from) = listener.accept().context("accepting a connection")?;
+        eprintln!("{from}: connected");
+        reader.restart();
+        if let Some(l) = live.as_mut() {
+            l.filter = FilterState::default();
+        }
+        let mut lines = BufReader::new(connection.take(u64::MAX));
+        let mut line = String::new();
+        loop {
+            line.clear();
+            let read = (&mut lines).take(MAX_LIVE_LINE_BYTES as u64 + 1).read_line(&mut line);
+            match read {
+                Ok(0) => break,
+                Ok(_) => {}
+                Err(e) => {
+                    eprintln!("{from}: {e}");
+                    break;
+                }
+            }
+            match reader.line(line.trim_end()) {
+                LiveLine::Header { robot, .. } => {
+                    if robot_name.is_none() {
+                        robot_name = robot;
+                    }
+                }
+                LiveLine::Bad(p) => eprintln!(
+                    "{from}: skipped line {} (counting from 0): {}: {}",
+                    p.frame, p.field, p.message
+                ),
+                LiveLine::Frame(frame) => {
+                    if live.is_none() {
+                        live = Some(start(args, robot_name.as_deref(), temporal)?);
+                    }
+                    let Some(l) = live.as_mut() else { continue };
+                    match estimate_frame(l, done, &frame, temporal) {
+                        Ok(value) => {
+                            writeln!(out, "{value}").context("writing an estimate")?;
+                            out.flush().context("writing an estimate")?;
+                            done += 1;
+                        }
+                        Err(e) => eprintln!("{from}: frame at t = {}: {e:#}", frame.t),
+                    }
+                    if done >= wanted {
+                        break;
+                    }
+                }
+            }
+        }
+        eprintln!("{from}: closed after {done} frames in all");
+    }
+    Ok(())
+}
+
+/// The robot and estimator, made on the first frame.
+fn start(args: &EstimateArgs, robot: Option<&str>, temporal: Temporal) -> Result<Live> {
+    let Some(robot_name) = robot else {
+        bail!("the stream names no robot: give one with --robot");
+    };
+    let empty = Session {
+        path: PathBuf::from("live"),
+        robot: Some(robot_name.to_owned()),
+        joints: None,
+        frames: Vec::new(),
+    };
+    let robot = session_robot(&empty, None, &args.package_paths, &args.estimator.links)?;
+    let resolved = args.estimator.resolve(&robot)?;
+    let request = SurfaceRequest {
+        links: resolved.links.clone(),
+        total_points: resolved.surface_points,
+        seed: args.estimator.seed,
+    };
+    let estimator = Estimator::new(&robot, &request, resolved.settings, resolved.phase_sizes)?;
+    let model = match temporal {
+        Temporal::None => None,
+        _ => Some(TemporalModel::new(
+            &estimator.surface,
+            args.temporal.settings(),
+            estimator.uses_patches(),
+        )?),
+    };
+    Ok(Live {
+        robot,
+        estimator,
+        model,
+        filter: FilterState::default(),
+    })
+}
+
+/// One frame's estimate as a JSON line (with the contact probability when
+/// filtered).
+fn estimate_frame(
+    live: &mut Live,
+    number: usize,
+    frame: &proprioscope::io::session::Frame,
+    temporal: Temporal,
+) -> Result<serde_json::Value> {
+    let positions = live.robot.joint_positions(&frame.q, &[])?;
+    let t0 = Instant::now();
+    let update = match (temporal, live.model.as_ref()) {
+        (Temporal::None, _) | (_, None) => live.estimator.update(&live.robot, &positions, &frame.tau)?,
+        (_, Some(model)) => {
+            let (pending, likelihood) = live
+                .estimator
+                .update_for_sequence(&live.robot, &positions, &frame.tau)?;
+            let belief = live.filter.step(model, frame.t, &likelihood)?;
+            live.estimator.with_belief(&live.robot, pending, &frame.tau, belief)
+        }
+    };
+    let ms = t0.elapsed().as_secs_f64() * 1e3;
+    let outcome = frame_outcome(&live.robot, &FrameEstimate::of(&update, ms), &frame.truth);
+    Ok(frame_json(
+        &live.robot,
+        number,
+        frame.t,
+        &update,
+        ms,
+        &frame.truth,
+        outcome.as_ref(),
+    ))
+}
