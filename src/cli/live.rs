@@ -78,15 +78,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
                 std::thread::sleep(Duration::from_secs_f64((due - now).min(3600.0)));
             }
         }
-        let mut value = serde_json::json!({ "t": frame.t, "q": frame.q, "tau": frame.tau });
-        match &frame.truth {
-            proprioscope::io::session::Truth::Unknown => {}
-            proprioscope::io::session::Truth::NoContact => value["truth"] = serde_json::Value::Null,
-            proprioscope::io::session::Truth::Contact { link, point, force } => {
-                value["truth"] = serde_json::json!({ "link": link, "point": point, "force": force });
-            }
-        }
-        writeln!(connection, "{value}").context("sending a frame")?;
+        writeln!(connection, "{}", frame.to_json()).context("sending a frame")?;
     }
     eprintln!(
         "{}: sent {} frames to {}",

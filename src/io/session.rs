@@ -48,6 +48,23 @@ pub struct Frame {
     pub truth: Truth,
 }
 
+impl Frame {
+    /// The frame as the JSON form writes it (`truth` absent when unknown,
+    /// `null` without contact).
+    #[must_use]
+    pub fn to_json(&self) -> serde_json::Value {
+        let mut value = serde_json::json!({ "t": self.t, "q": self.q, "tau": self.tau });
+        match &self.truth {
+            Truth::Unknown => {}
+            Truth::NoContact => value["truth"] = serde_json::Value::Null,
+            Truth::Contact { link, point, force } => {
+                value["truth"] = serde_json::json!({ "link": link, "point": point, "force": force });
+            }
+        }
+        value
+    }
+}
+
 /// A recorded session.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Session {
@@ -125,6 +142,25 @@ struct SessionFile {
     #[serde(default)]
     joints: Option<Vec<String>>,
     frames: Vec<serde_json::Value>,
+}
+
+impl From<FrameFile> for Frame {
+    fn from(f: FrameFile) -> Self {
+        Self {
+            t: f.t,
+            q: f.q,
+            tau: f.tau,
+            truth: match f.truth {
+                TruthField::Absent => Truth::Unknown,
+                TruthField::Null => Truth::NoContact,
+                TruthField::Contact(t) => Truth::Contact {
+                    link: t.link,
+                    point: t.point,
+                    force: t.force,
+                },
+            },
+        }
+    }
 }
 
 #[derive(Deserialize)]
@@ -240,20 +276,7 @@ impl Session {
                         tau: Vec::new(),
                         truth: TruthField::Absent,
                     });
-                    Frame {
-                        t: f.t,
-                        q: f.q,
-                        tau: f.tau,
-                        truth: match f.truth {
-                            TruthField::Absent => Truth::Unknown,
-                            TruthField::Null => Truth::NoContact,
-                            TruthField::Contact(t) => Truth::Contact {
-                                link: t.link,
-                                point: t.point,
-                                force: t.force,
-                            },
-                        },
-                    }
+                    Frame::from(f)
                 })
                 .collect(),
         })
@@ -584,20 +607,7 @@ impl LiveReader {
         let Ok(f) = serde_json::from_value::<FrameFile>(value) else {
             return bad("line", "is neither a header nor a frame".to_owned());
         };
-        let frame = Frame {
-            t: f.t,
-            q: f.q,
-            tau: f.tau,
-            truth: match f.truth {
-                TruthField::Absent => Truth::Unknown,
-                TruthField::Null => Truth::NoContact,
-                TruthField::Contact(t) => Truth::Contact {
-                    link: t.link,
-                    point: t.point,
-                    force: t.force,
-                },
-            },
-        };
+        let frame = Frame::from(f);
         let width = self.width.or(Some(frame.q.len()));
         if let Some((field, message)) = frame_problem(&frame, width, self.last_t.unwrap_or(f64::NEG_INFINITY)) {
             return LiveLine::Bad(FrameProblem {
@@ -684,14 +694,7 @@ impl Recorder {
 
     /// Appends a frame and hands it to the operating system.
     pub fn write(&mut self, frame: &Frame) -> Result<(), SessionError> {
-        let mut value = serde_json::json!({ "t": frame.t, "q": frame.q, "tau": frame.tau });
-        match &frame.truth {
-            Truth::Unknown => {}
-            Truth::NoContact => value["truth"] = serde_json::Value::Null,
-            Truth::Contact { link, point, force } => {
-                value["truth"] = serde_json::json!({ "link": link, "point": point, "force": force });
-            }
-        }
+        let value = frame.to_json();
         let separator = if self.frames == 0 { "" } else { "," };
         self.write_line(&format!("{separator}{value}"))?;
         self.frames += 1;
