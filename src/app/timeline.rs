@@ -10,11 +10,11 @@ use eframe::egui;
 use super::session::{self, EstimateJob, FrameEstimate, Loader, SessionData};
 use super::{Command, Model, ProprioscopeApp, Replay, SPEED_RANGE, per_joint};
 use crate::core::kinematics::RobotPose;
-use crate::core::pipeline::Temporal;
+use crate::core::pipeline::{Temporal, automatic_temporal};
 use crate::core::robot::{LinkId, Robot};
 use crate::core::summary::Verdict;
 use crate::core::surface::SurfaceRequest;
-use crate::core::temporal::{TemporalSettings, is_continuous_recording};
+use crate::core::temporal::TemporalSettings;
 use crate::io::session::{Frame, Recorder, Truth};
 
 /// While recording, a frame at least this often even when nothing moves.
@@ -79,14 +79,14 @@ impl ProprioscopeApp {
 
     fn install_session(&mut self, data: SessionData, robot: Robot, spec: String) {
         let joints = robot.sensed().len();
-        // As `estimate --temporal auto`: a recording is smoothed, a set of
-        // unrelated frames estimated frame by frame.
+        // As `estimate --temporal auto`.
         let times: Vec<f64> = data.frames.iter().map(|f| f.t).collect();
-        let over_time = if is_continuous_recording(&times, &TemporalSettings::default()) {
-            Temporal::Smooth
-        } else {
-            Temporal::None
-        };
+        let (over_time, _) = automatic_temporal(
+            &times,
+            &TemporalSettings::default(),
+            self.model.surface_points,
+            self.model.estimator.mode == super::ModeChoice::Exact,
+        );
         let candidate_links = robot.default_candidate_links();
         let q = data.frames.first().map_or_else(|| vec![0.0; joints], |f| f.q.clone());
         let old = &self.model;

@@ -9,11 +9,11 @@ use indicatif::{ProgressBar, ProgressStyle};
 use proprioscope::app::session::{FrameEstimate, frame_outcome, session_robot};
 use proprioscope::core::bias::{estimate_drifting_bias, without_drifting_bias};
 use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, metrics_by_sensing_joints, percentile};
-use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, Update, estimate_sequence};
+use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, Update, automatic_temporal, estimate_sequence};
 use proprioscope::core::robot::Robot;
 use proprioscope::core::summary::Verdict;
 use proprioscope::core::surface::SurfaceRequest;
-use proprioscope::core::temporal::{MAX_SMOOTHER_BYTES, TemporalModel, is_continuous_recording, smoother_bytes};
+use proprioscope::core::temporal::TemporalModel;
 use proprioscope::io::session::{Session, Truth, kept_frame_numbers};
 
 use super::{EstimatorArgs, TemporalArg, TemporalArgs};
@@ -146,13 +146,7 @@ fn chosen_temporal(args: &EstimateArgs, session: &Session, points: usize, patche
         return args.temporal.temporal.into();
     }
     let times: Vec<f64> = session.frames.iter().map(|f| f.t).collect();
-    let (chosen, why) = if !is_continuous_recording(&times, &args.temporal.settings()) {
-        (Temporal::None, "frames further apart than a contact lasts: each alone")
-    } else if smoother_bytes(times.len(), points, patches) > MAX_SMOOTHER_BYTES {
-        (Temporal::Filter, "a recording too long to smooth in memory: filtered")
-    } else {
-        (Temporal::Smooth, "a recording: smoothed")
-    };
+    let (chosen, why) = automatic_temporal(&times, &args.temporal.settings(), points, patches);
     eprintln!("--temporal auto: {why} (choose with --temporal none|filter|smooth)");
     chosen
 }

@@ -124,7 +124,7 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
         if let Some(l) = live.as_mut() {
             l.filter = FilterState::default();
         }
-        let mut lines = BufReader::new(connection.take(u64::MAX));
+        let mut lines = BufReader::new(connection);
         let mut line = String::new();
         loop {
             line.clear();

@@ -2,7 +2,7 @@
 //! built once (they live in link frames), then each measurement is an
 //! update at its own configuration.
 
-use crate::core::contact::{PatchForms, PosedSurface, UnitTorqueSource as _};
+use crate::core::contact::{PatchForms, PosedSurface};
 use crate::core::estimator::{EstimateError, EstimatorSettings, Mode, Posterior, estimate_keeping_forms};
 use crate::core::kinematics::RobotPose;
 use crate::core::phases::PhaseHierarchy;
@@ -12,7 +12,8 @@ use crate::core::special::chi_square_survival;
 use crate::core::summary::{NO_CONTACT_P, Refinement, Summary, summarize_refined};
 use crate::core::surface::{Surface, SurfaceError, SurfaceRequest};
 use crate::core::temporal::{
-    Belief, Filter, FrameLikelihood, PatchInformation, Smoother, TemporalError, TemporalModel,
+    Belief, Filter, FrameLikelihood, MAX_SMOOTHER_BYTES, PatchInformation, Smoother, TemporalError, TemporalModel,
+    TemporalSettings, is_continuous_recording, smoother_bytes,
 };
 use crate::core::torque::TorqueModel;
 
@@ -85,8 +86,9 @@ impl Estimator {
     }
 
     /// The posterior of an update and what a temporal model needs of it
-    /// (see [`Estimator::frame_likelihood`]), not yet summarised: the
-    /// temporal model's belief places the contact ([`Estimator::with_belief`]).
+    /// (its likelihoods, and with patches what the frame says about the
+    /// place within each patch), not yet summarised: the temporal model's
+    /// belief places the contact ([`Estimator::with_belief`]).
     ///
     /// # Errors
     /// As [`Estimator::update`].
@@ -100,6 +102,18 @@ impl Estimator {
         let (pose, _, posterior) = self.posterior_at(robot, joint_positions, tau, Some(&mut forms))?;
         let likelihood = self.likelihood_of(&posterior, &forms);
         Ok((PendingUpdate { pose, posterior }, likelihood))
+    }
+
+    /// The posterior of an update, not yet summarised (a sequence's second
+    /// pass: its likelihoods are in the smoother already).
+    fn pending_update(
+        &self,
+        robot: &Robot,
+        joint_positions: &[f64],
+        tau: &[f64],
+    ) -> Result<PendingUpdate, EstimateError> {
+        let (pose, _, posterior) = self.posterior_at(robot, joint_positions, tau, None)?;
+        Ok(PendingUpdate { pose, posterior })
     }
 
     fn posterior_at(
@@ -175,26 +189,9 @@ impl Estimator {
         )
     }
 
-    /// What the temporal model needs of an update of the torques `tau`:
-    /// its likelihoods and, with patches, what it says about the place of
-    /// the contact within each patch.
-    #[must_use]
-    pub fn frame_likelihood(&self, robot: &Robot, update: &Update, tau: &[f64]) -> FrameLikelihood {
-        let mut forms = PatchForms::default();
-        if self.uses_patches() {
-            let torque_model = TorqueModel::new(robot, &update.pose, &self.links);
-            let posed = PosedSurface {
-                torque_model: &torque_model,
-                surface: &self.surface,
-            };
-            let weights: Vec<f64> = self.settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
-            if !posed.patch_forms(&weights, tau, &mut forms) {
-                forms = PatchForms::default();
-            }
-        }
-        self.likelihood_of(&update.posterior, &forms)
-    }
-
+    /// What the temporal model needs of a frame's posterior: its
+    /// likelihoods and, with patches, what the frame says about the place
+    /// of the contact within each patch (from the frame's `forms`).
     fn likelihood_of(&self, posterior: &Posterior, forms: &PatchForms) -> FrameLikelihood {
         let mut likelihood = FrameLikelihood::from_posterior(posterior, &self.surface, self.uses_patches());
         if self.uses_patches() && forms.a.len() == self.surface.len() {
@@ -294,6 +291,27 @@ pub enum Temporal {
     Filter,
     /// Each frame with the whole sequence.
     Smooth,
+}
+
+/// How a session is best estimated over time when the user has not said
+/// (`estimate --temporal auto`, the app): a recording (frames closer than
+/// a contact lasts, see [`is_continuous_recording`]) smoothed, or filtered
+/// when the smoother would hold more than [`MAX_SMOOTHER_BYTES`]; a set of
+/// unrelated frames each alone. With why, in words.
+#[must_use]
+pub fn automatic_temporal(
+    times_secs: &[f64],
+    settings: &TemporalSettings,
+    points: usize,
+    offsets: bool,
+) -> (Temporal, &'static str) {
+    if !is_continuous_recording(times_secs, settings) {
+        (Temporal::None, "frames further apart than a contact lasts: each alone")
+    } else if smoother_bytes(times_secs.len(), points, offsets) > MAX_SMOOTHER_BYTES {
+        (Temporal::Filter, "a recording too long to smooth in memory: filtered")
+    } else {
+        (Temporal::Smooth, "a recording: smoothed")
+    }
 }
 
 /// One frame of a sequence.
@@ -439,9 +457,9 @@ pub fn estimate_sequence_while(
                 };
                 let t0 = std::time::Instant::now();
                 // It succeeded in the first pass; the same inputs again.
-                let Some((update, _)) = checked(
+                let Some(update) = checked(
                     i,
-                    estimator.update_for_sequence(robot, f.joint_positions, f.tau),
+                    estimator.pending_update(robot, f.joint_positions, f.tau),
                     &mut failed,
                 )?
                 else {

@@ -333,8 +333,8 @@ pub struct FrameLikelihood {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PatchInformation {
     /// `ln L(0)`: the sample's own log-likelihood (the magnitude
-    /// integrated out, no patch, no area), on the same scale as
-    /// [`FrameLikelihood::no_contact`].
+    /// profiled, with the frame's one Occam charge; no patch, no area), on
+    /// the same scale as [`FrameLikelihood::no_contact`].
     pub point: f64,
     /// `[m11, m12, m22]`, 1/m².
     pub information: [f64; 3],
