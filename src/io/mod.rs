@@ -1,9 +1,12 @@
 //! Loading and saving: URDF and mesh files, the built-in robots' assets,
 //! scenes. Each reader has its own error type naming the file and element.
 
+pub mod bag;
 pub mod builtin;
 pub mod guard;
 pub mod mesh;
+pub mod recording;
+pub mod rosmsg;
 pub mod scene;
 pub mod session;
 pub mod urdf;
