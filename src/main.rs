@@ -86,6 +86,10 @@ enum Command {
     /// pressed, with truth): presses that hold or slide, come and go,
     /// with friction, bias and noise as asked.
     Synth(cli::synth::SynthArgs),
+    /// Lists a robot recording's topics (MCAP, ROS 1 bag): types, counts,
+    /// rates, where times come from, float arrays; and the topics
+    /// `estimate` would make frames of.
+    Topics(cli::topics::TopicsArgs),
     /// Sends a recorded session to a TCP address as a live source, a JSON
     /// line a frame at the pace of its times (see `estimate --live`).
     Stream(cli::live::StreamArgs),
@@ -201,6 +205,7 @@ fn run(cli: Cli) -> Result<()> {
         Some(Command::Bench(args)) => cli::bench::run(&args),
         Some(Command::Synth(args)) => cli::synth::run(&args),
         Some(Command::Stream(args)) => cli::live::stream(&args),
+        Some(Command::Topics(args)) => cli::topics::run(&args),
         Some(Command::RobotInfo { robot, package_paths }) => robot_info(&robot, package_paths),
         Some(Command::Surface { scene, points }) => surface(&scene, points),
         Some(Command::ExportAssets { root }) => export_assets(&root),

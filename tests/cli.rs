@@ -630,3 +630,75 @@ fn package_uris_resolve_for_a_urdf_named_from_its_own_folder() {
     assert!(out.status.success(), "{stderr}");
     assert!(stdout.contains("body"), "{stdout}");
 }
+
+/// Every robot recording of the link-4 press estimates as its JSON
+/// session does (same links, points to 1e-9), and `topics` says which
+/// topics make the frames.
+#[test]
+#[ignore = "needs ../shared"]
+fn recordings_estimate_as_their_sessions_do() {
+    let urdf = "../shared/robots/lwr4plus/lwr4plus.urdf";
+    let estimate = |file: &str, out: &Path| {
+        let (ok, _, err) = run(&[
+            "estimate",
+            file,
+            "--robot",
+            urdf,
+            "--temporal",
+            "filter",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(ok, "{file}: {err}");
+        let text = std::fs::read_to_string(out).unwrap();
+        text.lines()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+            .collect::<Vec<_>>()
+    };
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+    let reference = estimate(
+        "../shared/sessions/lwr4plus_dyn_example_link4.session.json",
+        &dir.join("rec-json.jsonl"),
+    );
+    assert_eq!(reference.len(), 300);
+    for layout in ["plain.mcap", "franka.mcap", "kuka.mcap", "plain.bag"] {
+        let file = format!("../shared/recordings/lwr4plus_dyn_example_link4_{layout}");
+        let lines = estimate(&file, &dir.join(format!("rec-{layout}.jsonl")));
+        assert_eq!(lines.len(), reference.len(), "{layout}");
+        for (a, b) in lines.iter().zip(&reference) {
+            assert_eq!(a["link"], b["link"], "{layout} frame {}", a["frame"]);
+            assert_eq!(a["frame"], b["frame"]);
+            let (p, q) = (&a["point"], &b["point"]);
+            for i in 0..3 {
+                if let (Some(x), Some(y)) = (p[i].as_f64(), q[i].as_f64()) {
+                    assert!((x - y).abs() < 1e-9, "{layout} frame {}: {p} vs {q}", a["frame"]);
+                }
+            }
+            let (t, u) = (&a["truth"], &b["truth"]);
+            assert_eq!(t["link"], u["link"], "{layout}");
+            if let (Some(x), Some(y)) = (t["position_error_m"].as_f64(), u["position_error_m"].as_f64()) {
+                assert!((x - y).abs() < 1e-9, "{layout}: {t} vs {u}");
+            }
+        }
+    }
+    let (ok, out, err) = run(&["topics", "../shared/recordings/lwr4plus_dyn_example_link4_kuka.mcap"]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("/lbr/state") && out.contains("lbr_fri_idl/LBRState"),
+        "{out}"
+    );
+    assert!(
+        out.contains("frames from: --q-topic /joint_states --tau-topic /lbr/state --tau-field external_torque"),
+        "{out}"
+    );
+    // A field that is not there is refused, naming the fields that are.
+    let (ok, _, err) = run(&[
+        "estimate",
+        "../shared/recordings/lwr4plus_dyn_example_link4_kuka.mcap",
+        "--robot",
+        urdf,
+        "--tau-field",
+        "tau_ext",
+    ]);
+    assert!(!ok && err.contains("tau_ext"), "{err}");
+}

@@ -36,7 +36,7 @@ pub fn session_robot(
         (Some(r), _) => (r.to_owned(), PathBuf::from(".")),
         (None, Some(r)) => (r.clone(), session.path.parent().unwrap_or(Path::new(".")).to_owned()),
         (None, None) => bail!(
-            "{}: the session names no robot (a CSV session): give one with --robot",
+            "{}: the session names no robot (a CSV session or a recording): give one with --robot",
             session.path.display()
         ),
     };

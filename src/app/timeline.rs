@@ -55,7 +55,7 @@ impl ProprioscopeApp {
     /// overrides the session's (a CSV session without one uses the current
     /// robot). On failure the error is shown and the current scene kept.
     pub fn open_session(&mut self, path: &Path, robot: Option<String>) {
-        let robot = robot.or_else(|| crate::io::session::is_csv(path).then(|| self.robot_spec.clone()));
+        let robot = robot.or_else(|| crate::io::session::names_no_robot(path).then(|| self.robot_spec.clone()));
         let ctx = self.ctx.clone();
         self.loader = Some(Loader::spawn(
             path.to_owned(),

@@ -14,14 +14,16 @@ use proprioscope::core::robot::Robot;
 use proprioscope::core::summary::Verdict;
 use proprioscope::core::surface::SurfaceRequest;
 use proprioscope::core::temporal::TemporalModel;
+use proprioscope::io::recording::is_recording;
 use proprioscope::io::session::{Session, Truth, kept_frame_numbers};
 
-use super::{EstimatorArgs, TemporalArg, TemporalArgs};
+use super::{EstimatorArgs, TemporalArg, TemporalArgs, TopicArgs};
 
 /// Options of `estimate`.
 #[derive(Debug, clap::Args)]
 pub struct EstimateArgs {
-    /// A session file (`.json`, or `.csv` with --robot); or use --live.
+    /// A session file (`.json`, or `.csv` with --robot), a robot recording
+    /// (`.mcap`, ROS 1 `.bag`, with --robot); or use --live.
     #[arg(required_unless_present = "live")]
     pub session: Option<PathBuf>,
     /// Read frames as they arrive instead: listen on this TCP address
@@ -60,6 +62,9 @@ pub struct EstimateArgs {
     /// (a session no longer than one window gets one offset).
     #[arg(long, default_value_t = 30.0, value_parser = super::finite)]
     pub bias_window: f64,
+    /// Topics of a recording.
+    #[command(flatten)]
+    pub topics: TopicArgs,
     /// Estimator options.
     #[command(flatten)]
     pub estimator: EstimatorArgs,
@@ -80,8 +85,10 @@ pub enum BiasArg {
 /// The session, strictly or skipping bad frames; with each kept frame's
 /// number in the file.
 fn read_session(args: &EstimateArgs, path: &std::path::Path) -> Result<(Session, Vec<usize>)> {
-    Ok(if args.skip_bad_frames {
-        let (session, problems) = Session::read_skipping_bad_frames(path)?;
+    // A recording's torque messages outside the joint states' span are
+    // normal (the robot's topics start apart): skipped and said.
+    Ok(if args.skip_bad_frames || is_recording(path) {
+        let (session, problems) = super::open_session(path, &args.topics)?;
         for p in &problems {
             eprintln!("{}: skipped {p}", path.display());
         }

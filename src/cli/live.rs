@@ -20,8 +20,13 @@ use super::estimate::{EstimateArgs, frame_json};
 /// Options of `stream`.
 #[derive(Debug, clap::Args)]
 pub struct StreamArgs {
-    /// The recording to send (a session file, JSON or CSV with --robot).
+    /// The recording to send: a session file (JSON, CSV) or a robot
+    /// recording (`.mcap`, ROS 1 `.bag`); the receiver needs --robot when
+    /// the file names none.
     pub session: PathBuf,
+    /// Topics of a robot recording.
+    #[command(flatten)]
+    pub topics: super::TopicArgs,
     /// Where to send it: a TCP address something listens on (e.g.
     /// `estimate --live`).
     #[arg(long)]
@@ -41,7 +46,10 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     if args.rate < 0.0 {
         bail!("--rate {}: must be ≥ 0", args.rate);
     }
-    let session = Session::read(&args.session)?;
+    let (session, problems) = super::open_session(&args.session, &args.topics)?;
+    for p in &problems {
+        eprintln!("{}: skipped {p}", args.session.display());
+    }
     let deadline = Instant::now() + Duration::from_secs_f64(args.wait.clamp(0.0, 3600.0));
     let mut connection = loop {
         match TcpStream::connect(&args.to) {

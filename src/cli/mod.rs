@@ -4,12 +4,71 @@ pub mod bench;
 pub mod estimate;
 pub mod live;
 pub mod synth;
+pub mod topics;
+
+use std::path::Path;
 
 use anyhow::{Result, bail};
 use proprioscope::core::estimator::{EstimatorSettings, Mode, ParticleSettings, Sampling};
 use proprioscope::core::pipeline::Temporal;
 use proprioscope::core::robot::{LinkId, Robot};
 use proprioscope::core::temporal::TemporalSettings;
+use proprioscope::io::recording::{self, TopicChoice, is_recording};
+use proprioscope::io::session::{FrameProblem, Session};
+
+/// Topics of a robot recording (MCAP, ROS 1 bag); each left out is
+/// inferred when the file leaves one choice (`proprioscope topics FILE`
+/// shows the file's).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct TopicArgs {
+    /// Recordings: the `JointState` topic of the joint positions
+    /// (default: the torque topic when it has them, else the only such
+    /// topic, else `/joint_states`).
+    #[arg(long)]
+    pub q_topic: Option<String>,
+    /// Recordings: the topic of the external joint torques (default: the
+    /// one with a torque array named *external*, else the only effort or
+    /// torque array).
+    #[arg(long)]
+    pub tau_topic: Option<String>,
+    /// Recordings: the float array field of the torque topic, dotted
+    /// (`effort`, `external_torque`, `state.tau_ext`).
+    #[arg(long)]
+    pub tau_field: Option<String>,
+}
+
+impl TopicArgs {
+    /// As the reader's choice.
+    #[must_use]
+    pub fn choice(&self) -> TopicChoice {
+        TopicChoice {
+            q_topic: self.q_topic.clone(),
+            tau_topic: self.tau_topic.clone(),
+            tau_field: self.tau_field.clone(),
+        }
+    }
+}
+
+/// A session file, or a recording read with `topics` (the mapping and the
+/// skipped messages said on stderr), skipping bad frames.
+pub fn open_session(path: &Path, topics: &TopicArgs) -> Result<(Session, Vec<FrameProblem>)> {
+    if !is_recording(path) {
+        return Ok(Session::read_skipping_bad_frames(path)?);
+    }
+    let bytes = recording::read_bytes(path)?;
+    let read = recording::read_session(path, &bytes, &topics.choice(), &|_| {})?;
+    eprintln!(
+        "{}: {} frames from {} (time from {})",
+        path.display(),
+        read.session.frames.len(),
+        read.mapping,
+        read.stamps
+    );
+    for note in &read.notes {
+        eprintln!("{}: {note}", path.display());
+    }
+    Ok((read.session, read.problems))
+}
 
 /// A finite number (`inf` and `NaN`, which Rust's parser takes, are not).
 pub fn finite(text: &str) -> Result<f64, String> {

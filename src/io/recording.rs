@@ -15,7 +15,7 @@ use std::sync::Arc;
 
 use super::bag::{self, BagError};
 use super::rosmsg::{Encoding, MessageDefinition, Value, normalize_type_name};
-use super::session::{Frame, FrameProblem, Session, Truth};
+use super::session::{Frame, FrameProblem, Session, Truth, frame_problem};
 
 /// The truth topics' names (the convention of our recordings).
 pub const TRUTH_TOPIC: &str = "/contact/truth";
@@ -214,7 +214,10 @@ impl StampSource {
 impl std::fmt::Display for StampSource {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Self::Fields { sec, nanosec } => write!(f, "{sec} + {nanosec}"),
+            Self::Fields { sec, nanosec } => match sec.strip_suffix(".sec") {
+                Some(prefix) if nanosec.strip_suffix(".nanosec") == Some(prefix) => write!(f, "{prefix}"),
+                _ => write!(f, "{sec} + {nanosec}"),
+            },
             Self::LogTime => write!(f, "log time"),
         }
     }
@@ -487,6 +490,13 @@ impl RecordingIndex {
         candidates.retain(|c| c.2 == best);
         let (tau_topic, tau_field) = match candidates.as_slice() {
             [(t, f, _)] => (t.clone(), f.clone()),
+            [] if choice.tau_field.is_some() => {
+                let field = choice.tau_field.clone().unwrap_or_default();
+                return Err(self.choice_error(
+                    "--tau-field",
+                    format!("no topic has a non-empty float array '{field}' (see `proprioscope topics`)"),
+                ));
+            }
             [] => {
                 return Err(self.choice_error(
                     "--tau-topic",
@@ -878,12 +888,22 @@ pub fn read_session(
                 } else {
                     Truth::Unknown
                 };
-                frames.push(Frame {
+                let frame = Frame {
                     t: seconds(stamp),
                     q: q_row,
                     tau: tau_row.to_vec(),
                     truth,
-                });
+                };
+                // The rules of every session: finite values, one per joint.
+                match frame_problem(&frame, Some(tau.width), f64::NEG_INFINITY) {
+                    None => frames.push(frame),
+                    Some((field, message)) => problems.push(FrameProblem {
+                        frame: k,
+                        t: frame.t,
+                        field,
+                        message,
+                    }),
+                }
             }
             Err(message) => problems.push(FrameProblem {
                 frame: k,

@@ -5,6 +5,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Deserializer};
 
+use super::recording::{TopicChoice, is_recording};
+
 /// The true contact of a frame, when known.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Truth {
@@ -132,6 +134,9 @@ pub enum SessionError {
         /// What is wrong.
         message: String,
     },
+    /// A robot recording (MCAP, ROS 1 bag) could not be read.
+    #[error(transparent)]
+    Recording(#[from] super::recording::RecordingError),
 }
 
 #[derive(Deserialize)]
@@ -213,9 +218,18 @@ struct TruthFile {
 }
 
 impl Session {
-    /// Reads a session file: `.csv` as CSV, anything else as JSON. Frames
-    /// are checked (see [`Session::check`]).
+    /// Reads a session file: `.csv` as CSV, `.mcap` and `.bag` as a robot
+    /// recording (the topics it implies; a torque message that makes no
+    /// frame is an error here), anything else as JSON. Frames are checked
+    /// (see [`Session::check`]).
     pub fn read(path: &Path) -> Result<Self, SessionError> {
+        if is_recording(path) {
+            let (session, problems) = Self::open(path, &TopicChoice::default(), &|_| {})?;
+            if let Some(problem) = problems.into_iter().next() {
+                return Err(problem.into_error(path));
+            }
+            return Ok(session);
+        }
         let text = std::fs::read_to_string(path).map_err(|cause| SessionError::Read {
             path: path.to_owned(),
             cause,
@@ -420,7 +434,24 @@ impl Session {
         path: &Path,
         progress: &dyn Fn(f64),
     ) -> Result<(Self, Vec<FrameProblem>), SessionError> {
+        Self::open(path, &TopicChoice::default(), progress)
+    }
+
+    /// A session file, or a robot recording (`.mcap`, `.bag`) read with
+    /// `choice`, skipping bad frames (see
+    /// [`Session::read_skipping_bad_frames`]).
+    pub fn open(
+        path: &Path,
+        choice: &TopicChoice,
+        progress: &dyn Fn(f64),
+    ) -> Result<(Self, Vec<FrameProblem>), SessionError> {
         use std::io::Read as _;
+        if is_recording(path) {
+            let bytes = super::recording::read_bytes(path)?;
+            progress(0.1);
+            let read = super::recording::read_session(path, &bytes, choice, &|f| progress(0.1 + 0.9 * f))?;
+            return Ok((read.session, read.problems));
+        }
         let read_error = |cause| SessionError::Read {
             path: path.to_owned(),
             cause,
@@ -472,6 +503,13 @@ pub fn kept_frame_numbers(kept: usize, problems: &[FrameProblem]) -> Vec<usize> 
     (0..kept + problems.len()).filter(|i| !bad.contains(i)).collect()
 }
 
+/// Whether the file at `path` names no robot (CSV sessions and robot
+/// recordings): the robot must come from elsewhere.
+#[must_use]
+pub fn names_no_robot(path: &Path) -> bool {
+    is_csv(path) || is_recording(path)
+}
+
 /// Whether `path` names a CSV file (the form that names no robot).
 #[must_use]
 pub fn is_csv(path: &Path) -> bool {
@@ -481,7 +519,7 @@ pub fn is_csv(path: &Path) -> bool {
 }
 
 /// What is wrong with one frame, if anything.
-fn frame_problem(f: &Frame, width: Option<usize>, last_t: f64) -> Option<(String, String)> {
+pub(crate) fn frame_problem(f: &Frame, width: Option<usize>, last_t: f64) -> Option<(String, String)> {
     if !f.t.is_finite() {
         return Some(("t".to_owned(), "is missing or not finite".to_owned()));
     }

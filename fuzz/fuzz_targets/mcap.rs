@@ -1,0 +1,16 @@
+//! ROS 2 MCAP recordings: any bytes list topics and make frames, or give
+//! an error; frames made keep the rules of a session.
+#![no_main]
+use proprioscope::io::recording::{TopicChoice, index, read_session};
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    let path = std::path::Path::new("fuzz.mcap");
+    let _ = index(path, data);
+    if let Ok(read) = read_session(path, data, &TopicChoice::default(), &|_| {}) {
+        let mut last = f64::NEG_INFINITY;
+        for frame in &read.session.frames {
+            assert!(frame.t >= last && frame.t.is_finite());
+            assert!(frame.q.iter().chain(&frame.tau).all(|v| v.is_finite()));
+            last = frame.t;
+        }
+    }
+});
