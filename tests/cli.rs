@@ -702,3 +702,73 @@ fn recordings_estimate_as_their_sessions_do() {
     ]);
     assert!(!ok && err.contains("tau_ext"), "{err}");
 }
+
+/// `estimate --out est.mcap` writes the session's frames and the
+/// estimates; our own reader gets both back: the same frames, and each
+/// contact as the JSON lines give it.
+#[test]
+fn estimates_out_as_mcap_read_back_as_they_were_written() {
+    use proprioscope::io::recording::{self, TopicChoice};
+    use proprioscope::io::rosmsg::Value;
+    let dir = std::env::temp_dir().join(format!("proprioscope-mcap-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let session = dir.join("synth.session.json");
+    let path = |name: &str| dir.join(name).to_str().unwrap().to_owned();
+    let (ok, _, err) = run(&[
+        "synth",
+        &path("synth.session.json"),
+        "--seconds",
+        "1",
+        "--rate",
+        "50",
+        "--seed",
+        "2",
+    ]);
+    assert!(ok, "{err}");
+    let common = ["--n", "1000", "--temporal", "filter"];
+    let (ok, _, err) = run(&[
+        &["estimate", &path("synth.session.json"), "--out", &path("est.jsonl")],
+        &common[..],
+    ]
+    .concat());
+    assert!(ok, "{err}");
+    let (ok, _, err) = run(&[
+        &["estimate", &path("synth.session.json"), "--out", &path("est.mcap")],
+        &common[..],
+    ]
+    .concat());
+    assert!(ok, "{err}");
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(dir.join("est.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let mcap = dir.join("est.mcap");
+    let bytes = std::fs::read(&mcap).unwrap();
+    // The frames, read back as a recording, are the session's.
+    let read = recording::read_session(&mcap, &bytes, &TopicChoice::default(), &|_| {}).unwrap();
+    let original = proprioscope::io::session::Session::read(&session).unwrap();
+    assert_eq!(read.session.frames.len(), original.frames.len());
+    for (a, b) in read.session.frames.iter().zip(&original.frames) {
+        assert!((a.t - b.t).abs() < 1e-9 && a.q == b.q && a.tau == b.tau && a.truth == b.truth);
+    }
+    // The contact points, in frame order, are the JSON lines' points.
+    let index = recording::index(&mcap, &bytes).unwrap();
+    let topic = |name: &str| index.topics.iter().find(|t| t.topic == name).unwrap();
+    let contacts: Vec<&serde_json::Value> = lines.iter().filter(|l| !l["point"].is_null()).collect();
+    assert!(!contacts.is_empty());
+    assert_eq!(topic("/proprioscope/contact_point").count, contacts.len());
+    assert_eq!(topic("/proprioscope/contact_probability").count, lines.len());
+    assert_eq!(topic("/proprioscope/region").count, lines.len());
+    let first = topic("/proprioscope/contact_point").first.clone().unwrap();
+    for (i, axis) in ["x", "y", "z"].iter().enumerate() {
+        let got = first.get(&format!("point.{axis}")).and_then(Value::as_f64).unwrap();
+        assert!((got - contacts[0]["point"][i].as_f64().unwrap()).abs() < 1e-12);
+    }
+    let wrench = topic("/proprioscope/contact").first.clone().unwrap();
+    assert_eq!(
+        wrench.get("header.frame_id"),
+        Some(&Value::Str(contacts[0]["link"].as_str().unwrap().into()))
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

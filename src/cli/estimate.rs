@@ -14,7 +14,8 @@ use proprioscope::core::robot::Robot;
 use proprioscope::core::summary::Verdict;
 use proprioscope::core::surface::SurfaceRequest;
 use proprioscope::core::temporal::TemporalModel;
-use proprioscope::io::recording::is_recording;
+use proprioscope::io::mcap_out::{EstimateMessage, EstimateWriter};
+use proprioscope::io::recording::{is_recording, read_bytes};
 use proprioscope::io::session::{Session, Truth, kept_frame_numbers};
 
 use super::{EstimatorArgs, TemporalArg, TemporalArgs, TopicArgs};
@@ -43,7 +44,11 @@ pub struct EstimateArgs {
     /// Extra folder for `package://` URIs (repeatable).
     #[arg(long = "package-path")]
     pub package_paths: Vec<PathBuf>,
-    /// Write one JSON line per frame here.
+    /// Write one JSON line per frame here; or, for a `.mcap` file, the
+    /// input's topics (a session's frames as `/joint_states` and truth)
+    /// with the estimates (`/proprioscope/…`: the contact as
+    /// `WrenchStamped` and `PointStamped`, its probability, the 90 %
+    /// credible region as a `PointCloud2`), for Foxglove or RViz.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Skip frames with a missing or non-finite value, a wrong number of
@@ -83,22 +88,95 @@ pub enum BiasArg {
 }
 
 /// The session, strictly or skipping bad frames; with each kept frame's
-/// number in the file.
-fn read_session(args: &EstimateArgs, path: &std::path::Path) -> Result<(Session, Vec<usize>)> {
+/// number in the file, and a recording's clock reading at `t = 0`.
+fn read_session(args: &EstimateArgs, path: &std::path::Path) -> Result<(Session, Vec<usize>, Option<i64>)> {
     // A recording's torque messages outside the joint states' span are
     // normal (the robot's topics start apart): skipped and said.
     Ok(if args.skip_bad_frames || is_recording(path) {
-        let (session, problems) = super::open_session(path, &args.topics)?;
+        let (session, problems, origin) = super::open_session_with_origin(path, &args.topics)?;
         for p in &problems {
             eprintln!("{}: skipped {p}", path.display());
         }
         let kept = kept_frame_numbers(session.frames.len(), &problems);
-        (session, kept)
+        (session, kept, origin)
     } else {
         let session = Session::read(path)?;
         let all: Vec<usize> = (0..session.frames.len()).collect();
-        (session, all)
+        (session, all, None)
     })
+}
+
+/// Where `--out` goes: JSON lines, or an MCAP file with the input's
+/// topics and the estimates.
+enum Out {
+    Json(std::io::BufWriter<std::fs::File>),
+    Mcap(Box<EstimateWriter>),
+}
+
+impl Out {
+    /// `.mcap` gets the input (a recording's messages, or a session's
+    /// frames as joint states and truth), then an estimate a frame.
+    fn create(
+        out_path: &std::path::Path,
+        input: &std::path::Path,
+        session: &Session,
+        robot: &Robot,
+        origin_ns: Option<i64>,
+    ) -> Result<Self> {
+        let is_mcap = out_path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("mcap"));
+        if !is_mcap {
+            let file = std::fs::File::create(out_path).with_context(|| format!("creating {}", out_path.display()))?;
+            return Ok(Self::Json(std::io::BufWriter::new(file)));
+        }
+        let world = robot.links.get(robot.root).map_or("world", |l| l.name.as_str());
+        let mut w = EstimateWriter::create(out_path, world)?;
+        if is_recording(input) {
+            w.copy_recording(input, &read_bytes(input)?)?;
+        } else {
+            let joints = session
+                .joints
+                .clone()
+                .unwrap_or_else(|| robot.sensed_names().into_iter().map(str::to_owned).collect());
+            w.write_frames(&joints, &session.frames, origin_ns.unwrap_or(0))?;
+        }
+        Ok(Self::Mcap(Box::new(w)))
+    }
+}
+
+/// A frame's estimate as the MCAP output holds it.
+fn estimate_message(estimator: &Estimator, robot: &Robot, update: &Update, origin_ns: i64, t: f64) -> EstimateMessage {
+    let s = &update.summary;
+    let contact = s.verdict != Verdict::NoContact;
+    let region = if contact {
+        s.credible90
+            .points
+            .iter()
+            .filter_map(|&i| {
+                let p = estimator.surface.point_world(&update.pose, i)?;
+                Some((
+                    p.to_array(),
+                    update.posterior.probability.get(i).copied().unwrap_or(0.0),
+                ))
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    EstimateMessage {
+        stamp_ns: origin_ns.saturating_add((t * 1e9).round() as i64),
+        contact_probability: s.contact_probability,
+        contact: contact.then(|| {
+            (
+                robot.links.get(s.map.link).map_or_else(String::new, |l| l.name.clone()),
+                s.map.point_world.to_array(),
+                s.map.force_world.to_array(),
+            )
+        }),
+        region,
+    }
 }
 
 /// Every frame's joint positions, in the robot's order.
@@ -171,7 +249,7 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
 
 /// Estimates the session file at `path`.
 fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
-    let (session, file_frames) = read_session(args, path)?;
+    let (session, file_frames, origin_ns) = read_session(args, path)?;
     let robot = session_robot(
         &session,
         args.robot.as_deref(),
@@ -195,9 +273,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
         started.elapsed().as_secs_f64() * 1e3
     );
     let mut out = match &args.out {
-        Some(path) => Some(std::io::BufWriter::new(
-            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
-        )),
+        Some(out_path) => Some(Out::create(out_path, path, &session, &robot, origin_ns)?),
         None => None,
     };
     let temporal = chosen_temporal(args, &session, estimator.surface.len(), estimator.uses_patches());
@@ -253,8 +329,21 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
                     outcomes.push(o);
                 }
                 if let (Some(w), Ok(())) = (out.as_mut(), &written) {
-                    let line = frame_json(&robot, i, frame.t, &update, ms, &frame.truth, outcome.as_ref());
-                    written = writeln!(w, "{line}").context("writing --out");
+                    written = match w {
+                        Out::Json(w) => {
+                            let line = frame_json(&robot, i, frame.t, &update, ms, &frame.truth, outcome.as_ref());
+                            writeln!(w, "{line}").context("writing --out")
+                        }
+                        Out::Mcap(w) => w
+                            .write_estimate(&estimate_message(
+                                &estimator,
+                                &robot,
+                                &update,
+                                origin_ns.unwrap_or(0),
+                                frame.t,
+                            ))
+                            .context("writing --out"),
+                    };
                 }
                 bar.inc(1);
             },
@@ -263,8 +352,10 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     })??;
     written?;
     bar.finish_and_clear();
-    if let Some(mut w) = out {
-        w.flush()?;
+    match out {
+        Some(Out::Json(mut w)) => w.flush()?,
+        Some(Out::Mcap(w)) => w.finish()?,
+        None => {}
     }
     report(&session, &verdicts, &times_ms, &called)?;
     if !outcomes.is_empty() {

@@ -52,8 +52,14 @@ impl TopicArgs {
 /// A session file, or a recording read with `topics` (the mapping and the
 /// skipped messages said on stderr), skipping bad frames.
 pub fn open_session(path: &Path, topics: &TopicArgs) -> Result<(Session, Vec<FrameProblem>)> {
+    open_session_with_origin(path, topics).map(|(s, p, _)| (s, p))
+}
+
+/// [`open_session`], with the clock reading of `t = 0` of a recording, ns.
+pub fn open_session_with_origin(path: &Path, topics: &TopicArgs) -> Result<(Session, Vec<FrameProblem>, Option<i64>)> {
     if !is_recording(path) {
-        return Ok(Session::read_skipping_bad_frames(path)?);
+        let (session, problems) = Session::read_skipping_bad_frames(path)?;
+        return Ok((session, problems, None));
     }
     let bytes = recording::read_bytes(path)?;
     let read = recording::read_session(path, &bytes, &topics.choice(), &|_| {})?;
@@ -67,7 +73,7 @@ pub fn open_session(path: &Path, topics: &TopicArgs) -> Result<(Session, Vec<Fra
     for note in &read.notes {
         eprintln!("{}: {note}", path.display());
     }
-    Ok((read.session, read.problems))
+    Ok((read.session, read.problems, Some(read.origin_ns)))
 }
 
 /// A finite number (`inf` and `NaN`, which Rust's parser takes, are not).

@@ -268,18 +268,29 @@ impl std::fmt::Display for Mapping {
 }
 
 /// One message as the container gives it.
-struct RawMessage<'a> {
-    key: u32,
-    topic: &'a str,
-    message_type: &'a str,
-    schema: Option<(&'a str, &'a [u8])>,
-    message_encoding: &'a str,
-    log_ns: u64,
-    data: &'a [u8],
+pub(crate) struct RawMessage<'a> {
+    /// Channel or connection number.
+    pub key: u32,
+    /// Topic.
+    pub topic: &'a str,
+    /// Message type as stored.
+    pub message_type: &'a str,
+    /// Schema encoding and text.
+    pub schema: Option<(&'a str, &'a [u8])>,
+    /// `cdr` or `ros1`.
+    pub message_encoding: &'a str,
+    /// Log time, ns.
+    pub log_ns: u64,
+    /// The serialised message.
+    pub data: &'a [u8],
 }
 
 /// Calls `visit` for every message of the file, in file order.
-fn scan(path: &Path, bytes: &[u8], visit: &mut dyn FnMut(RawMessage<'_>)) -> Result<&'static str, RecordingError> {
+pub(crate) fn scan(
+    path: &Path,
+    bytes: &[u8],
+    visit: &mut dyn FnMut(RawMessage<'_>),
+) -> Result<&'static str, RecordingError> {
     if bytes.starts_with(MCAP_MAGIC) {
         let stream = mcap::MessageStream::new(bytes).map_err(|e| RecordingError::Mcap {
             path: path.to_owned(),
@@ -679,6 +690,8 @@ pub struct RecordingSession {
     pub stamps: StampSource,
     /// Other messages skipped (joint states), one line per topic.
     pub notes: Vec<String>,
+    /// The clock reading of `t = 0` (the first torque message's stamp), ns.
+    pub origin_ns: i64,
 }
 
 /// Reads a recording's frames (see the module's doc). `progress` goes
@@ -868,7 +881,7 @@ pub fn read_session(
         }
     };
 
-    let seconds = |stamp: i64| (stamp - origin) as f64 * 1e-9;
+    let seconds = |stamp: i64| (stamp - origin) as f64 / 1e9;
     let mut frames = Vec::with_capacity(tau.stamps_ns.len());
     let mut problems = Vec::new();
     for (k, &stamp) in tau.stamps_ns.iter().enumerate() {
@@ -944,6 +957,7 @@ pub fn read_session(
         mapping,
         stamps: tau_stamps,
         notes,
+        origin_ns: origin,
     })
 }
 
