@@ -836,3 +836,69 @@ fn a_panda_scene_round_trips() {
         }));
     assert_round_trip(&mut harness, "panda");
 }
+
+/// A recording with two arms' joint states leaves the choice to the user:
+/// the app asks, opens the recording with the topics chosen, and asks no
+/// more when the same file is opened again.
+#[test]
+fn an_ambiguous_recording_asks_for_its_topics_once() {
+    use proprioscope::io::mcap_out::EstimateWriter;
+    use proprioscope::io::recording::TopicChoice;
+    let json = demo_session("two-arms.session.json", 0.5);
+    let session = proprioscope::io::session::Session::read(&json).unwrap();
+    let joints = session.joints.clone().unwrap();
+    let path = json.with_file_name("two-arms.mcap");
+    let mut out = EstimateWriter::create(&path, "lwr_base_link").unwrap();
+    let other: Vec<_> = session
+        .frames
+        .iter()
+        .map(|f| proprioscope::io::session::Frame {
+            tau: vec![0.0; f.tau.len()],
+            ..f.clone()
+        })
+        .collect();
+    out.write_joint_states("/left/joint_states", &joints, &other, 0)
+        .unwrap();
+    out.write_joint_states("/right/joint_states", &joints, &session.frames, 0)
+        .unwrap();
+    out.finish().unwrap();
+
+    let mut harness = app_harness();
+    harness.state_mut().open(path.to_str().unwrap());
+    for _ in 0..500 {
+        harness.step();
+        if harness.state().topic_prompt.is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    let prompt = harness
+        .state()
+        .topic_prompt
+        .clone()
+        .expect("the app asks for the topics");
+    assert!(prompt.message.contains("several"), "{}", prompt.message);
+    assert_eq!(prompt.position_topics, ["/left/joint_states", "/right/joint_states"]);
+    assert!(harness.state().model.replay.is_none());
+    harness.state_mut().topic_prompt.as_mut().unwrap().choice = TopicChoice {
+        q_topic: Some("/right/joint_states".into()),
+        tau_topic: Some("/right/joint_states".into()),
+        tau_field: Some("effort".into()),
+    };
+    harness.run();
+    harness.get_by_label("Open").click();
+    settle(&mut harness);
+    {
+        let app = harness.state();
+        assert!(app.topic_prompt.is_none());
+        let replay = app.model.replay.as_ref().expect("the recording opened");
+        assert_eq!(replay.session.frames.len(), session.frames.len());
+        // The right arm's torques, not the left's zeros.
+        assert_eq!(replay.session.frames[3].tau, session.frames[3].tau);
+    }
+    harness.state_mut().close_session();
+    harness.state_mut().open(path.to_str().unwrap());
+    settle(&mut harness);
+    assert!(harness.state().topic_prompt.is_none());
+    assert!(harness.state().model.replay.is_some(), "{:?}", harness.state().error);
+}

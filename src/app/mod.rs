@@ -55,7 +55,7 @@ pub fn is_session_file(path: &std::path::Path) -> bool {
     use std::io::Read as _;
     let extension = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
     match extension.as_deref() {
-        Some("csv") => true,
+        Some("csv" | "mcap" | "bag") => true,
         Some("json") => {
             let mut head = [0u8; 512];
             let read = std::fs::File::open(path)
@@ -885,6 +885,12 @@ pub struct ProprioscopeApp {
     session_generation: u64,
     session_key: Option<timeline::SessionKey>,
     loader: Option<session::Loader>,
+    /// A recording whose topics the user is asked to choose.
+    pub topic_prompt: Option<session::TopicPrompt>,
+    /// Topics chosen per recording, and the last choice (tried first on
+    /// the next recording).
+    topic_choices: std::collections::HashMap<std::path::PathBuf, crate::io::recording::TopicChoice>,
+    last_topic_choice: Option<crate::io::recording::TopicChoice>,
     recording: Option<timeline::Recording>,
     /// Folders for `package://` URIs when opening URDFs and sessions.
     pub package_paths: Vec<std::path::PathBuf>,
@@ -945,6 +951,9 @@ impl ProprioscopeApp {
             session_generation: 0,
             session_key: None,
             loader: None,
+            topic_prompt: None,
+            topic_choices: std::collections::HashMap::new(),
+            last_topic_choice: None,
             recording: None,
             package_paths: Vec::new(),
             first_frame: None,
@@ -2078,6 +2087,7 @@ impl eframe::App for ProprioscopeApp {
             self.torques_ui(ui);
         });
         egui::CentralPanel::default().show(ui, |ui| commands.extend(self.view_ui(ui, frame)));
+        self.topic_prompt_ui(&ui.ctx().clone());
         for command in commands {
             self.apply(command);
         }

@@ -19,7 +19,8 @@ use crate::core::summary::Verdict;
 use crate::core::surface::SurfaceRequest;
 use crate::core::temporal::{TemporalModel, TemporalSettings};
 use crate::io::builtin::load_robot;
-use crate::io::session::{Frame, FrameProblem, Session, Truth};
+use crate::io::recording::{RecordingError, TopicChoice};
+use crate::io::session::{Frame, FrameProblem, Session, SessionError, Truth};
 use crate::io::urdf::{MeshSelection, UrdfOptions};
 
 /// The robot of a session: `robot` when given (a built-in name or a URDF
@@ -165,10 +166,20 @@ pub fn load_session(
     path: &Path,
     robot: Option<&str>,
     package_paths: &[PathBuf],
+    choice: &TopicChoice,
     progress: &dyn Fn(f64),
 ) -> Result<Loaded> {
-    // The file is most of the work; the robot the last step.
-    let (session, problems) = Session::read_skipping_bad_frames_with_progress(path, &|f| progress(0.9 * f))?;
+    // The file is most of the work; the robot the last step. A choice
+    // remembered from another recording that does not fit this one gives
+    // way to what this file implies.
+    let report = |f| progress(0.9 * f);
+    let opened = match Session::open(path, choice, &report) {
+        Err(SessionError::Recording(RecordingError::Choice { .. })) if *choice != TopicChoice::default() => {
+            Session::open(path, &TopicChoice::default(), &report)
+        }
+        other => other,
+    };
+    let (session, problems) = opened?;
     let spec = match (robot, &session.robot) {
         (Some(r), _) => r.to_owned(),
         (None, Some(r)) if crate::io::builtin::is_builtin(r) => r.clone(),
@@ -200,9 +211,68 @@ pub fn load_session(
     ))
 }
 
+/// A recording whose topics the user must choose (the file leaves
+/// several choices, or none that works by itself).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TopicPrompt {
+    /// The recording.
+    pub path: PathBuf,
+    /// The robot it is to be opened with.
+    pub robot: Option<String>,
+    /// Why the file's own choice did not do.
+    pub message: String,
+    /// Topics with joint names and positions.
+    pub position_topics: Vec<String>,
+    /// Every non-empty float array: topic and field.
+    pub torque_sources: Vec<(String, String)>,
+    /// The choice being made.
+    pub choice: TopicChoice,
+}
+
+impl TopicPrompt {
+    /// The prompt for a recording, when `error` is about its topics.
+    fn for_error(path: &Path, robot: Option<String>, error: &anyhow::Error) -> Option<Self> {
+        let Some(SessionError::Recording(choice_error @ RecordingError::Choice { .. })) =
+            error.downcast_ref::<SessionError>()
+        else {
+            return None;
+        };
+        let bytes = crate::io::recording::read_bytes(path).ok()?;
+        let index = crate::io::recording::index(path, &bytes).ok()?;
+        let position_topics: Vec<String> = index.position_topics().into_iter().map(str::to_owned).collect();
+        let torque_sources: Vec<(String, String)> = index
+            .topics
+            .iter()
+            .flat_map(|t| t.float_arrays().into_iter().map(|(f, _)| (t.topic.clone(), f)))
+            .collect();
+        let choice = TopicChoice {
+            q_topic: position_topics.first().cloned(),
+            tau_topic: torque_sources.first().map(|(t, _)| t.clone()),
+            tau_field: torque_sources.first().map(|(_, f)| f.clone()),
+        };
+        Some(Self {
+            path: path.to_owned(),
+            robot,
+            message: choice_error.to_string(),
+            position_topics,
+            torque_sources,
+            choice,
+        })
+    }
+}
+
+/// Why a session was not loaded.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LoadFailure {
+    /// It cannot be: why.
+    Failed(String),
+    /// A recording needs its topics chosen.
+    NeedsTopics(Box<TopicPrompt>),
+}
+
 /// Loads a session on a thread of its own.
 pub struct Loader {
-    result: Receiver<Result<Loaded, String>>,
+    result: Receiver<Result<Loaded, LoadFailure>>,
     /// What is being loaded.
     pub path: PathBuf,
     /// When it started.
@@ -217,6 +287,7 @@ impl Loader {
         path: PathBuf,
         robot: Option<String>,
         package_paths: Vec<PathBuf>,
+        choice: TopicChoice,
         wake: impl Fn() + Send + 'static,
     ) -> Self {
         let (tx, result) = channel();
@@ -225,8 +296,12 @@ impl Loader {
         let shared = progress.clone();
         std::thread::spawn(move || {
             let report = |f: f64| shared.store(f.to_bits(), std::sync::atomic::Ordering::Relaxed);
-            let loaded =
-                load_session(&thread_path, robot.as_deref(), &package_paths, &report).map_err(|e| format!("{e:#}"));
+            let loaded = load_session(&thread_path, robot.as_deref(), &package_paths, &choice, &report).map_err(|e| {
+                match TopicPrompt::for_error(&thread_path, robot.clone(), &e) {
+                    Some(prompt) => LoadFailure::NeedsTopics(Box::new(prompt)),
+                    None => LoadFailure::Failed(format!("{e:#}")),
+                }
+            });
             let _ = tx.send(loaded);
             wake();
         });
@@ -246,7 +321,7 @@ impl Loader {
 
     /// The result, once there.
     #[must_use]
-    pub fn poll(&self) -> Option<Result<Loaded, String>> {
+    pub fn poll(&self) -> Option<Result<Loaded, LoadFailure>> {
         self.result.try_recv().ok()
     }
 }

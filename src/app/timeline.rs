@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use eframe::egui;
 
-use super::session::{self, EstimateJob, FrameEstimate, Loader, SessionData};
+use super::session::{self, EstimateJob, FrameEstimate, LoadFailure, Loader, SessionData};
 use super::{Command, Model, ProprioscopeApp, Replay, SPEED_RANGE, per_joint};
 use crate::core::kinematics::RobotPose;
 use crate::core::pipeline::{Temporal, automatic_temporal};
@@ -57,12 +57,82 @@ impl ProprioscopeApp {
     pub fn open_session(&mut self, path: &Path, robot: Option<String>) {
         let robot = robot.or_else(|| crate::io::session::names_no_robot(path).then(|| self.robot_spec.clone()));
         let ctx = self.ctx.clone();
+        // A recording's topics: as chosen for this file before, else as for
+        // the last file whose topics were chosen (when they fit).
+        let choice = self
+            .topic_choices
+            .get(path)
+            .or(self.last_topic_choice.as_ref())
+            .cloned()
+            .unwrap_or_default();
         self.loader = Some(Loader::spawn(
             path.to_owned(),
             robot,
             self.package_paths.clone(),
+            choice,
             move || ctx.request_repaint(),
         ));
+    }
+
+    /// The dialog that asks which topics of a recording make its frames
+    /// (shown when the file leaves several choices).
+    pub(super) fn topic_prompt_ui(&mut self, ctx: &egui::Context) {
+        let Some(prompt) = self.topic_prompt.as_mut() else {
+            return;
+        };
+        let mut decided = None;
+        egui::Window::new("Recording topics")
+            .collapsible(false)
+            .resizable(false)
+            .show(ctx, |ui| {
+                ui.label(prompt.path.display().to_string());
+                ui.label(egui::RichText::new(&prompt.message).weak());
+                ui.separator();
+                let q = prompt.choice.q_topic.clone().unwrap_or_default();
+                egui::ComboBox::from_label("joint positions (JointState)")
+                    .selected_text(q)
+                    .show_ui(ui, |ui| {
+                        for topic in &prompt.position_topics {
+                            ui.selectable_value(&mut prompt.choice.q_topic, Some(topic.clone()), topic);
+                        }
+                    });
+                let tau = format!(
+                    "{} {}",
+                    prompt.choice.tau_topic.clone().unwrap_or_default(),
+                    prompt.choice.tau_field.clone().unwrap_or_default()
+                );
+                egui::ComboBox::from_label("external torques (topic, field)")
+                    .selected_text(tau)
+                    .show_ui(ui, |ui| {
+                        for (topic, field) in &prompt.torque_sources {
+                            let selected = prompt.choice.tau_topic.as_ref() == Some(topic)
+                                && prompt.choice.tau_field.as_ref() == Some(field);
+                            if ui.selectable_label(selected, format!("{topic} {field}")).clicked() {
+                                prompt.choice.tau_topic = Some(topic.clone());
+                                prompt.choice.tau_field = Some(field.clone());
+                            }
+                        }
+                    });
+                ui.horizontal(|ui| {
+                    if ui.button("Open").clicked() {
+                        decided = Some(true);
+                    }
+                    if ui.button("Cancel").clicked() {
+                        decided = Some(false);
+                    }
+                });
+            });
+        match decided {
+            Some(true) => {
+                if let Some(prompt) = self.topic_prompt.take() {
+                    self.topic_choices.insert(prompt.path.clone(), prompt.choice.clone());
+                    self.last_topic_choice = Some(prompt.choice);
+                    self.open_session(&prompt.path, prompt.robot);
+                }
+            }
+            Some(false) => self.topic_prompt = None,
+            None => {}
+        }
     }
 
     /// Installs a loaded session (or shows why it could not be loaded).
@@ -73,7 +143,8 @@ impl ProprioscopeApp {
         let path = self.loader.take().map(|l| l.path).unwrap_or_default();
         match result {
             Ok((data, robot, spec)) => self.install_session(data, robot, spec),
-            Err(e) => self.error = Some(format!("could not open session {}: {e}", path.display())),
+            Err(LoadFailure::Failed(e)) => self.error = Some(format!("could not open session {}: {e}", path.display())),
+            Err(LoadFailure::NeedsTopics(prompt)) => self.topic_prompt = Some(*prompt),
         }
     }
 
@@ -652,7 +723,7 @@ impl ProprioscopeApp {
             if ui.button("Open session…").clicked() {
                 ui.close();
                 if let Some(path) = rfd::FileDialog::new()
-                    .add_filter("session", &["json", "csv"])
+                    .add_filter("session or recording", &["json", "csv", "mcap", "bag"])
                     .pick_file()
                 {
                     self.open_session(&path, None);

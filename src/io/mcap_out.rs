@@ -276,9 +276,34 @@ impl EstimateWriter {
     /// `/joint_states` (positions, and the external torques as effort) and
     /// the truth topics, at `origin_ns` + each frame's time.
     pub fn write_frames(&mut self, joints: &[String], frames: &[Frame], origin_ns: i64) -> Result<(), McapOutError> {
-        let states = self.channel("/joint_states", "sensor_msgs/msg/JointState")?;
+        self.write_joint_states("/joint_states", joints, frames, origin_ns)?;
         let truth = self.channel(TRUTH_TOPIC, "geometry_msgs/msg/WrenchStamped")?;
         let truth_point = self.channel(TRUTH_POINT_TOPIC, "geometry_msgs/msg/PointStamped")?;
+        for frame in frames {
+            let stamp = origin_ns.saturating_add((frame.t * 1e9).round() as i64);
+            if let Truth::Contact { link, point, force } = &frame.truth {
+                let mut w = Cdr::new();
+                w.header(stamp, link).xyz(*force).xyz([0.0; 3]);
+                self.write(truth, stamp, &w.0)?;
+                let mut p = Cdr::new();
+                p.header(stamp, &self.world_frame.clone()).xyz(*point);
+                self.write(truth_point, stamp, &p.0)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes frames as `sensor_msgs/JointState` messages on `topic`
+    /// (positions, and the torques as effort) at `origin_ns` + each
+    /// frame's time.
+    pub fn write_joint_states(
+        &mut self,
+        topic: &str,
+        joints: &[String],
+        frames: &[Frame],
+        origin_ns: i64,
+    ) -> Result<(), McapOutError> {
+        let states = self.channel(topic, "sensor_msgs/msg/JointState")?;
         for frame in frames {
             let stamp = origin_ns.saturating_add((frame.t * 1e9).round() as i64);
             let mut m = Cdr::new();
@@ -289,14 +314,6 @@ impl EstimateWriter {
             }
             m.floats(&frame.q).floats(&[]).floats(&frame.tau);
             self.write(states, stamp, &m.0)?;
-            if let Truth::Contact { link, point, force } = &frame.truth {
-                let mut w = Cdr::new();
-                w.header(stamp, link).xyz(*force).xyz([0.0; 3]);
-                self.write(truth, stamp, &w.0)?;
-                let mut p = Cdr::new();
-                p.header(stamp, &self.world_frame.clone()).xyz(*point);
-                self.write(truth_point, stamp, &p.0)?;
-            }
         }
         Ok(())
     }
