@@ -772,3 +772,55 @@ fn estimates_out_as_mcap_read_back_as_they_were_written() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The same over UDP: `stream --to udp://…` sends a datagram a line to
+/// `estimate --live udp://…`.
+#[test]
+fn a_session_streamed_over_udp_is_estimated_live() {
+    use std::io::BufRead as _;
+    let session = temp("udp.session.json", SESSION);
+    let out = temp("udp.jsonl", "");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "estimate",
+            "--live",
+            "udp://127.0.0.1:0",
+            "--live-frames",
+            "2",
+            "--n",
+            "2000",
+        ])
+        .args([
+            "--sigma",
+            "0.01",
+            "--fmin",
+            "0.5",
+            "--fmax",
+            "3",
+            "--temporal",
+            "none",
+            "--out",
+        ])
+        .arg(&out)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The port the system chose, from "listening on udp://127.0.0.1:PORT".
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    stderr.read_line(&mut line).unwrap();
+    let address = line.trim().strip_prefix("listening on ").unwrap().to_owned();
+    assert!(address.starts_with("udp://127.0.0.1:"), "{line}");
+    let (ok, _, err) = run(&["stream", session.to_str().unwrap(), "--to", &address, "--rate", "0"]);
+    assert!(ok, "{err}");
+    assert!(child.wait().unwrap().success());
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2);
+    assert_eq!(lines[0]["verdict"], "contact");
+    assert_eq!(lines[1]["verdict"], "no_contact");
+}

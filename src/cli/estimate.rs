@@ -28,7 +28,8 @@ pub struct EstimateArgs {
     #[arg(required_unless_present = "live")]
     pub session: Option<PathBuf>,
     /// Read frames as they arrive instead: listen on this TCP address
-    /// (e.g. `127.0.0.1:7878`) for JSON lines in the session format (an
+    /// (e.g. `127.0.0.1:7878`; or `udp://127.0.0.1:7878` for datagrams of
+    /// one or more lines) for JSON lines in the session format (an
     /// optional header line, then a frame a line; see `stream`), and
     /// estimate each with the frames before it (`--temporal none` for
     /// each alone). Needs --robot unless the header names it.

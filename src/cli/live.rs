@@ -1,9 +1,9 @@
 //! Live sessions: `estimate --live ADDR` reads frames as they arrive over
-//! TCP, and `stream SESSION --to ADDR` replays a recording as such a
-//! source (demos, tests).
+//! TCP or UDP, and `stream SESSION --to ADDR` replays a recording as such
+//! a source (demos, tests).
 
-use std::io::{BufRead as _, BufReader, Read as _, Write as _};
-use std::net::{TcpListener, TcpStream};
+use std::io::Write as _;
+use std::net::{TcpStream, UdpSocket};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -12,7 +12,8 @@ use proprioscope::app::session::{FrameEstimate, frame_outcome, session_robot};
 use proprioscope::core::pipeline::{Estimator, Temporal};
 use proprioscope::core::surface::SurfaceRequest;
 use proprioscope::core::temporal::{FilterState, TemporalModel};
-use proprioscope::io::session::{LiveLine, LiveReader, MAX_LIVE_LINE_BYTES, Session};
+use proprioscope::io::live::{LiveEvent, LiveSource};
+use proprioscope::io::session::Session;
 
 use super::TemporalArg;
 use super::estimate::{EstimateArgs, frame_json};
@@ -28,7 +29,8 @@ pub struct StreamArgs {
     #[command(flatten)]
     pub topics: super::TopicArgs,
     /// Where to send it: a TCP address something listens on (e.g.
-    /// `estimate --live`).
+    /// `estimate --live` or `view --live`), or `udp://host:port` for a
+    /// datagram a line.
     #[arg(long)]
     pub to: String,
     /// Playback speed: 1 is real time by the frames' `t`, 0 as fast as
@@ -38,6 +40,42 @@ pub struct StreamArgs {
     /// How long to keep trying to connect, s.
     #[arg(long, default_value_t = 10.0, value_parser = super::finite)]
     pub wait: f64,
+}
+
+/// Where `stream` sends: a TCP connection, or UDP datagrams (a line each).
+enum Outlet {
+    Tcp(TcpStream),
+    Udp(UdpSocket),
+}
+
+impl Outlet {
+    /// Connects to `to` (`udp://host:port`, or `[tcp://]host:port`,
+    /// retried for `wait_secs`).
+    fn open(to: &str, wait_secs: f64) -> Result<Self> {
+        if let Some(address) = to.strip_prefix("udp://") {
+            let socket = UdpSocket::bind("0.0.0.0:0").context("opening a UDP socket")?;
+            socket.connect(address).with_context(|| format!("sending to {to}"))?;
+            return Ok(Self::Udp(socket));
+        }
+        let address = to.strip_prefix("tcp://").unwrap_or(to);
+        let deadline = Instant::now() + Duration::from_secs_f64(wait_secs.clamp(0.0, 3600.0));
+        loop {
+            match TcpStream::connect(address) {
+                Ok(c) => return Ok(Self::Tcp(c)),
+                Err(e) if Instant::now() >= deadline => {
+                    return Err(e).with_context(|| format!("connecting to {to}"));
+                }
+                Err(_) => std::thread::sleep(Duration::from_millis(50)),
+            }
+        }
+    }
+
+    fn send(&mut self, line: &str) -> std::io::Result<()> {
+        match self {
+            Self::Tcp(c) => writeln!(c, "{line}"),
+            Self::Udp(s) => s.send(line.as_bytes()).map(|_| ()),
+        }
+    }
 }
 
 /// Sends a session as a live source: the header line, then a frame a line
@@ -50,16 +88,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     for p in &problems {
         eprintln!("{}: skipped {p}", args.session.display());
     }
-    let deadline = Instant::now() + Duration::from_secs_f64(args.wait.clamp(0.0, 3600.0));
-    let mut connection = loop {
-        match TcpStream::connect(&args.to) {
-            Ok(c) => break c,
-            Err(e) if Instant::now() >= deadline => {
-                return Err(e).with_context(|| format!("connecting to {}", args.to));
-            }
-            Err(_) => std::thread::sleep(Duration::from_millis(50)),
-        }
-    };
+    let mut connection = Outlet::open(&args.to, args.wait)?;
     // A robot file named relative to the session means nothing to the
     // receiver: send where it is.
     let robot = session.robot.as_ref().map(|r| {
@@ -75,7 +104,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
         "robot": robot,
         "joints": session.joints,
     });
-    writeln!(connection, "{header}").context("sending the header")?;
+    connection.send(&header.to_string()).context("sending the header")?;
     let started = Instant::now();
     let first_t = session.frames.first().map_or(0.0, |f| f.t);
     for frame in &session.frames {
@@ -86,7 +115,9 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
                 std::thread::sleep(Duration::from_secs_f64((due - now).min(3600.0)));
             }
         }
-        writeln!(connection, "{}", frame.to_json()).context("sending a frame")?;
+        connection
+            .send(&frame.to_json().to_string())
+            .context("sending a frame")?;
     }
     eprintln!(
         "{}: sent {} frames to {}",
@@ -107,8 +138,8 @@ struct Live {
 
 /// `estimate --live ADDR`.
 pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
-    let listener = TcpListener::bind(address).with_context(|| format!("listening on {address}"))?;
-    eprintln!("listening on {address}");
+    let source = LiveSource::listen(address, || {})?;
+    eprintln!("listening on {}", source.address);
     let mut out: Box<dyn std::io::Write> = match &args.out {
         Some(path) => Box::new(std::io::BufWriter::new(
             std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
@@ -120,61 +151,44 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
         // Live, only the frames before can be used.
         TemporalArg::Auto | TemporalArg::Filter | TemporalArg::Smooth => Temporal::Filter,
     };
-    let mut reader = LiveReader::new(None);
     let mut robot_name: Option<String> = args.robot.clone();
     let mut live: Option<Live> = None;
     let mut done = 0usize;
     let wanted = args.live_frames.unwrap_or(usize::MAX);
     while done < wanted {
-        let (connection, from) = listener.accept().context("accepting a connection")?;
-        eprintln!("{from}: connected");
-        reader.restart();
-        if let Some(l) = live.as_mut() {
-            l.filter = FilterState::default();
-        }
-        let mut lines = BufReader::new(connection);
-        let mut line = String::new();
-        loop {
-            line.clear();
-            let read = (&mut lines).take(MAX_LIVE_LINE_BYTES as u64 + 1).read_line(&mut line);
-            match read {
-                Ok(0) => break,
-                Ok(_) => {}
-                Err(e) => {
-                    eprintln!("{from}: {e}");
-                    break;
+        let Ok(event) = source.events.recv() else {
+            break;
+        };
+        match event {
+            LiveEvent::Connected(from) => {
+                eprintln!("{from}: connected");
+                // A new sender starts a new recording: nothing carries over.
+                if let Some(l) = live.as_mut() {
+                    l.filter = FilterState::default();
                 }
             }
-            match reader.line(line.trim_end()) {
-                LiveLine::Header { robot, .. } => {
-                    if robot_name.is_none() {
-                        robot_name = robot;
-                    }
+            LiveEvent::Header { robot, .. } => {
+                if robot_name.is_none() {
+                    robot_name = robot;
                 }
-                LiveLine::Bad(p) => eprintln!(
-                    "{from}: skipped line {} (counting from 0): {}: {}",
-                    p.frame, p.field, p.message
-                ),
-                LiveLine::Frame(frame) => {
-                    if live.is_none() {
-                        live = Some(start(args, robot_name.as_deref(), temporal)?);
+            }
+            LiveEvent::Bad(why) => eprintln!("{why}"),
+            LiveEvent::Closed(why) => eprintln!("{why} after {done} frames in all"),
+            LiveEvent::Frame(frame) => {
+                if live.is_none() {
+                    live = Some(start(args, robot_name.as_deref(), temporal)?);
+                }
+                let Some(l) = live.as_mut() else { continue };
+                match estimate_frame(l, done, &frame, temporal) {
+                    Ok(value) => {
+                        writeln!(out, "{value}").context("writing an estimate")?;
+                        out.flush().context("writing an estimate")?;
+                        done += 1;
                     }
-                    let Some(l) = live.as_mut() else { continue };
-                    match estimate_frame(l, done, &frame, temporal) {
-                        Ok(value) => {
-                            writeln!(out, "{value}").context("writing an estimate")?;
-                            out.flush().context("writing an estimate")?;
-                            done += 1;
-                        }
-                        Err(e) => eprintln!("{from}: frame at t = {}: {e:#}", frame.t),
-                    }
-                    if done >= wanted {
-                        break;
-                    }
+                    Err(e) => eprintln!("frame at t = {}: {e:#}", frame.t),
                 }
             }
         }
-        eprintln!("{from}: closed after {done} frames in all");
     }
     Ok(())
 }

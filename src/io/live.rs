@@ -1,0 +1,227 @@
+//! Live sources: frames in the session format arriving as JSON lines over
+//! TCP (`host:port` or `tcp://host:port`: one sender at a time, each
+//! connection starting afresh) or UDP (`udp://host:port`: each datagram
+//! one or more lines), read on a thread of their own.
+
+use std::io::{BufRead as _, BufReader, Read as _};
+use std::net::{TcpListener, UdpSocket};
+use std::sync::mpsc::{Receiver, Sender, channel};
+
+use super::session::{Frame, LiveLine, LiveReader, MAX_LIVE_LINE_BYTES};
+
+/// Why a live source could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum LiveError {
+    /// The address could not be bound.
+    #[error("{address}: cannot listen: {cause}")]
+    Bind {
+        /// The address as given.
+        address: String,
+        /// The system's reason.
+        cause: std::io::Error,
+    },
+}
+
+/// What a live source reports, in order.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LiveEvent {
+    /// A sender connected (TCP) or was first heard from (UDP).
+    Connected(String),
+    /// A header line: the robot and joint names it gives.
+    Header {
+        /// The robot named.
+        robot: Option<String>,
+        /// Joint names in column order (empty when not given).
+        joints: Vec<String>,
+    },
+    /// A good frame.
+    Frame(Frame),
+    /// A line that was not used, and why (never fatal).
+    Bad(String),
+    /// The sender closed the connection, or the socket failed: why.
+    Closed(String),
+}
+
+/// A listening live source; events arrive on [`LiveSource::events`].
+pub struct LiveSource {
+    /// The address listened on (with the port the system chose for port 0).
+    pub address: String,
+    /// The events, as they come.
+    pub events: Receiver<LiveEvent>,
+}
+
+/// The transport and socket address of `address`.
+fn parse(address: &str) -> (bool, &str) {
+    if let Some(rest) = address.strip_prefix("udp://") {
+        (true, rest)
+    } else {
+        (false, address.strip_prefix("tcp://").unwrap_or(address))
+    }
+}
+
+impl LiveSource {
+    /// Listens on `address` (see the module's doc); `wake` is called after
+    /// each batch of events (e.g. to repaint a window).
+    pub fn listen(address: &str, wake: impl Fn() + Send + 'static) -> Result<Self, LiveError> {
+        let (udp, socket_address) = parse(address);
+        let bind_error = |cause| LiveError::Bind {
+            address: address.to_owned(),
+            cause,
+        };
+        let (tx, events) = channel();
+        let bound = if udp {
+            let socket = UdpSocket::bind(socket_address).map_err(bind_error)?;
+            let local = socket.local_addr().map_err(bind_error)?;
+            std::thread::spawn(move || receive_udp(&socket, &tx, &wake));
+            format!("udp://{local}")
+        } else {
+            let listener = TcpListener::bind(socket_address).map_err(bind_error)?;
+            let local = listener.local_addr().map_err(bind_error)?;
+            std::thread::spawn(move || accept_tcp(&listener, &tx, &wake));
+            local.to_string()
+        };
+        Ok(Self { address: bound, events })
+    }
+}
+
+/// What a line gives, as an event.
+fn event(reader: &mut LiveReader, line: &str, from: &str) -> LiveEvent {
+    match reader.line(line) {
+        LiveLine::Header { robot, joints } => LiveEvent::Header { robot, joints },
+        LiveLine::Frame(frame) => LiveEvent::Frame(frame),
+        LiveLine::Bad(p) => LiveEvent::Bad(format!(
+            "{from}: skipped line {} (counting from 0): {}: {}",
+            p.frame, p.field, p.message
+        )),
+    }
+}
+
+fn accept_tcp(listener: &TcpListener, tx: &Sender<LiveEvent>, wake: &dyn Fn()) {
+    let mut reader = LiveReader::new(None);
+    loop {
+        let Ok((connection, from)) = listener.accept() else {
+            continue;
+        };
+        let from = from.to_string();
+        reader.restart();
+        if tx.send(LiveEvent::Connected(from.clone())).is_err() {
+            return;
+        }
+        wake();
+        let mut lines = BufReader::new(connection);
+        let mut line = String::new();
+        let why = loop {
+            line.clear();
+            match (&mut lines).take(MAX_LIVE_LINE_BYTES as u64 + 1).read_line(&mut line) {
+                Ok(0) => break format!("{from}: closed"),
+                Ok(_) => {}
+                Err(e) => break format!("{from}: {e}"),
+            }
+            if tx.send(event(&mut reader, line.trim_end(), &from)).is_err() {
+                return;
+            }
+            wake();
+        };
+        if tx.send(LiveEvent::Closed(why)).is_err() {
+            return;
+        }
+        wake();
+    }
+}
+
+fn receive_udp(socket: &UdpSocket, tx: &Sender<LiveEvent>, wake: &dyn Fn()) {
+    let mut reader = LiveReader::new(None);
+    let mut buffer = vec![0u8; 65_536];
+    let mut heard = std::collections::BTreeSet::new();
+    loop {
+        let (n, from) = match socket.recv_from(&mut buffer) {
+            Ok(got) => got,
+            Err(e) => {
+                let _ = tx.send(LiveEvent::Closed(e.to_string()));
+                wake();
+                return;
+            }
+        };
+        let from = from.to_string();
+        if heard.insert(from.clone()) && tx.send(LiveEvent::Connected(from.clone())).is_err() {
+            return;
+        }
+        let text = String::from_utf8_lossy(buffer.get(..n).unwrap_or_default());
+        for line in text.lines().filter(|l| !l.trim().is_empty()) {
+            if tx.send(event(&mut reader, line.trim_end(), &from)).is_err() {
+                return;
+            }
+        }
+        wake();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write as _;
+    use std::time::Duration;
+
+    fn collect(source: &LiveSource, frames: usize) -> Vec<LiveEvent> {
+        let mut got = Vec::new();
+        while got.iter().filter(|e| matches!(e, LiveEvent::Frame(_))).count() < frames {
+            got.push(source.events.recv_timeout(Duration::from_secs(10)).unwrap());
+        }
+        got
+    }
+
+    const LINES: &str = "{\"format\": \"contact-session\", \"version\": 1, \"robot\": \"lwr4plus\"}\n\
+{\"t\": 0.0, \"q\": [0, 0], \"tau\": [0.5, 0]}\nnot json\n{\"t\": 0.1, \"q\": [0, 1], \"tau\": [0, 0]}\n";
+
+    #[test]
+    fn tcp_lines_become_events_and_a_reconnect_starts_afresh() {
+        let source = LiveSource::listen("127.0.0.1:0", || {}).unwrap();
+        for _ in 0..2 {
+            let mut c = std::net::TcpStream::connect(&source.address).unwrap();
+            c.write_all(LINES.as_bytes()).unwrap();
+            drop(c);
+            let events = collect(&source, 2);
+            assert!(matches!(events[0], LiveEvent::Connected(_)));
+            assert_eq!(
+                events[1],
+                LiveEvent::Header {
+                    robot: Some("lwr4plus".into()),
+                    joints: Vec::new()
+                }
+            );
+            assert!(matches!(&events[2], LiveEvent::Frame(f) if f.tau == [0.5, 0.0]));
+            assert!(
+                matches!(&events[3], LiveEvent::Bad(why) if why.contains("skipped line")),
+                "{:?}",
+                events[3]
+            );
+            assert!(matches!(&events[4], LiveEvent::Frame(f) if f.t == 0.1));
+            assert!(matches!(
+                source.events.recv_timeout(Duration::from_secs(10)),
+                Ok(LiveEvent::Closed(_))
+            ));
+        }
+    }
+
+    #[test]
+    fn udp_datagrams_carry_lines() {
+        let source = LiveSource::listen("udp://127.0.0.1:0", || {}).unwrap();
+        let to = source.address.trim_start_matches("udp://").to_owned();
+        let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let (head, rest) = LINES.split_once('\n').unwrap();
+        socket.send_to(head.as_bytes(), &to).unwrap();
+        std::thread::sleep(Duration::from_millis(50));
+        socket.send_to(rest.as_bytes(), &to).unwrap();
+        let events = collect(&source, 2);
+        assert!(matches!(events[0], LiveEvent::Connected(_)));
+        assert!(matches!(events[1], LiveEvent::Header { .. }));
+        let frames: Vec<f64> = events
+            .iter()
+            .filter_map(|e| match e {
+                LiveEvent::Frame(f) => Some(f.t),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(frames, [0.0, 0.1]);
+    }
+}
