@@ -292,27 +292,7 @@ pub(crate) fn scan(
     visit: &mut dyn FnMut(RawMessage<'_>),
 ) -> Result<&'static str, RecordingError> {
     if bytes.starts_with(MCAP_MAGIC) {
-        let stream = mcap::MessageStream::new(bytes).map_err(|e| RecordingError::Mcap {
-            path: path.to_owned(),
-            reason: e.to_string(),
-        })?;
-        for message in stream {
-            let message = message.map_err(|e| RecordingError::Mcap {
-                path: path.to_owned(),
-                reason: e.to_string(),
-            })?;
-            let channel = &message.channel;
-            let schema = channel.schema.as_deref();
-            visit(RawMessage {
-                key: u32::from(channel.id),
-                topic: &channel.topic,
-                message_type: schema.map_or("", |s| s.name.as_str()),
-                schema: schema.map(|s| (s.encoding.as_str(), &*s.data)),
-                message_encoding: &channel.message_encoding,
-                log_ns: message.log_time,
-                data: &message.data,
-            });
-        }
+        McapScan::default().records(path, bytes, visit)?;
         Ok("MCAP")
     } else if bytes.starts_with(bag::BAG_MAGIC) {
         bag::read_bag(bytes, &mut |connection, message| {
@@ -333,6 +313,127 @@ pub(crate) fn scan(
         Ok("ROS 1 bag")
     } else {
         Err(RecordingError::Unknown { path: path.to_owned() })
+    }
+}
+
+/// Most bytes one MCAP chunk may hold once uncompressed.
+const MAX_CHUNK_BYTES: u64 = 1 << 30;
+
+/// Schemas and channels of an MCAP file, as its records define them.
+///
+/// The container's records are read with the `mcap` crate's linear reader
+/// (whose record lengths are bounded by the buffer); chunks are
+/// decompressed and checked here, and their records read the same way
+/// (its chunk reader trusts the lengths inside a chunk).
+#[derive(Default)]
+struct McapScan {
+    /// By id: name, encoding, text.
+    schemas: HashMap<u16, (String, String, Vec<u8>)>,
+    /// By id: topic, message encoding, schema id.
+    channels: HashMap<u16, (String, String, u16)>,
+}
+
+impl McapScan {
+    fn records(
+        &mut self,
+        path: &Path,
+        bytes: &[u8],
+        visit: &mut dyn FnMut(RawMessage<'_>),
+    ) -> Result<(), RecordingError> {
+        let reader = mcap::read::LinearReader::new(bytes).map_err(|e| mcap_error(path, &e))?;
+        for record in reader {
+            self.record(path, record.map_err(|e| mcap_error(path, &e))?, visit)?;
+        }
+        Ok(())
+    }
+
+    fn record(
+        &mut self,
+        path: &Path,
+        record: mcap::records::Record<'_>,
+        visit: &mut dyn FnMut(RawMessage<'_>),
+    ) -> Result<(), RecordingError> {
+        use mcap::records::Record;
+        let fail = |reason: String| RecordingError::Mcap {
+            path: path.to_owned(),
+            reason,
+        };
+        match record {
+            Record::Schema { header, data } => {
+                self.schemas
+                    .insert(header.id, (header.name, header.encoding, data.into_owned()));
+            }
+            Record::Channel(c) => {
+                self.channels.insert(c.id, (c.topic, c.message_encoding, c.schema_id));
+            }
+            Record::Message { header, data } => {
+                let Some((topic, message_encoding, schema_id)) = self.channels.get(&header.channel_id) else {
+                    return Err(fail(format!(
+                        "message {} on channel {}, which no channel record defines",
+                        header.sequence, header.channel_id
+                    )));
+                };
+                let schema = self.schemas.get(schema_id);
+                visit(RawMessage {
+                    key: u32::from(header.channel_id),
+                    topic,
+                    message_type: schema.map_or("", |s| s.0.as_str()),
+                    schema: schema.map(|s| (s.1.as_str(), s.2.as_slice())),
+                    message_encoding,
+                    log_ns: header.log_time,
+                    data: &data,
+                });
+            }
+            Record::Chunk { header, data } => {
+                let size = header.uncompressed_size;
+                if size > MAX_CHUNK_BYTES {
+                    return Err(fail(format!("a chunk claims {size} bytes uncompressed")));
+                }
+                let size = size as usize;
+                let inflated = match header.compression.as_str() {
+                    "" => data.into_owned(),
+                    "zstd" => zstd::bulk::decompress(&data, size).map_err(|e| fail(format!("zstd chunk: {e}")))?,
+                    "lz4" => {
+                        use std::io::Read as _;
+                        let mut out = Vec::with_capacity(size);
+                        lz4::Decoder::new(&*data)
+                            .and_then(|d| d.take(size as u64 + 1).read_to_end(&mut out))
+                            .map_err(|e| fail(format!("lz4 chunk: {e}")))?;
+                        out
+                    }
+                    other => {
+                        return Err(fail(format!(
+                            "chunk compression '{other}' is not supported (zstd, lz4, none)"
+                        )));
+                    }
+                };
+                if inflated.len() != size {
+                    return Err(fail(format!(
+                        "a chunk holds {} bytes uncompressed, its header says {size}",
+                        inflated.len()
+                    )));
+                }
+                if header.uncompressed_crc != 0 && crc32fast::hash(&inflated) != header.uncompressed_crc {
+                    return Err(fail("a chunk's CRC does not match its content".to_owned()));
+                }
+                for inner in mcap::read::LinearReader::sans_magic(&inflated) {
+                    let inner = inner.map_err(|e| mcap_error(path, &e))?;
+                    if matches!(inner, Record::Chunk { .. }) {
+                        return Err(fail("a chunk inside a chunk".to_owned()));
+                    }
+                    self.record(path, inner, visit)?;
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
+fn mcap_error(path: &Path, e: &mcap::McapError) -> RecordingError {
+    RecordingError::Mcap {
+        path: path.to_owned(),
+        reason: e.to_string(),
     }
 }
 
@@ -985,6 +1086,38 @@ mod tests {
             index.mapping(&TopicChoice::default()),
             Err(RecordingError::Choice { .. })
         ));
+    }
+
+    /// Found by the fuzzer: a record inside a chunk claiming 2^64 - 1
+    /// bytes made the `mcap` crate's chunk reader overflow (a panic).
+    #[test]
+    fn a_chunk_record_claiming_exabytes_is_an_error() {
+        let mut file = MCAP_MAGIC.to_vec();
+        let record = |op: u8, body: &[u8]| {
+            let mut r = vec![op];
+            r.extend((body.len() as u64).to_le_bytes());
+            r.extend(body);
+            r
+        };
+        // Header: profile "", library "".
+        file.extend(record(0x01, &[0; 8]));
+        let mut inner = vec![0xff];
+        inner.extend(u64::MAX.to_le_bytes());
+        let mut chunk = Vec::new();
+        chunk.extend(0u64.to_le_bytes());
+        chunk.extend(0u64.to_le_bytes());
+        chunk.extend((inner.len() as u64).to_le_bytes());
+        chunk.extend(0u32.to_le_bytes());
+        chunk.extend(0u32.to_le_bytes()); // compression "": none
+        chunk.extend((inner.len() as u64).to_le_bytes());
+        chunk.extend(&inner);
+        file.extend(record(0x06, &chunk));
+        let result = index(Path::new("x.mcap"), &file);
+        assert!(
+            matches!(result, Err(RecordingError::Mcap { .. })),
+            "{:?}",
+            result.map(|i| i.topics.len())
+        );
     }
 
     #[test]
