@@ -46,8 +46,16 @@ enum Command {
     /// Opens the desktop app on a scene file, a URDF, a built-in robot or
     /// a recorded session (JSON or CSV), replayed on a timeline.
     View {
-        /// A scene (`.json`), a URDF, `lwr4plus` / `simple6`, or a session.
-        target: String,
+        /// A scene (`.json`), a URDF, `lwr4plus` / `simple6`, a session or
+        /// a robot recording (`.mcap`, `.bag`); with --live, the robot.
+        #[arg(required_unless_present = "live")]
+        target: Option<String>,
+        /// Listen for a live session on this address (`host:port` or
+        /// `tcp://host:port`, `udp://host:port`): frames as JSON lines
+        /// fill the timeline and the view follows the newest (see
+        /// `stream`).
+        #[arg(long)]
+        live: Option<String>,
         /// The robot of a session (overrides the session's; a CSV session
         /// needs one): a built-in name or a URDF.
         #[arg(long)]
@@ -211,9 +219,15 @@ fn run(cli: Cli) -> Result<()> {
         Some(Command::ExportAssets { root }) => export_assets(&root),
         Some(Command::View {
             target,
+            live,
             robot,
             package_paths,
-        }) => run_app(Some(&target), robot.as_deref(), &package_paths),
+        }) => run_app(
+            target.as_deref().or(robot.as_deref()),
+            robot.as_deref(),
+            &package_paths,
+            live,
+        ),
         Some(Command::Screenshot {
             target,
             robot,
@@ -223,7 +237,7 @@ fn run(cli: Cli) -> Result<()> {
             height,
         }) => screenshot(target.as_deref(), robot.as_deref(), frame, &out, [width, height]),
         Some(Command::RecordDemo { out, rate, seconds }) => record_demo(&out, rate, seconds),
-        None => run_app(None, None, &[]),
+        None => run_app(None, None, &[], None),
     }
 }
 
@@ -483,9 +497,10 @@ fn screenshot(
 }
 
 /// Opens the app: on the built-in LWR with a push, or on `target`.
-fn run_app(target: Option<&str>, robot: Option<&str>, package_paths: &[PathBuf]) -> Result<()> {
+fn run_app(target: Option<&str>, robot: Option<&str>, package_paths: &[PathBuf], live: Option<String>) -> Result<()> {
     use proprioscope::app::ProprioscopeApp;
-    let start = proprioscope::app::open_target_with(target, robot, package_paths)?;
+    let mut start = proprioscope::app::open_target_with(target, robot, package_paths)?;
+    start.live = live;
     let options = eframe::NativeOptions {
         viewport: eframe::egui::ViewportBuilder::default()
             .with_inner_size([1400.0, 900.0])

@@ -902,3 +902,63 @@ fn an_ambiguous_recording_asks_for_its_topics_once() {
     assert!(harness.state().topic_prompt.is_none());
     assert!(harness.state().model.replay.is_some(), "{:?}", harness.state().error);
 }
+
+/// A live session: frames sent over TCP fill the timeline and the view
+/// follows the newest; after the user steps back it stays there while
+/// frames keep coming, until *Follow newest*.
+#[test]
+fn a_live_session_fills_the_timeline_and_follows_the_newest_frame() {
+    use proprioscope::app::Command;
+    use std::io::Write as _;
+    let json = demo_session("live.session.json", 1.0);
+    let session = proprioscope::io::session::Session::read(&json).unwrap();
+    let mut harness = app_harness();
+    harness.state_mut().start_live("127.0.0.1:0");
+    let address = harness.state().live_address().unwrap().to_owned();
+    let mut sender = std::net::TcpStream::connect(&address).unwrap();
+    let header = serde_json::json!({"format": "contact-session", "version": 1, "joints": session.joints});
+    let send = |sender: &mut std::net::TcpStream, frames: &[proprioscope::io::session::Frame]| {
+        for f in frames {
+            writeln!(sender, "{}", f.to_json()).unwrap();
+        }
+        sender.flush().unwrap();
+    };
+    writeln!(sender, "{header}").unwrap();
+    send(&mut sender, &session.frames[..5]);
+    let wait_for = |harness: &mut Harness<'_, ProprioscopeApp>, frames: usize| {
+        for _ in 0..1000 {
+            harness.step();
+            if harness
+                .state()
+                .model
+                .replay
+                .as_ref()
+                .is_some_and(|r| r.session.frames.len() == frames)
+            {
+                return;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        panic!("{frames} frames did not arrive");
+    };
+    wait_for(&mut harness, 5);
+    assert_eq!(harness.state().model.replay.as_ref().unwrap().frame, 4);
+    assert_eq!(harness.state().model.q, session.frames[4].q);
+    send(&mut sender, &session.frames[5..8]);
+    wait_for(&mut harness, 8);
+    assert_eq!(harness.state().model.replay.as_ref().unwrap().frame, 7);
+    // Back to frame 2: it stays while frames arrive.
+    harness.state_mut().apply(Command::SetFrame(2));
+    send(&mut sender, &session.frames[8..12]);
+    wait_for(&mut harness, 12);
+    assert_eq!(harness.state().model.replay.as_ref().unwrap().frame, 2);
+    harness.get_by_label("Follow newest").click();
+    harness.run_steps(2);
+    assert_eq!(harness.state().model.replay.as_ref().unwrap().frame, 11);
+    // Stopped, the frames stay as a session and are estimated as a whole.
+    harness.get_by_label("Stop live").click();
+    settle(&mut harness);
+    let app = harness.state();
+    assert!(app.live_address().is_none());
+    assert_eq!(app.model.replay.as_ref().unwrap().session.frames.len(), 12);
+}

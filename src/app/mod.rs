@@ -2,6 +2,7 @@
 //! click to push, the torques it causes and the live posterior heatmap.
 //! The only place where egui, `render` and `io` meet.
 
+pub mod live;
 pub mod session;
 pub mod timeline;
 pub mod worker;
@@ -46,6 +47,8 @@ pub struct AppStart {
     pub session: Option<timeline::SessionTarget>,
     /// Folders for `package://` URIs.
     pub package_paths: Vec<std::path::PathBuf>,
+    /// An address to listen on for a live session.
+    pub live: Option<String>,
 }
 
 /// Whether `path` is a recorded session: a CSV file, or JSON that says it
@@ -106,6 +109,7 @@ pub fn open_target_with(
                 push,
                 settings: StartSettings::default(),
                 session: None,
+                live: None,
                 package_paths: package_paths.to_vec(),
             }
         }
@@ -128,6 +132,7 @@ pub fn open_target_with(
                 push: None,
                 settings: StartSettings::default(),
                 session: None,
+                live: None,
                 package_paths: package_paths.to_vec(),
             }
         }
@@ -195,6 +200,7 @@ fn scene_start(path: &std::path::Path, package_paths: &[std::path::PathBuf]) -> 
         push,
         settings,
         session: None,
+        live: None,
         package_paths,
     })
 }
@@ -885,6 +891,10 @@ pub struct ProprioscopeApp {
     session_generation: u64,
     session_key: Option<timeline::SessionKey>,
     loader: Option<session::Loader>,
+    /// A live source being listened to.
+    live: Option<live::LiveView>,
+    /// The address typed in the Session menu for listening.
+    live_address_input: String,
     /// A recording whose topics the user is asked to choose.
     pub topic_prompt: Option<session::TopicPrompt>,
     /// Topics chosen per recording, and the last choice (tried first on
@@ -952,6 +962,8 @@ impl ProprioscopeApp {
             session_key: None,
             loader: None,
             topic_prompt: None,
+            live: None,
+            live_address_input: "127.0.0.1:7878".to_owned(),
             topic_choices: std::collections::HashMap::new(),
             last_topic_choice: None,
             recording: None,
@@ -977,6 +989,9 @@ impl ProprioscopeApp {
         if let Some(session) = start.session {
             app.first_frame = session.frame;
             app.open_session(&session.path, session.robot);
+        }
+        if let Some(address) = start.live {
+            app.start_live(&address);
         }
         app
     }
@@ -2059,17 +2074,21 @@ impl eframe::App for ProprioscopeApp {
             "estimating…".to_owned()
         };
         self.poll_loader();
+        self.poll_live();
         self.poll_opening();
         self.update_session_estimates();
         let mut commands = self.playback_keys(ui.ctx());
         egui::Panel::top("menu").show(ui, |ui| self.menu_ui(ui));
         // Below the menu and across the whole width: a session's timeline.
-        if self.model.replay.is_some() {
+        if self.model.replay.is_some() || self.live.is_some() {
             egui::Panel::bottom("timeline")
                 .resizable(true)
                 .min_size(260.0)
                 .default_size(300.0)
-                .show(ui, |ui| commands.extend(self.timeline_ui(ui)));
+                .show(ui, |ui| {
+                    self.live_ui(ui);
+                    commands.extend(self.timeline_ui(ui));
+                });
         }
         egui::Panel::left("robot").show(ui, |ui| commands.extend(self.robot_panel_ui(ui)));
         egui::Panel::right("estimator").show(ui, |ui| {

@@ -240,11 +240,19 @@ impl TopicPrompt {
         let bytes = crate::io::recording::read_bytes(path).ok()?;
         let index = crate::io::recording::index(path, &bytes).ok()?;
         let position_topics: Vec<String> = index.position_topics().into_iter().map(str::to_owned).collect();
-        let torque_sources: Vec<(String, String)> = index
-            .topics
-            .iter()
-            .flat_map(|t| t.float_arrays().into_iter().map(|(f, _)| (t.topic.clone(), f)))
-            .collect();
+        // The likely torque arrays first (named external, then effort or
+        // torque), then every other float array.
+        let mut likely = index.torque_candidates();
+        likely.sort_by_key(|c| std::cmp::Reverse(c.2));
+        let mut torque_sources: Vec<(String, String)> = likely.into_iter().map(|(t, f, _)| (t, f)).collect();
+        for topic in &index.topics {
+            for (field, _) in topic.float_arrays() {
+                let source = (topic.topic.clone(), field);
+                if !torque_sources.contains(&source) {
+                    torque_sources.push(source);
+                }
+            }
+        }
         let choice = TopicChoice {
             q_topic: position_topics.first().cloned(),
             tau_topic: torque_sources.first().map(|(t, _)| t.clone()),

@@ -84,8 +84,15 @@ impl ProprioscopeApp {
         egui::Window::new("Recording topics")
             .collapsible(false)
             .resizable(false)
+            .anchor(egui::Align2::CENTER_CENTER, [0.0, 0.0])
             .show(ctx, |ui| {
-                ui.label(prompt.path.display().to_string());
+                ui.label(format!(
+                    "Which topics make the frames of {}?",
+                    prompt
+                        .path
+                        .file_name()
+                        .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+                ));
                 ui.label(egui::RichText::new(&prompt.message).weak());
                 ui.separator();
                 let q = prompt.choice.q_topic.clone().unwrap_or_default();
@@ -148,7 +155,7 @@ impl ProprioscopeApp {
         }
     }
 
-    fn install_session(&mut self, data: SessionData, robot: Robot, spec: String) {
+    pub(super) fn install_session(&mut self, data: SessionData, robot: Robot, spec: String) {
         let joints = robot.sensed().len();
         // As `estimate --temporal auto`.
         let times: Vec<f64> = data.frames.iter().map(|f| f.t).collect();
@@ -209,6 +216,11 @@ impl ProprioscopeApp {
         let Some(replay) = &self.model.replay else {
             return;
         };
+        // A live session grows every frame: its frames are estimated as
+        // they are shown, and as a whole once the stream stops.
+        if self.live.is_some() {
+            return;
+        }
         let m = &self.model;
         let Some(key) = self.current_session_key() else {
             return;
@@ -296,6 +308,8 @@ impl ProprioscopeApp {
     pub(super) fn session_settled(&self) -> bool {
         self.loader.is_none()
             && (self.model.replay.is_none()
+                // Live frames are estimated as shown, not as a whole.
+                || self.live.is_some()
                 || (self.session_key.is_some()
                     && self.session_key == self.current_session_key()
                     && self.session_done + self.session_failures.len() >= self.session_estimates.len()))
@@ -417,7 +431,7 @@ impl ProprioscopeApp {
             commands.push(Command::SetFrame(frame));
         }
         let done = self.session_estimated();
-        if done < frames.len() {
+        if done < frames.len() && self.live.is_none() {
             ui.add(
                 egui::ProgressBar::new(done as f32 / frames.len().max(1) as f32)
                     .text(format!("estimating the session: {done} of {} frames", frames.len())),
@@ -729,6 +743,14 @@ impl ProprioscopeApp {
                     self.open_session(&path, None);
                 }
             }
+            ui.horizontal(|ui| {
+                ui.add(egui::TextEdit::singleline(&mut self.live_address_input).desired_width(160.0));
+                if self.live.is_none() && ui.button("Listen live").on_hover_text("frames as JSON lines over TCP (host:port) or UDP (udp://host:port), e.g. from `proprioscope stream`").clicked() {
+                    ui.close();
+                    let address = self.live_address_input.clone();
+                    self.start_live(&address);
+                }
+            });
             if self.model.replay.is_some() && ui.button("Close session").clicked() {
                 ui.close();
                 self.close_session();

@@ -522,7 +522,7 @@ pub fn index(path: &Path, bytes: &[u8]) -> Result<RecordingIndex, RecordingError
     })
 }
 
-/// A torque candidate: topic, field, and how likely it is the external
+/// The torque candidates: topic, field, and how likely it is the external
 /// torque (2: named external; 1: an effort or torque).
 fn torque_candidates(index: &RecordingIndex) -> Vec<(String, String, u8)> {
     let mut candidates = Vec::new();
@@ -553,6 +553,13 @@ impl RecordingIndex {
             option: option.to_owned(),
             reason,
         }
+    }
+
+    /// Float arrays that may be the external torques: topic, field, and
+    /// how likely (2: named *external*; 1: an effort or torque).
+    #[must_use]
+    pub fn torque_candidates(&self) -> Vec<(String, String, u8)> {
+        torque_candidates(self)
     }
 
     /// Topics with joint names and positions (`JointState`-like).

@@ -1,0 +1,208 @@
+//! A live session in the app: frames arriving over TCP or UDP fill the
+//! timeline, and the view follows the newest frame unless the user has
+//! moved back (then it stays, and *Follow newest* catches up).
+//!
+//! While live, frames are estimated one at a time as they are shown (the
+//! view's own estimate); the whole-session estimates over time start when
+//! the stream is stopped and the frames become an ordinary session.
+
+use std::sync::Arc;
+
+use eframe::egui;
+
+use super::session::SessionData;
+use super::{Command, ProprioscopeApp};
+use crate::io::live::{LiveEvent, LiveSource};
+use crate::io::session::Frame;
+
+/// A live source and what the app knows of it.
+pub struct LiveView {
+    source: LiveSource,
+    /// Show the newest frame as it arrives.
+    pub follow: bool,
+    /// Joint names of the current sender's header, when given.
+    joints: Vec<String>,
+    /// The current sender.
+    pub sender: Option<String>,
+    /// Frames received (all senders).
+    pub received: usize,
+    /// Lines and frames not used, with the last reason.
+    pub skipped: usize,
+    /// The last thing said about the stream.
+    pub last_note: String,
+    /// Frames of the current sender not yet installed.
+    pending: Vec<Frame>,
+    /// The next frames start a new session (a new sender).
+    fresh: bool,
+}
+
+impl ProprioscopeApp {
+    /// Listens on `address` (`host:port`, `tcp://…` or `udp://…`) for a
+    /// live session on the current robot.
+    pub fn start_live(&mut self, address: &str) {
+        let ctx = self.ctx.clone();
+        match LiveSource::listen(address, move || ctx.request_repaint()) {
+            Ok(source) => {
+                let note = format!("listening on {}", source.address);
+                self.live = Some(LiveView {
+                    source,
+                    follow: true,
+                    joints: Vec::new(),
+                    sender: None,
+                    received: 0,
+                    skipped: 0,
+                    last_note: note,
+                    pending: Vec::new(),
+                    fresh: true,
+                });
+            }
+            Err(e) => self.error = Some(format!("could not listen: {e}")),
+        }
+    }
+
+    /// Stops listening; the frames received stay as a session.
+    pub fn stop_live(&mut self) {
+        self.live = None;
+        // Estimated as a whole from now on.
+        self.session_key = None;
+    }
+
+    /// The address listened on, while live.
+    #[must_use]
+    pub fn live_address(&self) -> Option<&str> {
+        self.live.as_ref().map(|l| l.source.address.as_str())
+    }
+
+    /// Takes what the live source sent since the last frame.
+    pub(super) fn poll_live(&mut self) {
+        let Some(live) = self.live.as_mut() else {
+            return;
+        };
+        let width = self.model.robot.sensed().len();
+        while let Ok(event) = live.source.events.try_recv() {
+            match event {
+                LiveEvent::Connected(from) => {
+                    live.last_note = format!("{from}: connected");
+                    live.sender = Some(from);
+                    live.joints.clear();
+                    live.pending.clear();
+                    live.fresh = true;
+                }
+                LiveEvent::Header { joints, .. } => live.joints = joints,
+                LiveEvent::Frame(frame) if frame.q.len() == width && frame.tau.len() == width => {
+                    live.received += 1;
+                    live.pending.push(frame);
+                }
+                LiveEvent::Frame(frame) => {
+                    live.skipped += 1;
+                    live.last_note = format!(
+                        "frame at t = {} skipped: {} joint values, the robot senses {width}",
+                        frame.t,
+                        frame.q.len()
+                    );
+                }
+                LiveEvent::Bad(why) => {
+                    live.skipped += 1;
+                    live.last_note = why;
+                }
+                LiveEvent::Closed(why) => live.last_note = why,
+            }
+        }
+        if live.pending.is_empty() {
+            return;
+        }
+        let frames = std::mem::take(&mut live.pending);
+        let fresh = std::mem::replace(&mut live.fresh, false) || self.model.replay.is_none();
+        let name = format!("live {}", live.source.address);
+        let joints = live.joints.clone();
+        if fresh {
+            let mut robot = (*self.model.robot).clone();
+            if !joints.is_empty()
+                && let Err(e) = robot.set_sensed(&joints)
+            {
+                self.error = Some(format!("{name}: the header's joints: {e}"));
+                return;
+            }
+            let data = SessionData {
+                path: name.into(),
+                file_frames: (0..frames.len()).collect(),
+                frames,
+                problems: Vec::new(),
+            };
+            let spec = self.robot_spec.clone();
+            self.first_frame = Some(data.frames.len().saturating_sub(1));
+            self.install_session(data, robot, spec);
+            // Live, a frame is estimated alone as it is shown; the choice
+            // over time is the user's once the stream stops.
+            if let Some(replay) = self.model.replay.as_mut() {
+                replay.over_time = crate::core::pipeline::Temporal::None;
+            }
+            return;
+        }
+        let Some(replay) = self.model.replay.as_mut() else {
+            return;
+        };
+        let shown_last = replay.frame + 1 >= replay.session.frames.len();
+        let mut data = (*replay.session).clone();
+        let start = data.frames.len();
+        data.file_frames.extend(start..start + frames.len());
+        data.frames.extend(frames);
+        let last = data.frames.len().saturating_sub(1);
+        replay.session = Arc::new(data);
+        if let Some(live) = self.live.as_mut() {
+            // Moving back from the newest frame stops following.
+            live.follow &= shown_last;
+            if live.follow {
+                self.apply(Command::SetFrame(last));
+            }
+        }
+    }
+
+    /// The live row above the timeline: where from, how many, follow.
+    pub(super) fn live_ui(&mut self, ui: &mut egui::Ui) {
+        let Some(live) = self.live.as_ref() else {
+            return;
+        };
+        let mut follow = false;
+        let mut stop = false;
+        ui.horizontal(|ui| {
+            ui.colored_label(
+                egui::Color32::from_rgb(220, 40, 40),
+                egui::RichText::new("LIVE").strong(),
+            );
+            ui.label(format!(
+                "{}: {} frames{}",
+                live.source.address,
+                live.received,
+                if live.skipped > 0 {
+                    format!(", {} lines skipped", live.skipped)
+                } else {
+                    String::new()
+                }
+            ));
+            ui.label(egui::RichText::new(&live.last_note).weak());
+            if live.follow {
+                ui.label("following the newest frame");
+            } else if ui.button("Follow newest").clicked() {
+                follow = true;
+            }
+            if ui.button("Stop live").clicked() {
+                stop = true;
+            }
+        });
+        if follow {
+            if let Some(live) = self.live.as_mut() {
+                live.follow = true;
+            }
+            let last = self
+                .model
+                .replay
+                .as_ref()
+                .map_or(0, |r| r.session.frames.len().saturating_sub(1));
+            self.apply(Command::SetFrame(last));
+        }
+        if stop {
+            self.stop_live();
+        }
+    }
+}
