@@ -292,7 +292,7 @@ pub(crate) fn scan(
     visit: &mut dyn FnMut(RawMessage<'_>),
 ) -> Result<&'static str, RecordingError> {
     if bytes.starts_with(MCAP_MAGIC) {
-        McapScan::default().records(path, bytes, visit)?;
+        McapScan::default().records(path, bytes.get(MCAP_MAGIC.len()..).unwrap_or_default(), false, visit)?;
         Ok("MCAP")
     } else if bytes.starts_with(bag::BAG_MAGIC) {
         bag::read_bag(bytes, &mut |connection, message| {
@@ -319,12 +319,58 @@ pub(crate) fn scan(
 /// Most bytes one MCAP chunk may hold once uncompressed.
 const MAX_CHUNK_BYTES: u64 = 1 << 30;
 
+/// A little-endian reader over one MCAP record's body, every length
+/// checked against the bytes there are.
+struct Fields<'a> {
+    bytes: &'a [u8],
+}
+
+impl<'a> Fields<'a> {
+    fn take(&mut self, n: usize) -> Option<&'a [u8]> {
+        let (head, rest) = (self.bytes.get(..n)?, self.bytes.get(n..)?);
+        self.bytes = rest;
+        Some(head)
+    }
+
+    fn u16(&mut self) -> Option<u16> {
+        Some(u16::from_le_bytes(self.take(2)?.try_into().ok()?))
+    }
+
+    fn u32(&mut self) -> Option<u32> {
+        Some(u32::from_le_bytes(self.take(4)?.try_into().ok()?))
+    }
+
+    fn u64(&mut self) -> Option<u64> {
+        Some(u64::from_le_bytes(self.take(8)?.try_into().ok()?))
+    }
+
+    fn string(&mut self) -> Option<String> {
+        let n = self.u32()? as usize;
+        Some(String::from_utf8_lossy(self.take(n)?).into_owned())
+    }
+
+    /// A u32-length-prefixed byte array.
+    fn bytes32(&mut self) -> Option<&'a [u8]> {
+        let n = self.u32()? as usize;
+        self.take(n)
+    }
+}
+
+const OP_SCHEMA: u8 = 0x03;
+const OP_CHANNEL: u8 = 0x04;
+const OP_MESSAGE: u8 = 0x05;
+const OP_CHUNK: u8 = 0x06;
+const OP_DATA_END: u8 = 0x0F;
+
 /// Schemas and channels of an MCAP file, as its records define them.
 ///
-/// The container's records are read with the `mcap` crate's linear reader
-/// (whose record lengths are bounded by the buffer); chunks are
-/// decompressed and checked here, and their records read the same way
-/// (its chunk reader trusts the lengths inside a chunk).
+/// Our own reader of the container (the `mcap` crate writes our output):
+/// the crate's reader 0.26 panicked on a record inside a chunk claiming
+/// 2^64 − 1 bytes and allocated 4 GiB for a string claiming as much
+/// (both found by fuzzing). Here every length is checked against the
+/// bytes there are, chunks are decompressed within their declared size
+/// and checked against their CRC, and a file cut short is read up to its
+/// last whole record.
 #[derive(Default)]
 struct McapScan {
     /// By id: name, encoding, text.
@@ -334,15 +380,38 @@ struct McapScan {
 }
 
 impl McapScan {
+    /// The records of `bytes` (after the magic, or a chunk's content).
     fn records(
         &mut self,
         path: &Path,
-        bytes: &[u8],
+        mut bytes: &[u8],
+        in_chunk: bool,
         visit: &mut dyn FnMut(RawMessage<'_>),
     ) -> Result<(), RecordingError> {
-        let reader = mcap::read::LinearReader::new(bytes).map_err(|e| mcap_error(path, &e))?;
-        for record in reader {
-            self.record(path, record.map_err(|e| mcap_error(path, &e))?, visit)?;
+        let fail = |reason: String| RecordingError::Mcap {
+            path: path.to_owned(),
+            reason,
+        };
+        while bytes.len() >= 9 {
+            let mut head = Fields { bytes };
+            let (Some(op), Some(len)) = (head.take(1).and_then(|b| b.first().copied()), head.u64()) else {
+                break;
+            };
+            let Some(body) = usize::try_from(len).ok().and_then(|n| head.take(n)) else {
+                if in_chunk {
+                    return Err(fail(format!(
+                        "a record in a chunk claims {len} bytes, more than the chunk holds"
+                    )));
+                }
+                // A file cut short (a recorder killed): what came before is used.
+                break;
+            };
+            bytes = head.bytes;
+            match op {
+                OP_DATA_END => break,
+                OP_CHUNK if in_chunk => return Err(fail("a chunk inside a chunk".to_owned())),
+                _ => self.record(path, op, body, visit)?,
+            }
         }
         Ok(())
     }
@@ -350,90 +419,99 @@ impl McapScan {
     fn record(
         &mut self,
         path: &Path,
-        record: mcap::records::Record<'_>,
+        op: u8,
+        body: &[u8],
         visit: &mut dyn FnMut(RawMessage<'_>),
     ) -> Result<(), RecordingError> {
-        use mcap::records::Record;
-        let fail = |reason: String| RecordingError::Mcap {
+        let fail = |what: &str| RecordingError::Mcap {
             path: path.to_owned(),
-            reason,
+            reason: what.to_owned(),
         };
-        match record {
-            Record::Schema { header, data } => {
-                self.schemas
-                    .insert(header.id, (header.name, header.encoding, data.into_owned()));
+        let mut f = Fields { bytes: body };
+        match op {
+            OP_SCHEMA => {
+                let (Some(id), Some(name), Some(encoding), Some(data)) = (f.u16(), f.string(), f.string(), f.bytes32())
+                else {
+                    return Err(fail("a schema record is malformed"));
+                };
+                self.schemas.insert(id, (name, encoding, data.to_vec()));
             }
-            Record::Channel(c) => {
-                self.channels.insert(c.id, (c.topic, c.message_encoding, c.schema_id));
+            OP_CHANNEL => {
+                let (Some(id), Some(schema_id), Some(topic), Some(encoding)) =
+                    (f.u16(), f.u16(), f.string(), f.string())
+                else {
+                    return Err(fail("a channel record is malformed"));
+                };
+                self.channels.insert(id, (topic, encoding, schema_id));
             }
-            Record::Message { header, data } => {
-                let Some((topic, message_encoding, schema_id)) = self.channels.get(&header.channel_id) else {
-                    return Err(fail(format!(
-                        "message {} on channel {}, which no channel record defines",
-                        header.sequence, header.channel_id
+            OP_MESSAGE => {
+                let (Some(channel_id), Some(sequence), Some(log_ns), Some(_publish)) =
+                    (f.u16(), f.u32(), f.u64(), f.u64())
+                else {
+                    return Err(fail("a message record is malformed"));
+                };
+                let Some((topic, message_encoding, schema_id)) = self.channels.get(&channel_id) else {
+                    return Err(fail(&format!(
+                        "message {sequence} on channel {channel_id}, which no channel record defines"
                     )));
                 };
                 let schema = self.schemas.get(schema_id);
                 visit(RawMessage {
-                    key: u32::from(header.channel_id),
+                    key: u32::from(channel_id),
                     topic,
                     message_type: schema.map_or("", |s| s.0.as_str()),
                     schema: schema.map(|s| (s.1.as_str(), s.2.as_slice())),
                     message_encoding,
-                    log_ns: header.log_time,
-                    data: &data,
+                    log_ns,
+                    data: f.bytes,
                 });
             }
-            Record::Chunk { header, data } => {
-                let size = header.uncompressed_size;
+            OP_CHUNK => {
+                let (Some(_start), Some(_end), Some(size), Some(crc), Some(compression), Some(records_len)) =
+                    (f.u64(), f.u64(), f.u64(), f.u32(), f.string(), f.u64())
+                else {
+                    return Err(fail("a chunk record is malformed"));
+                };
+                let Some(data) = usize::try_from(records_len).ok().and_then(|n| f.take(n)) else {
+                    return Err(fail("a chunk claims more bytes than it holds"));
+                };
                 if size > MAX_CHUNK_BYTES {
-                    return Err(fail(format!("a chunk claims {size} bytes uncompressed")));
+                    return Err(fail(&format!("a chunk claims {size} bytes uncompressed")));
                 }
                 let size = size as usize;
-                let inflated = match header.compression.as_str() {
-                    "" => data.into_owned(),
-                    "zstd" => zstd::bulk::decompress(&data, size).map_err(|e| fail(format!("zstd chunk: {e}")))?,
+                let inflated = match compression.as_str() {
+                    "" => data.to_vec(),
+                    "zstd" => zstd::bulk::decompress(data, size).map_err(|e| fail(&format!("zstd chunk: {e}")))?,
                     "lz4" => {
                         use std::io::Read as _;
                         let mut out = Vec::with_capacity(size);
-                        lz4::Decoder::new(&*data)
+                        lz4::Decoder::new(data)
                             .and_then(|d| d.take(size as u64 + 1).read_to_end(&mut out))
-                            .map_err(|e| fail(format!("lz4 chunk: {e}")))?;
+                            .map_err(|e| fail(&format!("lz4 chunk: {e}")))?;
                         out
                     }
                     other => {
-                        return Err(fail(format!(
+                        return Err(fail(&format!(
                             "chunk compression '{other}' is not supported (zstd, lz4, none)"
                         )));
                     }
                 };
                 if inflated.len() != size {
-                    return Err(fail(format!(
+                    return Err(fail(&format!(
                         "a chunk holds {} bytes uncompressed, its header says {size}",
                         inflated.len()
                     )));
                 }
-                if header.uncompressed_crc != 0 && crc32fast::hash(&inflated) != header.uncompressed_crc {
-                    return Err(fail("a chunk's CRC does not match its content".to_owned()));
+                if crc != 0 && crc32fast::hash(&inflated) != crc {
+                    return Err(fail("a chunk's CRC does not match its content"));
                 }
-                for inner in mcap::read::LinearReader::sans_magic(&inflated) {
-                    let inner = inner.map_err(|e| mcap_error(path, &e))?;
-                    if matches!(inner, Record::Chunk { .. }) {
-                        return Err(fail("a chunk inside a chunk".to_owned()));
-                    }
-                    self.record(path, inner, visit)?;
-                }
+                self.records(path, &inflated, true, visit)?;
             }
+            // Header, footer, indexes, statistics, metadata, attachments:
+            // nothing a session needs.
             _ => {}
         }
         Ok(())
-    }
-}
-
-fn mcap_error(path: &Path, e: &mcap::McapError) -> RecordingError {
-    RecordingError::Mcap {
-        path: path.to_owned(),
-        reason: e.to_string(),
     }
 }
 
