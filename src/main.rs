@@ -39,6 +39,8 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
+// Parsed once at start: boxing the larger options would gain nothing.
+#[allow(clippy::large_enum_variant)]
 enum Command {
     /// Joint torques of a push: from a scene file, or from --robot, --q,
     /// --link, --point and --force (world frame, SI).

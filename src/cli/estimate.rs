@@ -49,7 +49,7 @@ pub struct EstimateArgs {
     /// input's topics (a session's frames as `/joint_states` and truth)
     /// with the estimates (`/proprioscope/…`: the contact as
     /// `WrenchStamped` and `PointStamped`, its probability, the 90 %
-    /// credible region as a `PointCloud2`), for Foxglove or RViz.
+    /// credible region as a `PointCloud2`), for Foxglove or `RViz`.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Skip frames with a missing or non-finite value, a wrong number of
@@ -144,6 +144,43 @@ impl Out {
             w.write_frames(&joints, &session.frames, origin_ns.unwrap_or(0))?;
         }
         Ok(Self::Mcap(Box::new(w)))
+    }
+
+    /// One frame's estimate (`frame`: its number in the file, and it).
+    #[allow(clippy::too_many_arguments)] // what a line holds, each from its own place
+    fn write(
+        &mut self,
+        estimator: &Estimator,
+        robot: &Robot,
+        (number, frame): (usize, &proprioscope::io::session::Frame),
+        update: &Update,
+        ms: f64,
+        outcome: Option<&FrameOutcome>,
+        origin_ns: Option<i64>,
+    ) -> Result<()> {
+        match self {
+            Self::Json(w) => {
+                let line = frame_json(robot, number, frame.t, update, ms, &frame.truth, outcome);
+                writeln!(w, "{line}").context("writing --out")
+            }
+            Self::Mcap(w) => w
+                .write_estimate(&estimate_message(
+                    estimator,
+                    robot,
+                    update,
+                    origin_ns.unwrap_or(0),
+                    frame.t,
+                ))
+                .context("writing --out"),
+        }
+    }
+
+    /// Flushes JSON lines, or closes the MCAP with its summary.
+    fn finish(self) -> Result<()> {
+        match self {
+            Self::Json(mut w) => w.flush().context("writing --out"),
+            Self::Mcap(w) => Ok(w.finish()?),
+        }
     }
 }
 
@@ -330,21 +367,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
                     outcomes.push(o);
                 }
                 if let (Some(w), Ok(())) = (out.as_mut(), &written) {
-                    written = match w {
-                        Out::Json(w) => {
-                            let line = frame_json(&robot, i, frame.t, &update, ms, &frame.truth, outcome.as_ref());
-                            writeln!(w, "{line}").context("writing --out")
-                        }
-                        Out::Mcap(w) => w
-                            .write_estimate(&estimate_message(
-                                &estimator,
-                                &robot,
-                                &update,
-                                origin_ns.unwrap_or(0),
-                                frame.t,
-                            ))
-                            .context("writing --out"),
-                    };
+                    written = w.write(&estimator, &robot, (i, frame), &update, ms, outcome.as_ref(), origin_ns);
                 }
                 bar.inc(1);
             },
@@ -353,10 +376,8 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     })??;
     written?;
     bar.finish_and_clear();
-    match out {
-        Some(Out::Json(mut w)) => w.flush()?,
-        Some(Out::Mcap(w)) => w.finish()?,
-        None => {}
+    if let Some(out) = out {
+        out.finish()?;
     }
     report(&session, &verdicts, &times_ms, &called)?;
     if !outcomes.is_empty() {

@@ -53,9 +53,10 @@ pub fn run(args: &TopicsArgs) -> Result<()> {
     )?;
     for t in &index.topics {
         let rate = t.rate_hz().map_or_else(|| "-".to_owned(), |r| format!("{r:.1}"));
-        let detail = match &t.definition {
-            Err(why) => format!("not decodable: {why}"),
-            Ok(_) => {
+        let detail = if let Err(why) = &t.definition {
+            format!("not decodable: {why}")
+        } else {
+            {
                 let arrays: Vec<String> = t.float_arrays().iter().map(|(f, n)| format!("{f}[{n}]")).collect();
                 let names = if t.has_names() { ", joint names" } else { "" };
                 format!(

@@ -116,19 +116,16 @@ fn records(bytes: &[u8], start: usize) -> impl Iterator<Item = Result<(usize, Re
             let data = bytes.get(header_end + 4..data_end)?;
             Some((data_end, Record { fields, data }))
         })();
-        match record {
-            Some((end, record)) => {
-                offset = end;
-                Some(Ok((at, record)))
-            }
-            None => {
-                failed = true;
-                Some(Err(BagError::Record {
-                    offset: at,
-                    reason: "cut short or malformed (a length points past the end, or a header field has no '=')"
-                        .to_owned(),
-                }))
-            }
+        if let Some((end, record)) = record {
+            offset = end;
+            Some(Ok((at, record)))
+        } else {
+            failed = true;
+            Some(Err(BagError::Record {
+                offset: at,
+                reason: "cut short or malformed (a length points past the end, or a header field has no '=')"
+                    .to_owned(),
+            }))
         }
     })
 }

@@ -195,7 +195,7 @@ mod tests {
                 "{:?}",
                 events[3]
             );
-            assert!(matches!(&events[4], LiveEvent::Frame(f) if f.t == 0.1));
+            assert!(matches!(&events[4], LiveEvent::Frame(f) if (f.t - 0.1).abs() < 1e-12));
             assert!(matches!(
                 source.events.recv_timeout(Duration::from_secs(10)),
                 Ok(LiveEvent::Closed(_))

@@ -1,5 +1,5 @@
 //! Estimates out as ROS 2 MCAP, beside the input's own topics, so that
-//! Foxglove, RViz (through rosbag2) or our own reader show them on the
+//! Foxglove, `RViz` (through rosbag2) or our own reader show them on the
 //! robot.
 //!
 //! Topics written per frame (stamped with the frame's time):
@@ -236,9 +236,10 @@ impl EstimateWriter {
             if failure.is_some() {
                 return;
             }
-            let id = match ids.get(&message.key) {
-                Some(&id) => id,
-                None => {
+            let id = if let Some(&id) = ids.get(&message.key) {
+                id
+            } else {
+                {
                     let (encoding, text) = message.schema.unwrap_or(("", &[]));
                     let added = self
                         .writer

@@ -551,9 +551,10 @@ impl Topics {
         if let Some(&i) = self.by_key.get(&message.key) {
             return i;
         }
-        let i = match self.by_name.get(message.topic) {
-            Some(&i) => i,
-            None => {
+        let i = if let Some(&i) = self.by_name.get(message.topic) {
+            i
+        } else {
+            {
                 let definition = definition_of(message);
                 let first = definition.as_ref().ok().and_then(|d| d.decode(message.data).ok());
                 self.list.push(TopicInfo {
@@ -882,6 +883,9 @@ pub struct RecordingSession {
 
 /// Reads a recording's frames (see the module's doc). `progress` goes
 /// from 0 to 1.
+// One pass over the file fills every topic's samples; the steps share
+// their state, and split apart they would pass it all along.
+#[allow(clippy::too_many_lines)]
 pub fn read_session(
     path: &Path,
     bytes: &[u8],

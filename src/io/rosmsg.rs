@@ -696,8 +696,8 @@ mod tests {
 ================================================================================\nMSG: std_msgs/Header\n# Standard metadata\nbuiltin_interfaces/Time stamp\nstring frame_id\n\
 ================================================================================\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n";
 
-    /// Hand-encoded CDR of a JointState: stamp 5 s + 7 ns, frame "b",
-    /// names ["a1", "a2"], position [1.5, -2], velocity [], effort [0.25].
+    /// Hand-encoded CDR of a `JointState`: stamp 5 s + 7 ns, frame `b`,
+    /// names `a1, a2`, position `1.5, -2`, no velocity, effort `0.25`.
     fn joint_state_cdr() -> Vec<u8> {
         let mut b = vec![0, 1, 0, 0];
         b.extend(5i32.to_le_bytes());
