@@ -106,6 +106,9 @@ impl ProprioscopeApp {
                     live.last_note = why;
                 }
                 LiveEvent::Closed(why) => live.last_note = why,
+                LiveEvent::Gap { from_t, to_t } => {
+                    live.last_note = format!("no frame from t = {from_t:.3} to {to_t:.3} s");
+                }
             }
         }
         if live.pending.is_empty() {

@@ -173,6 +173,7 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
                 }
             }
             LiveEvent::Bad(why) => eprintln!("{why}"),
+            LiveEvent::Gap { from_t, to_t } => eprintln!("no frame from t = {from_t} to {to_t} s"),
             LiveEvent::Closed(why) => eprintln!("{why} after {done} frames in all"),
             LiveEvent::Frame(frame) => {
                 if live.is_none() {

@@ -38,9 +38,20 @@ pub enum LiveEvent {
     Frame(Frame),
     /// A line that was not used, and why (never fatal).
     Bad(String),
+    /// Frames stopped for a while: the times around the gap, s.
+    Gap {
+        /// The last frame's time before it.
+        from_t: f64,
+        /// The next frame's time.
+        to_t: f64,
+    },
     /// The sender closed the connection, or the socket failed: why.
     Closed(String),
 }
+
+/// A pause between two frames of one sender longer than this, s, is
+/// reported as a gap.
+pub const GAP_SECS: f64 = 1.0;
 
 /// A listening live source; events arrive on [`LiveSource::events`].
 pub struct LiveSource {
@@ -84,6 +95,33 @@ impl LiveSource {
     }
 }
 
+/// Sends what a line gives (a gap first when the frame comes after one);
+/// `false` when nobody listens any more.
+fn send_line(
+    tx: &Sender<LiveEvent>,
+    reader: &mut LiveReader,
+    last_t: &mut Option<f64>,
+    line: &str,
+    from: &str,
+) -> bool {
+    let event = event(reader, line, from);
+    if let LiveEvent::Frame(frame) = &event {
+        if let Some(t) = *last_t
+            && frame.t - t > GAP_SECS
+            && tx
+                .send(LiveEvent::Gap {
+                    from_t: t,
+                    to_t: frame.t,
+                })
+                .is_err()
+        {
+            return false;
+        }
+        *last_t = Some(frame.t);
+    }
+    tx.send(event).is_ok()
+}
+
 /// What a line gives, as an event.
 fn event(reader: &mut LiveReader, line: &str, from: &str) -> LiveEvent {
     match reader.line(line) {
@@ -104,6 +142,7 @@ fn accept_tcp(listener: &TcpListener, tx: &Sender<LiveEvent>, wake: &dyn Fn()) {
         };
         let from = from.to_string();
         reader.restart();
+        let mut last_t = None;
         if tx.send(LiveEvent::Connected(from.clone())).is_err() {
             return;
         }
@@ -117,7 +156,7 @@ fn accept_tcp(listener: &TcpListener, tx: &Sender<LiveEvent>, wake: &dyn Fn()) {
                 Ok(_) => {}
                 Err(e) => break format!("{from}: {e}"),
             }
-            if tx.send(event(&mut reader, line.trim_end(), &from)).is_err() {
+            if !send_line(tx, &mut reader, &mut last_t, line.trim_end(), &from) {
                 return;
             }
             wake();
@@ -133,6 +172,7 @@ fn receive_udp(socket: &UdpSocket, tx: &Sender<LiveEvent>, wake: &dyn Fn()) {
     let mut reader = LiveReader::new(None);
     let mut buffer = vec![0u8; 65_536];
     let mut heard = std::collections::BTreeSet::new();
+    let mut last_t = None;
     loop {
         let (n, from) = match socket.recv_from(&mut buffer) {
             Ok(got) => got,
@@ -148,7 +188,7 @@ fn receive_udp(socket: &UdpSocket, tx: &Sender<LiveEvent>, wake: &dyn Fn()) {
         }
         let text = String::from_utf8_lossy(buffer.get(..n).unwrap_or_default());
         for line in text.lines().filter(|l| !l.trim().is_empty()) {
-            if tx.send(event(&mut reader, line.trim_end(), &from)).is_err() {
+            if !send_line(tx, &mut reader, &mut last_t, line.trim_end(), &from) {
                 return;
             }
         }
@@ -172,6 +212,19 @@ mod tests {
 
     const LINES: &str = "{\"format\": \"contact-session\", \"version\": 1, \"robot\": \"lwr4plus\"}\n\
 {\"t\": 0.0, \"q\": [0, 0], \"tau\": [0.5, 0]}\nnot json\n{\"t\": 0.1, \"q\": [0, 1], \"tau\": [0, 0]}\n";
+
+    #[test]
+    fn a_pause_between_frames_is_reported_as_a_gap() {
+        let source = LiveSource::listen("127.0.0.1:0", || {}).unwrap();
+        let mut c = std::net::TcpStream::connect(&source.address).unwrap();
+        let text = LINES.replace("\"t\": 0.1", "\"t\": 2.5");
+        c.write_all(text.as_bytes()).unwrap();
+        let events = collect(&source, 2);
+        assert!(
+            events.contains(&LiveEvent::Gap { from_t: 0.0, to_t: 2.5 }),
+            "{events:?}"
+        );
+    }
 
     #[test]
     fn tcp_lines_become_events_and_a_reconnect_starts_afresh() {
