@@ -9,7 +9,7 @@ seconds=${1:-20}
 shift || true
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-    targets=(stl obj dae gltf urdf scene session_json session_csv recording live mcap rosbag rosmsg)
+    targets=(stl obj dae gltf urdf scene session_json session_csv recording live ros_recording rosmsg)
 fi
 ./seed.sh
 for t in "${targets[@]}"; do

@@ -23,8 +23,7 @@ seed urdf "$shared"/robots/**/*.urdf
 seed scene ../scenes/*.json
 seed session_json "$shared"/sessions/*.json
 seed session_csv "$shared"/sessions/*.csv
-seed mcap "$shared"/recordings/*.mcap
-seed rosbag "$shared"/recordings/*.bag
+seed ros_recording "$shared"/recordings/*.mcap "$shared"/recordings/*.bag
 mkdir -p corpus/rosmsg
 # A definition (first byte: CDR), a NUL, a message byte and a CDR JointState.
 printf '\x00std_msgs/Header header\nstring[] name\nfloat64[] position\n================\nMSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n====\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n\x00\x00\x00\x01\x00\x00\x05\x00\x00\x00\x07\x00\x00\x00\x02\x00\x00\x00b\x00\x00\x00\x01\x00\x00\x00\x03\x00\x00\x00a1\x00\x00\x01\x00\x00\x00\x00\x00\x00\x00\x00\x00\xf8\x3f' > corpus/rosmsg/joint_state

@@ -1,7 +1,8 @@
 //! The monkey test: thousands of seeded random actions on the app (menu
 //! items, shipped scenes, robot switches, clicks, drags and wheel turns in
 //! the 3-D view, sliders, checkboxes, keys, sessions opened, played,
-//! scrubbed and closed, recordings started and stopped), with the model's
+//! scrubbed and closed, recordings started and stopped, a robot recording
+//! that asks for its topics, a live stream listened to and fed), with the model's
 //! invariants checked after each. `MONKEY_ACTIONS` sets how many (2000 by
 //! default), `MONKEY_SEED` the seed.
 
@@ -39,6 +40,22 @@ fn session_file(dir: &Path) -> PathBuf {
     path
 }
 
+/// An MCAP recording of the session's frames on two arms' topics: opening
+/// it asks which topics make the frames.
+fn ambiguous_recording(dir: &Path, session: &Path) -> PathBuf {
+    use proprioscope::io::mcap_out::EstimateWriter;
+    let (session, _) = proprioscope::io::session::Session::read_skipping_bad_frames(session).unwrap();
+    let joints: Vec<String> = (1..=7).map(|i| format!("lwr_joint_{i}")).collect();
+    let path = dir.join("monkey-two-arms.mcap");
+    let mut out = EstimateWriter::create(&path, "lwr_base_link").unwrap();
+    out.write_joint_states("/left/joint_states", &joints, &session.frames, 0)
+        .unwrap();
+    out.write_joint_states("/right/joint_states", &joints, &session.frames, 0)
+        .unwrap();
+    out.finish().unwrap();
+    path
+}
+
 /// Labels of the widgets of a role, in tree order.
 fn labels(harness: &Harness<'_, ProprioscopeApp>, role: Role) -> Vec<String> {
     harness
@@ -60,12 +77,17 @@ struct Monkey {
     session: PathBuf,
     dir: PathBuf,
     recording: bool,
+    /// A recording that leaves its topics to the user.
+    ambiguous: PathBuf,
+    /// The sender of a live stream the app listens to, the frames sent,
+    /// and the address (the app may listen elsewhere since).
+    live: Option<(std::net::TcpStream, usize, String)>,
 }
 
 /// One random action; what it was, for the failure message.
 #[allow(clippy::too_many_lines)] // One arm per kind of action: reads as one table.
 fn act(harness: &mut Harness<'_, ProprioscopeApp>, rng: &mut Rng, m: &mut Monkey) -> String {
-    let action = rng.below(16);
+    let action = rng.below(18);
     let view = harness.state().view_rect();
     let random_pos = |rng: &mut Rng| {
         view.map_or(egui::pos2(600.0, 300.0), |r| {
@@ -173,6 +195,39 @@ fn act(harness: &mut Harness<'_, ProprioscopeApp>, rng: &mut Rng, m: &mut Monkey
             m.recording = !m.recording;
             format!("recording {}", m.recording)
         }
+        15 => {
+            harness.state_mut().open_session(&m.ambiguous, None);
+            "open a recording with two arms' topics".to_owned()
+        }
+        16 => {
+            // Listen (or listen again after Stop live), then feed frames:
+            // some of another robot's width when the robot was switched.
+            use std::io::Write as _;
+            let listening = harness.state().live_address().map(str::to_owned);
+            if let Some((sender, sent, _)) = m.live.as_mut().filter(|l| Some(&l.2) == listening.as_ref()) {
+                let n = 1 + rng.below(5);
+                for _ in 0..n {
+                    let t = 0.01 * *sent as f64;
+                    let tau = if rng.below(4) == 0 {
+                        "[1, 2]"
+                    } else {
+                        "[0.4, -1.0, 0.2, 0.25, 0.1, 0, 0]"
+                    };
+                    let _ = writeln!(
+                        sender,
+                        r#"{{"t": {t}, "q": [0.1, 0.5, 0, -1, 0, 0.4, 0], "tau": {tau}}}"#
+                    );
+                    *sent += 1;
+                }
+                let _ = sender.flush();
+                format!("{n} live frames")
+            } else {
+                harness.state_mut().start_live("127.0.0.1:0");
+                let address = harness.state().live_address().map(str::to_owned);
+                m.live = address.and_then(|a| std::net::TcpStream::connect(&a).ok().map(|c| (c, 0, a)));
+                "listen live".to_owned()
+            }
+        }
         14 => {
             let p = random_pos(rng);
             harness.hover_at(p);
@@ -215,8 +270,10 @@ fn thousands_of_random_actions_keep_the_app_whole() {
             .map(|e| e.unwrap().path())
             .collect(),
         session: session_file(&dir),
+        ambiguous: ambiguous_recording(&dir, &session_file(&dir)),
         dir,
         recording: false,
+        live: None,
     };
     let mut harness = proprioscope::app::headless_harness(open_target(None).unwrap(), [1280.0, 720.0]);
     harness.run_steps(2);

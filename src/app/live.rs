@@ -146,12 +146,13 @@ impl ProprioscopeApp {
             return;
         };
         let shown_last = replay.frame + 1 >= replay.session.frames.len();
-        let mut data = (*replay.session).clone();
+        // Nothing else holds the live session (it is estimated frame by
+        // frame), so the frames are appended in place, not copied.
+        let data = Arc::make_mut(&mut replay.session);
         let start = data.frames.len();
         data.file_frames.extend(start..start + frames.len());
         data.frames.extend(frames);
         let last = data.frames.len().saturating_sub(1);
-        replay.session = Arc::new(data);
         if let Some(live) = self.live.as_mut() {
             // Moving back from the newest frame stops following.
             live.follow &= shown_last;

@@ -3,13 +3,11 @@
 //! name).
 
 use std::collections::BTreeMap;
-use std::io::Read as _;
+
+use super::inflate::{Compression, inflate};
 
 /// The first bytes of every bag of format 2.0.
 pub const BAG_MAGIC: &[u8] = b"#ROSBAG V2.0\n";
-
-/// The most one chunk may hold once uncompressed.
-const MAX_CHUNK_BYTES: usize = 1 << 30;
 
 /// Why a bag could not be read.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -174,25 +172,13 @@ pub fn read_bag(
         match record.op() {
             Some(OP_CHUNK) => {
                 let compression = record.field("compression").unwrap_or(b"none");
-                let size = record.field("size").and_then(|v| u32_at(v, 0)).unwrap_or(0) as usize;
+                let size = record.field("size").and_then(|v| u32_at(v, 0)).unwrap_or(0);
                 let inflated;
                 let data = match compression {
                     b"none" => record.data,
                     b"lz4" => {
-                        if size > MAX_CHUNK_BYTES {
-                            return Err(BagError::Record {
-                                offset,
-                                reason: format!("chunk claims {size} bytes"),
-                            });
-                        }
-                        let mut out = Vec::with_capacity(size);
-                        lz4::Decoder::new(record.data)
-                            .and_then(|d| d.take(size as u64).read_to_end(&mut out))
-                            .map_err(|e| BagError::Record {
-                                offset,
-                                reason: format!("lz4 chunk: {e}"),
-                            })?;
-                        inflated = out;
+                        inflated = inflate(Compression::Lz4, record.data, u64::from(size))
+                            .map_err(|reason| BagError::Record { offset, reason })?;
                         &inflated
                     }
                     other => {

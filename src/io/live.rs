@@ -3,9 +3,12 @@
 //! connection starting afresh) or UDP (`udp://host:port`: each datagram
 //! one or more lines), read on a thread of their own.
 
-use std::io::{BufRead as _, BufReader, Read as _};
-use std::net::{TcpListener, UdpSocket};
+use std::io::{ErrorKind, Read as _};
+use std::net::{TcpListener, TcpStream, UdpSocket};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
+use std::time::Duration;
 
 use super::session::{Frame, LiveLine, LiveReader, MAX_LIVE_LINE_BYTES};
 
@@ -59,6 +62,8 @@ pub struct LiveSource {
     pub address: String,
     /// The events, as they come.
     pub events: Receiver<LiveEvent>,
+    /// Set when the source is dropped: its thread ends.
+    stop: Arc<AtomicBool>,
 }
 
 /// The transport and socket address of `address`.
@@ -80,18 +85,31 @@ impl LiveSource {
             cause,
         };
         let (tx, events) = channel();
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = Arc::clone(&stop);
         let bound = if udp {
             let socket = UdpSocket::bind(socket_address).map_err(bind_error)?;
             let local = socket.local_addr().map_err(bind_error)?;
-            std::thread::spawn(move || receive_udp(&socket, &tx, &wake));
+            std::thread::spawn(move || receive_udp(&socket, &tx, &wake, &flag));
             format!("udp://{local}")
         } else {
             let listener = TcpListener::bind(socket_address).map_err(bind_error)?;
             let local = listener.local_addr().map_err(bind_error)?;
-            std::thread::spawn(move || accept_tcp(&listener, &tx, &wake));
+            std::thread::spawn(move || accept_tcp(&listener, &tx, &wake, &flag));
             local.to_string()
         };
-        Ok(Self { address: bound, events })
+        Ok(Self {
+            address: bound,
+            events,
+            stop,
+        })
+    }
+}
+
+impl Drop for LiveSource {
+    /// The thread ends within [`POLL`] and frees the address.
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
     }
 }
 
@@ -134,32 +152,41 @@ fn event(reader: &mut LiveReader, line: &str, from: &str) -> LiveEvent {
     }
 }
 
-fn accept_tcp(listener: &TcpListener, tx: &Sender<LiveEvent>, wake: &dyn Fn()) {
+/// How often a waiting thread looks whether it should stop.
+const POLL: Duration = Duration::from_millis(100);
+
+/// Whether `e` only says that nothing came in time.
+fn timed_out(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
+    )
+}
+
+fn accept_tcp(listener: &TcpListener, tx: &Sender<LiveEvent>, wake: &dyn Fn(), stop: &AtomicBool) {
+    // Polled, so that a dropped source frees its port.
+    if let Err(e) = listener.set_nonblocking(true) {
+        let _ = tx.send(LiveEvent::Closed(e.to_string()));
+        return;
+    }
     let mut reader = LiveReader::new(None);
-    loop {
-        let Ok((connection, from)) = listener.accept() else {
-            continue;
+    while !stop.load(Ordering::Relaxed) {
+        let (connection, from) = match listener.accept() {
+            Ok(accepted) => accepted,
+            Err(e) if timed_out(&e) => {
+                std::thread::sleep(POLL);
+                continue;
+            }
+            Err(_) => continue,
         };
         let from = from.to_string();
         reader.restart();
-        let mut last_t = None;
         if tx.send(LiveEvent::Connected(from.clone())).is_err() {
             return;
         }
         wake();
-        let mut lines = BufReader::new(connection);
-        let mut line = String::new();
-        let why = loop {
-            line.clear();
-            match (&mut lines).take(MAX_LIVE_LINE_BYTES as u64 + 1).read_line(&mut line) {
-                Ok(0) => break format!("{from}: closed"),
-                Ok(_) => {}
-                Err(e) => break format!("{from}: {e}"),
-            }
-            if !send_line(tx, &mut reader, &mut last_t, line.trim_end(), &from) {
-                return;
-            }
-            wake();
+        let Some(why) = read_connection(&connection, &from, &mut reader, tx, wake, stop) else {
+            return;
         };
         if tx.send(LiveEvent::Closed(why)).is_err() {
             return;
@@ -168,14 +195,74 @@ fn accept_tcp(listener: &TcpListener, tx: &Sender<LiveEvent>, wake: &dyn Fn()) {
     }
 }
 
-fn receive_udp(socket: &UdpSocket, tx: &Sender<LiveEvent>, wake: &dyn Fn()) {
+/// Reads one connection's lines until it closes (why), or `None` when the
+/// source stops or nobody listens any more. A line longer than
+/// [`MAX_LIVE_LINE_BYTES`] is reported once and skipped to its end.
+fn read_connection(
+    connection: &TcpStream,
+    from: &str,
+    reader: &mut LiveReader,
+    tx: &Sender<LiveEvent>,
+    wake: &dyn Fn(),
+    stop: &AtomicBool,
+) -> Option<String> {
+    if let Err(e) = connection
+        .set_nonblocking(false)
+        .and_then(|()| connection.set_read_timeout(Some(POLL)))
+    {
+        return Some(format!("{from}: {e}"));
+    }
+    let mut pending: Vec<u8> = Vec::new();
+    let mut skipping = false;
+    let mut chunk = [0u8; 8192];
+    let mut last_t = None;
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return None;
+        }
+        match (&*connection).read(&mut chunk) {
+            Ok(0) => return Some(format!("{from}: closed")),
+            Ok(n) => pending.extend_from_slice(chunk.get(..n).unwrap_or_default()),
+            Err(e) if timed_out(&e) => continue,
+            Err(e) => return Some(format!("{from}: {e}")),
+        }
+        while let Some(end) = pending.iter().position(|&b| b == b'\n') {
+            let line: Vec<u8> = pending.drain(..=end).collect();
+            if std::mem::take(&mut skipping) {
+                continue;
+            }
+            let text = String::from_utf8_lossy(&line);
+            if !send_line(tx, reader, &mut last_t, text.trim_end(), from) {
+                return None;
+            }
+        }
+        if skipping {
+            pending.clear();
+        } else if pending.len() > MAX_LIVE_LINE_BYTES {
+            let text = String::from_utf8_lossy(&pending);
+            if !send_line(tx, reader, &mut last_t, &text, from) {
+                return None;
+            }
+            pending.clear();
+            skipping = true;
+        }
+        wake();
+    }
+}
+
+fn receive_udp(socket: &UdpSocket, tx: &Sender<LiveEvent>, wake: &dyn Fn(), stop: &AtomicBool) {
+    if let Err(e) = socket.set_read_timeout(Some(POLL)) {
+        let _ = tx.send(LiveEvent::Closed(e.to_string()));
+        return;
+    }
     let mut reader = LiveReader::new(None);
     let mut buffer = vec![0u8; 65_536];
     let mut heard = std::collections::BTreeSet::new();
     let mut last_t = None;
-    loop {
+    while !stop.load(Ordering::Relaxed) {
         let (n, from) = match socket.recv_from(&mut buffer) {
             Ok(got) => got,
+            Err(e) if timed_out(&e) => continue,
             Err(e) => {
                 let _ = tx.send(LiveEvent::Closed(e.to_string()));
                 wake();
@@ -254,6 +341,35 @@ mod tests {
                 Ok(LiveEvent::Closed(_))
             ));
         }
+    }
+
+    #[test]
+    fn a_dropped_source_frees_its_address() {
+        let source = LiveSource::listen("127.0.0.1:0", || {}).unwrap();
+        let address = source.address.clone();
+        drop(source);
+        std::thread::sleep(POLL * 3);
+        assert!(LiveSource::listen(&address, || {}).is_ok(), "{address} still taken");
+    }
+
+    #[test]
+    fn an_overlong_line_is_reported_once_and_the_next_line_read() {
+        let source = LiveSource::listen("127.0.0.1:0", || {}).unwrap();
+        let mut c = std::net::TcpStream::connect(&source.address).unwrap();
+        let long = "x".repeat(MAX_LIVE_LINE_BYTES + 10_000);
+        c.write_all(format!("{long}\n{{\"t\": 0.0, \"q\": [0], \"tau\": [1]}}\n").as_bytes())
+            .unwrap();
+        let events = collect(&source, 1);
+        let bad = events.iter().filter(|e| matches!(e, LiveEvent::Bad(_))).count();
+        assert_eq!(
+            bad,
+            1,
+            "{:?}",
+            events
+                .iter()
+                .map(|e| format!("{e:?}").chars().take(80).collect::<String>())
+                .collect::<Vec<_>>()
+        );
     }
 
     #[test]

@@ -287,7 +287,7 @@ impl EstimateWriter {
                 w.header(stamp, link).xyz(*force).xyz([0.0; 3]);
                 self.write(truth, stamp, &w.0)?;
                 let mut p = Cdr::new();
-                p.header(stamp, &self.world_frame.clone()).xyz(*point);
+                p.header(stamp, &self.world_frame).xyz(*point);
                 self.write(truth_point, stamp, &p.0)?;
             }
         }

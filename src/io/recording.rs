@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use super::bag::{self, BagError};
+use super::inflate::{Compression, inflate};
 use super::rosmsg::{Encoding, MessageDefinition, Value, normalize_type_name};
 use super::session::{Frame, FrameProblem, Session, Truth, frame_problem};
 
@@ -236,7 +237,7 @@ pub struct RecordingIndex {
 
 /// Which topics and field make the frames; `None` lets the file decide
 /// when it is unambiguous.
-#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct TopicChoice {
     /// `JointState` topic of the joint positions.
     pub q_topic: Option<String>,
@@ -315,9 +316,6 @@ pub(crate) fn scan(
         Err(RecordingError::Unknown { path: path.to_owned() })
     }
 }
-
-/// Most bytes one MCAP chunk may hold once uncompressed.
-const MAX_CHUNK_BYTES: u64 = 1 << 30;
 
 /// A little-endian reader over one MCAP record's body, every length
 /// checked against the bytes there are.
@@ -475,32 +473,18 @@ impl McapScan {
                 let Some(data) = usize::try_from(records_len).ok().and_then(|n| f.take(n)) else {
                     return Err(fail("a chunk claims more bytes than it holds"));
                 };
-                if size > MAX_CHUNK_BYTES {
-                    return Err(fail(&format!("a chunk claims {size} bytes uncompressed")));
-                }
-                let size = size as usize;
-                let inflated = match compression.as_str() {
-                    "" => data.to_vec(),
-                    "zstd" => zstd::bulk::decompress(data, size).map_err(|e| fail(&format!("zstd chunk: {e}")))?,
-                    "lz4" => {
-                        use std::io::Read as _;
-                        let mut out = Vec::with_capacity(size);
-                        lz4::Decoder::new(data)
-                            .and_then(|d| d.take(size as u64 + 1).read_to_end(&mut out))
-                            .map_err(|e| fail(&format!("lz4 chunk: {e}")))?;
-                        out
-                    }
+                let inflated: std::borrow::Cow<'_, [u8]> = match compression.as_str() {
+                    "" => data.into(),
+                    "zstd" => inflate(Compression::Zstd, data, size).map_err(|e| fail(&e))?.into(),
+                    "lz4" => inflate(Compression::Lz4, data, size).map_err(|e| fail(&e))?.into(),
                     other => {
                         return Err(fail(&format!(
                             "chunk compression '{other}' is not supported (zstd, lz4, none)"
                         )));
                     }
                 };
-                if inflated.len() != size {
-                    return Err(fail(&format!(
-                        "a chunk holds {} bytes uncompressed, its header says {size}",
-                        inflated.len()
-                    )));
+                if compression.is_empty() && inflated.len() as u64 != size {
+                    return Err(fail("an uncompressed chunk's size does not match its header"));
                 }
                 if crc != 0 && crc32fast::hash(&inflated) != crc {
                     return Err(fail("a chunk's CRC does not match its content"));
@@ -554,20 +538,18 @@ impl Topics {
         let i = if let Some(&i) = self.by_name.get(message.topic) {
             i
         } else {
-            {
-                let definition = definition_of(message);
-                let first = definition.as_ref().ok().and_then(|d| d.decode(message.data).ok());
-                self.list.push(TopicInfo {
-                    topic: message.topic.to_owned(),
-                    message_type: normalize_type_name(message.message_type),
-                    count: 0,
-                    log_span_ns: (message.log_ns, message.log_ns),
-                    definition,
-                    first,
-                });
-                self.by_name.insert(message.topic.to_owned(), self.list.len() - 1);
-                self.list.len() - 1
-            }
+            let definition = definition_of(message);
+            let first = definition.as_ref().ok().and_then(|d| d.decode(message.data).ok());
+            self.list.push(TopicInfo {
+                topic: message.topic.to_owned(),
+                message_type: normalize_type_name(message.message_type),
+                count: 0,
+                log_span_ns: (message.log_ns, message.log_ns),
+                definition,
+                first,
+            });
+            self.by_name.insert(message.topic.to_owned(), self.list.len() - 1);
+            self.list.len() - 1
         };
         self.by_key.insert(message.key, i);
         i
@@ -601,26 +583,6 @@ pub fn index(path: &Path, bytes: &[u8]) -> Result<RecordingIndex, RecordingError
     })
 }
 
-/// The torque candidates: topic, field, and how likely it is the external
-/// torque (2: named external; 1: an effort or torque).
-fn torque_candidates(index: &RecordingIndex) -> Vec<(String, String, u8)> {
-    let mut candidates = Vec::new();
-    for topic in &index.topics {
-        if topic.topic == TRUTH_TOPIC || topic.topic == TRUTH_POINT_TOPIC {
-            continue;
-        }
-        for (field, _) in topic.float_arrays() {
-            let last = field.rsplit('.').next().unwrap_or_default().to_ascii_lowercase();
-            if !(last == "effort" || last.contains("torque")) {
-                continue;
-            }
-            let external = topic.topic.to_ascii_lowercase().contains("external") || last.contains("external");
-            candidates.push((topic.topic.clone(), field, if external { 2 } else { 1 }));
-        }
-    }
-    candidates
-}
-
 impl RecordingIndex {
     fn topic(&self, name: &str) -> Option<&TopicInfo> {
         self.topics.iter().find(|t| t.topic == name)
@@ -638,7 +600,21 @@ impl RecordingIndex {
     /// how likely (2: named *external*; 1: an effort or torque).
     #[must_use]
     pub fn torque_candidates(&self) -> Vec<(String, String, u8)> {
-        torque_candidates(self)
+        let mut candidates = Vec::new();
+        for topic in &self.topics {
+            if topic.topic == TRUTH_TOPIC || topic.topic == TRUTH_POINT_TOPIC {
+                continue;
+            }
+            for (field, _) in topic.float_arrays() {
+                let last = field.rsplit('.').next().unwrap_or_default().to_ascii_lowercase();
+                if !(last == "effort" || last.contains("torque")) {
+                    continue;
+                }
+                let external = topic.topic.to_ascii_lowercase().contains("external") || last.contains("external");
+                candidates.push((topic.topic.clone(), field, if external { 2 } else { 1 }));
+            }
+        }
+        candidates
     }
 
     /// Topics with joint names and positions (`JointState`-like).
@@ -656,7 +632,7 @@ impl RecordingIndex {
     /// *external* over a measured effort; `/joint_states` over other
     /// position topics).
     pub fn mapping(&self, choice: &TopicChoice) -> Result<Mapping, RecordingError> {
-        let mut candidates = torque_candidates(self);
+        let mut candidates = self.torque_candidates();
         if let Some(topic) = &choice.tau_topic {
             let Some(info) = self.topic(topic) else {
                 return Err(self.choice_error("--tau-topic", format!("no topic '{topic}' (see `proprioscope topics`)")));
@@ -923,12 +899,16 @@ pub fn read_session(
     };
     let mut q = Samples::default();
     let mut tau = Samples::default();
-    let mut tau_problems: Vec<(i64, String)> = Vec::new();
+    let mut tau_problems: Vec<(Option<i64>, String)> = Vec::new();
     let mut q_problems = 0usize;
     let mut first_q_problem = None;
     let mut truths: HashMap<i64, (String, [f64; 3])> = HashMap::new();
     let mut truth_points: HashMap<i64, [f64; 3]> = HashMap::new();
-    let has_truth = index.topic(TRUTH_TOPIC).is_some() && index.topic(TRUTH_POINT_TOPIC).is_some();
+    let truth_stamps = index
+        .topic(TRUTH_TOPIC)
+        .zip(index.topic(TRUTH_POINT_TOPIC))
+        .map(|(t, p)| (t.stamp_source(), p.stamp_source()));
+    let has_truth = truth_stamps.is_some();
     let mut topics = Topics::default();
     let mut seen = 0usize;
 
@@ -953,8 +933,15 @@ pub fn read_session(
             progress(0.3 + 0.6 * seen as f64 / total.max(1) as f64);
         }
         if is_truth {
-            let Ok(value) = decoded else { return };
-            let Some(stamp) = StampSource::of(&value).stamp_ns(&value, message.log_ns) else {
+            let (Ok(value), Some((wrench_stamps, point_stamps))) = (decoded, &truth_stamps) else {
+                return;
+            };
+            let stamps = if topic == TRUTH_TOPIC {
+                wrench_stamps
+            } else {
+                point_stamps
+            };
+            let Some(stamp) = stamps.stamp_ns(&value, message.log_ns) else {
                 return;
             };
             if topic == TRUTH_TOPIC {
@@ -970,8 +957,14 @@ pub fn read_session(
             }
             return;
         }
-        if is_q {
-            let arranged = decoded.clone().and_then(|value| {
+        // One topic may give both (a JointState with effort): decoded once.
+        let (for_q, for_tau) = match (is_q, is_tau) {
+            (true, true) => (Some(decoded.clone()), Some(decoded)),
+            (true, false) => (Some(decoded), None),
+            _ => (None, Some(decoded)),
+        };
+        if let Some(decoded) = for_q {
+            let arranged = decoded.and_then(|value| {
                 let stamp = q_stamps.stamp_ns(&value, message.log_ns).ok_or("no time stamp")?;
                 let names = value.get("name").and_then(Value::as_strings);
                 let positions = value.get("position").and_then(Value::as_floats).ok_or("no position")?;
@@ -993,7 +986,7 @@ pub fn read_session(
                 }
             }
         }
-        if is_tau {
+        if let Some(decoded) = for_tau {
             let mut stamp = None;
             let arranged = decoded.and_then(|value| {
                 stamp = tau_stamps.stamp_ns(&value, message.log_ns);
@@ -1015,8 +1008,8 @@ pub fn read_session(
                     tau.stamps_ns.push(s);
                     tau.values.extend(row);
                 }
-                Ok((s, row)) => tau_problems.push((s, format!("{} values, {} expected", row.len(), tau.width))),
-                Err(e) => tau_problems.push((stamp.unwrap_or(i64::MIN), e)),
+                Ok((s, row)) => tau_problems.push((Some(s), format!("{} values, {} expected", row.len(), tau.width))),
+                Err(e) => tau_problems.push((stamp, e)),
             }
         }
     })?;
@@ -1043,6 +1036,12 @@ pub fn read_session(
             ),
         });
     }
+    // Where each torque joint's position sits in the position topic's order
+    // (`None`: the same order).
+    let q_slots: Option<Vec<Option<usize>>> = match (&q_order.names, &joints) {
+        (Some(qn), Some(tn)) if qn != tn => Some(tn.iter().map(|name| qn.iter().position(|n| n == name)).collect()),
+        _ => None,
+    };
     let positions_in_tau_order = |stamp: i64| -> Result<Vec<f64>, String> {
         let row = q.at(stamp).ok_or_else(|| {
             let (a, b) = (
@@ -1056,19 +1055,17 @@ pub fn read_session(
                 (b - origin) as f64 * 1e-9
             )
         })?;
-        // The position topic's order to the torque order, by name.
-        match (&q_order.names, &joints) {
-            (Some(qn), Some(tn)) if qn != tn => tn
-                .iter()
-                .map(|name| {
-                    qn.iter()
-                        .position(|n| n == name)
-                        .and_then(|k| row.get(k).copied())
-                        .ok_or_else(|| format!("joint '{name}' has no position on {}", mapping.q_topic))
-                })
-                .collect(),
-            _ => Ok(row),
-        }
+        let Some(slots) = &q_slots else {
+            return Ok(row);
+        };
+        slots
+            .iter()
+            .zip(joints.iter().flatten())
+            .map(|(slot, name)| {
+                slot.and_then(|k| row.get(k).copied())
+                    .ok_or_else(|| format!("joint '{name}' has no position on {}", mapping.q_topic))
+            })
+            .collect()
     };
 
     let seconds = |stamp: i64| (stamp - origin) as f64 / 1e9;
@@ -1122,7 +1119,7 @@ pub fn read_session(
     for (j, (stamp, message)) in tau_problems.into_iter().enumerate() {
         problems.push(FrameProblem {
             frame: readable + j,
-            t: if stamp == i64::MIN { f64::NAN } else { seconds(stamp) },
+            t: stamp.map_or(f64::NAN, seconds),
             field: mapping.tau_topic.clone(),
             message,
         });

@@ -1,9 +1,10 @@
-//! ROS 2 MCAP recordings: any bytes list topics and make frames, or give
-//! an error; frames made keep the rules of a session.
+//! Robot recordings (ROS 2 MCAP, ROS 1 bags; the reader tells them by
+//! their first bytes): any bytes list topics and make frames, or give an
+//! error; frames made keep the rules of a session.
 #![no_main]
 use proprioscope::io::recording::{TopicChoice, index, read_session};
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    let path = std::path::Path::new("fuzz.mcap");
+    let path = std::path::Path::new("fuzz.recording");
     let _ = index(path, data);
     if let Ok(read) = read_session(path, data, &TopicChoice::default(), &|_| {}) {
         let mut last = f64::NEG_INFINITY;
