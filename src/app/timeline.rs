@@ -516,10 +516,12 @@ impl ProprioscopeApp {
         let height = (ui.available_height() - 24.0).max(150.0);
         let mut clicked = None;
         ui.columns(4, |columns| {
+            // The error exists only in frames with a contact: dots, so
+            // that no line runs across the frames without one.
             let plots = [
-                ("plot-torques", "measured torque [N·m]", torque_lines),
-                ("plot-force", "force [N]: estimated, true", force_lines),
-                ("plot-error", "position error [mm]", error_lines),
+                ("plot-torques", "measured torque [N·m]", torque_lines, false),
+                ("plot-force", "force [N]: estimated, true", force_lines, false),
+                ("plot-error", "position error [mm]", error_lines, true),
                 (
                     "plot-probability",
                     if replay.over_time == Temporal::None {
@@ -528,11 +530,12 @@ impl ProprioscopeApp {
                         "MAP and contact probability"
                     },
                     probability_lines,
+                    false,
                 ),
             ];
-            for (ui, (id, title, lines)) in columns.iter_mut().zip(plots) {
+            for (ui, (id, title, lines, dots)) in columns.iter_mut().zip(plots) {
                 ui.label(title);
-                if let Some(t) = linked_plot_ui(ui, id, lines, now, height) {
+                if let Some(t) = linked_plot_ui(ui, id, lines, dots, now, height) {
                     clicked = Some(t);
                 }
             }
@@ -813,15 +816,17 @@ pub fn interactive_frame(model: &Model, t: f64) -> Frame {
 }
 
 /// One plot over session time, linked to the others, with a line at
-/// `now`; returns the time clicked.
+/// `now` (series as lines, or as dots with `dots`); returns the time
+/// clicked.
 fn linked_plot_ui(
     ui: &mut egui::Ui,
     id: &str,
     lines: Vec<(String, Vec<[f64; 2]>)>,
+    dots: bool,
     now: f64,
     height: f32,
 ) -> Option<f64> {
-    use egui_plot::{Legend, Line, Plot, VLine};
+    use egui_plot::{Legend, Line, Plot, Points, VLine};
     let response = Plot::new(id)
         .height(height)
         .link_axis(egui::Id::unique("session-time"), [true, false])
@@ -833,7 +838,11 @@ fn linked_plot_ui(
         )
         .show(ui, |plot| {
             for (name, points) in lines {
-                plot.line(Line::new(name, points));
+                if dots {
+                    plot.points(Points::new(name, points).radius(1.5));
+                } else {
+                    plot.line(Line::new(name, points));
+                }
             }
             // Unnamed: the cursor stays out of the legend.
             plot.vline(VLine::new("", now).color(egui::Color32::from_rgb(240, 200, 60)));
