@@ -2,10 +2,12 @@
 //! torque sensors alone.
 //!
 //! `core` is the numerical heart (no I/O), `io` reads and writes robots,
-//! meshes and scenes, `render` and `app` are the desktop program.
+//! meshes and scenes, `batch` estimates whole sessions off the caller's thread, `render` and
+//! `app` are the desktop program.
 
 #[cfg(feature = "gui")]
 pub mod app;
+pub mod batch;
 pub mod core;
 pub mod io;
 #[cfg(feature = "gui")]

@@ -474,6 +474,7 @@ fn surface(path: &Path, points: Option<usize>) -> Result<()> {
     Ok(())
 }
 
+#[cfg(feature = "gui")]
 /// Renders the app headless into a PNG.
 fn screenshot(
     target: Option<&str>,
@@ -498,6 +499,7 @@ fn screenshot(
     Ok(())
 }
 
+#[cfg(feature = "gui")]
 /// Opens the app: on the built-in LWR with a push, or on `target`.
 fn run_app(target: Option<&str>, robot: Option<&str>, package_paths: &[PathBuf], live: Option<String>) -> Result<()> {
     use proprioscope::app::ProprioscopeApp;
@@ -528,6 +530,7 @@ fn export_assets(root: &Path) -> Result<()> {
     Ok(())
 }
 
+#[cfg(feature = "gui")]
 /// Records the scripted session of `record-demo`.
 fn record_demo(out: &Path, rate: f64, seconds: Option<f64>) -> Result<()> {
     use proprioscope::app::{Model, Push, StartSettings, ViewOptions};
@@ -576,4 +579,27 @@ fn record_demo(out: &Path, rate: f64, seconds: Option<f64>) -> Result<()> {
     let frames = recorder.finish()?;
     outln!("wrote {frames} frames to {}", out.display());
     Ok(())
+}
+
+/// Without the GUI (`--no-default-features`) the commands that draw say so.
+#[cfg(not(feature = "gui"))]
+fn without_gui(what: &str) -> Result<()> {
+    bail!(
+        "{what} needs the desktop app, and this proprioscope was built without it (--no-default-features): build it with the default features"
+    )
+}
+
+#[cfg(not(feature = "gui"))]
+fn screenshot(_: Option<&str>, _: Option<&str>, _: Option<usize>, _: &Path, _: [u32; 2]) -> Result<()> {
+    without_gui("screenshot")
+}
+
+#[cfg(not(feature = "gui"))]
+fn run_app(_: Option<&str>, _: Option<&str>, _: &[PathBuf], _: Option<String>) -> Result<()> {
+    without_gui("view")
+}
+
+#[cfg(not(feature = "gui"))]
+fn record_demo(_: &Path, _: f64, _: Option<f64>) -> Result<()> {
+    without_gui("record-demo")
 }

@@ -863,7 +863,8 @@ fn an_ambiguous_recording_asks_for_its_topics_once() {
         .unwrap();
     out.finish().unwrap();
 
-    let mut harness = app_harness();
+    // A recording names no robot: it opens on the robot the user chose.
+    let mut harness = proprioscope::app::headless_harness(open_target(Some("lwr4plus")).unwrap(), [1200.0, 800.0]);
     harness.state_mut().open(path.to_str().unwrap());
     for _ in 0..500 {
         harness.step();

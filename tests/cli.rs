@@ -824,3 +824,38 @@ fn a_session_streamed_over_udp_is_estimated_live() {
     assert_eq!(lines[0]["verdict"], "contact");
     assert_eq!(lines[1]["verdict"], "no_contact");
 }
+
+/// The README's bench table and plot are committed: a quick run refuses
+/// to replace them, and leaves both files as they were.
+#[test]
+fn a_quick_bench_never_writes_the_readme_or_its_plot() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("bench-quick");
+    std::fs::create_dir_all(&dir).unwrap();
+    let readme = dir.join("README.md");
+    let text = "# x\n<!-- bench:begin -->\nold\n<!-- bench:end -->\n";
+    std::fs::write(&readme, text).unwrap();
+    let (ok, _, err) = run(&["bench", "--quick", "--readme", readme.to_str().unwrap()]);
+    assert!(!ok && err.contains("--quick"), "{err}");
+    assert_eq!(std::fs::read_to_string(&readme).unwrap(), text);
+}
+
+/// A CSV session names no robot: `screenshot` (as `view`) refuses without
+/// `--robot`, saying so.
+#[test]
+fn a_csv_session_without_a_robot_is_refused_with_the_reason() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("csv-robot");
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("s.csv");
+    std::fs::write(
+        &csv,
+        "t,q1,q2,q3,q4,q5,q6,q7,tau1,tau2,tau3,tau4,tau5,tau6,tau7\n0,0,0,0,0,0,0,0,0,0,0,0,0,0,0\n",
+    )
+    .unwrap();
+    let out = dir.join("s.png");
+    let (ok, _, err) = run(&["screenshot", csv.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(
+        !ok && err.contains("names no robot") && err.contains("--robot"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}

@@ -87,7 +87,7 @@ struct Monkey {
 /// One random action; what it was, for the failure message.
 #[allow(clippy::too_many_lines)] // One arm per kind of action: reads as one table.
 fn act(harness: &mut Harness<'_, ProprioscopeApp>, rng: &mut Rng, m: &mut Monkey) -> String {
-    let action = rng.below(18);
+    let action = rng.below(20);
     let view = harness.state().view_rect();
     let random_pos = |rng: &mut Rng| {
         view.map_or(egui::pos2(600.0, 300.0), |r| {
@@ -228,6 +228,26 @@ fn act(harness: &mut Harness<'_, ProprioscopeApp>, rng: &mut Rng, m: &mut Monkey
                 "listen live".to_owned()
             }
         }
+        18 => {
+            // A drag in the view: from the arm it sets a push, elsewhere it orbits.
+            let (from, to) = (random_pos(rng), random_pos(rng));
+            harness.hover_at(from);
+            harness.drag_at(from);
+            harness.hover_at(from + (to - from) * 0.5);
+            harness.run_steps(1);
+            harness.drop_at(to);
+            format!("drag {from:?} to {to:?}")
+        }
+        19 => {
+            let radios = labels(harness, Role::RadioButton);
+            if radios.is_empty() {
+                "no radio button".to_owned()
+            } else {
+                let i = rng.below(radios.len());
+                click_nth(harness, Role::RadioButton, i);
+                format!("radio '{}'", radios[i])
+            }
+        }
         14 => {
             let p = random_pos(rng);
             harness.hover_at(p);
@@ -242,7 +262,7 @@ fn act(harness: &mut Harness<'_, ProprioscopeApp>, rng: &mut Rng, m: &mut Monkey
         }
         _ => {
             // A menu opened, then an item in it clicked.
-            let menus = ["Scenes", "Session", "Robot"];
+            let menus = ["Scenes", "Session", "View", "Robot"];
             let menu = menus[rng.below(menus.len())];
             if let Some(node) = harness.query_all_by_label(menu).next() {
                 node.click();

@@ -10,6 +10,7 @@ use eframe::egui;
 use super::session::{self, EstimateJob, FrameEstimate, LoadFailure, Loader, SessionData};
 use super::{Command, Model, ProprioscopeApp, Replay, SPEED_RANGE, per_joint};
 use crate::core::kinematics::RobotPose;
+use crate::core::metrics::Metrics;
 use crate::core::pipeline::{Temporal, automatic_temporal};
 use crate::core::robot::{LinkId, Robot};
 use crate::core::summary::Verdict;
@@ -36,6 +37,9 @@ pub(super) struct SessionKey {
     over_time: Temporal,
 }
 
+/// How one metric is written in the session panel.
+type MetricText = dyn Fn(&Metrics) -> String;
+
 /// Metrics over all frames, and by the number of sensing joints.
 pub(super) type SessionMetrics = (
     crate::core::metrics::Metrics,
@@ -55,7 +59,25 @@ impl ProprioscopeApp {
     /// overrides the session's (a CSV session without one uses the current
     /// robot). On failure the error is shown and the current scene kept.
     pub fn open_session(&mut self, path: &Path, robot: Option<String>) {
-        let robot = robot.or_else(|| crate::io::session::names_no_robot(path).then(|| self.robot_spec.clone()));
+        // A file that names no robot (CSV, recordings) is shown on the
+        // robot the user chose; on the default robot it would be a guess.
+        let robot = match robot {
+            Some(r) => Some(r),
+            None if crate::io::session::names_no_robot(path) => {
+                if !self.robot_chosen {
+                    self.error = Some(format!(
+                        "{} names no robot (CSV sessions and recordings do not): open its robot first \
+                         (Robot menu, or Scenes > Open scene or URDF), then the session; or run \
+                         proprioscope view {} --robot URDF",
+                        path.display(),
+                        path.display()
+                    ));
+                    return;
+                }
+                Some(self.robot_spec.clone())
+            }
+            None => None,
+        };
         let ctx = self.ctx.clone();
         // A recording's topics: as chosen for this file before, else as for
         // the last file whose topics were chosen (when they fit).
@@ -364,7 +386,7 @@ impl ProprioscopeApp {
             if ui.button(label).on_hover_text("space").clicked() {
                 commands.push(Command::Play(!replay.playing));
             }
-            if ui.button(">").on_hover_text("next frame (→)").clicked() {
+            if ui.button(">").on_hover_text("next frame (Right arrow key)").clicked() {
                 commands.push(Command::StepFrames(1));
             }
             if ui.button(">|").on_hover_text("last frame").clicked() {
@@ -596,37 +618,43 @@ impl ProprioscopeApp {
             ui.label("no frame has a known contact: no errors to report");
             return;
         };
+        // One column per group of frames (all, then by how many joints sense
+        // the contact), one row per metric: narrow enough for the side panel.
+        let columns: Vec<(String, &Metrics)> = std::iter::once(("all".to_owned(), &all))
+            .chain(by_joints.iter().map(|(k, m)| (format!("{k} joints"), m)))
+            .collect();
+        let rows: [(&str, &MetricText); 6] = [
+            ("frames", &|m| m.frames.to_string()),
+            ("position median / p90 [mm]", &|m| {
+                format!("{:.1} / {:.1}", m.position_median_m * 1e3, m.position_p90_m * 1e3)
+            }),
+            ("force median / p90 [N]", &|m| {
+                format!("{:.2} / {:.2}", m.force_median_newtons, m.force_p90_newtons)
+            }),
+            ("link right", &|m| format!("{:.0} %", m.link_accuracy * 100.0)),
+            ("ε_r [mm], ε_F [N]", &|m| {
+                format!("{:.1}, {:.2}", m.eps_r_m * 1e3, m.eps_f_newtons)
+            }),
+            ("σ_r [mm]", &|m| format!("{:.1}", m.sigma_r_m * 1e3)),
+        ];
         egui::Grid::new("session-metrics").striped(true).show(ui, |ui| {
-            ui.label("sensing joints");
-            ui.label("frames");
-            ui.label("pos. median / p90 [mm]");
-            ui.label("force median / p90 [N]");
-            ui.label("link right");
-            ui.label("ε_r [mm], ε_F [N], σ_r [mm]");
+            ui.label("frames with a contact");
+            for (name, _) in &columns {
+                ui.strong(name);
+            }
             ui.end_row();
-            let rows =
-                std::iter::once(("all".to_owned(), &all)).chain(by_joints.iter().map(|(k, m)| (k.to_string(), m)));
-            for (label, m) in rows {
-                ui.label(label);
-                ui.label(m.frames.to_string());
-                ui.label(format!(
-                    "{:.1} / {:.1}",
-                    m.position_median_m * 1e3,
-                    m.position_p90_m * 1e3
-                ));
-                ui.label(format!("{:.2} / {:.2}", m.force_median_newtons, m.force_p90_newtons));
-                ui.label(format!("{:.0} %", m.link_accuracy * 100.0));
-                ui.label(format!(
-                    "{:.1}, {:.2}, {:.1}",
-                    m.eps_r_m * 1e3,
-                    m.eps_f_newtons,
-                    m.sigma_r_m * 1e3
-                ));
+            for (name, value) in rows {
+                ui.label(name);
+                for (_, m) in &columns {
+                    ui.label(value(m));
+                }
                 ui.end_row();
             }
         });
         if ui.button("Export metrics as JSON…").clicked()
-            && let Some(path) = rfd::FileDialog::new().add_filter("JSON", &["json"]).save_file()
+            && let Some(path) = self.picked(super::files::pick(|| {
+                rfd::FileDialog::new().add_filter("JSON", &["json"]).save_file()
+            }))
         {
             self.export_metrics(&path);
         }
@@ -739,10 +767,11 @@ impl ProprioscopeApp {
         ui.menu_button("Session", |ui| {
             if ui.button("Open session…").clicked() {
                 ui.close();
-                if let Some(path) = rfd::FileDialog::new()
-                    .add_filter("session or recording", &["json", "csv", "mcap", "bag"])
-                    .pick_file()
-                {
+                if let Some(path) = self.picked(super::files::pick(|| {
+                    rfd::FileDialog::new()
+                        .add_filter("session or recording", &["json", "csv", "mcap", "bag"])
+                        .pick_file()
+                })) {
                     self.open_session(&path, None);
                 }
             }
@@ -766,11 +795,12 @@ impl ProprioscopeApp {
                 }
             } else if ui.button("Record…").clicked() {
                 ui.close();
-                if let Some(path) = rfd::FileDialog::new()
-                    .add_filter("session", &["json"])
-                    .set_file_name("recording.session.json")
-                    .save_file()
-                {
+                if let Some(path) = self.picked(super::files::pick(|| {
+                    rfd::FileDialog::new()
+                        .add_filter("session", &["json"])
+                        .set_file_name("recording.session.json")
+                        .save_file()
+                })) {
                     self.start_recording(&path);
                 }
             }

@@ -244,6 +244,13 @@ fn run_config(robot: &Robot, config: &Config, contacts: &[Contact], seed: u64) -
 
 /// Runs the command.
 pub fn run(args: &BenchArgs) -> Result<()> {
+    // The README's table and plot are committed: quick figures (fewer
+    // contacts and configurations) must not replace them.
+    if args.quick && args.readme.is_some() {
+        return Err(anyhow!(
+            "--quick with --readme would put a quick run's figures in the README and screenshots/bench.png: drop --quick, or write the plot elsewhere with --plot"
+        ));
+    }
     let mut robots = vec![load_robot("lwr4plus", Path::new("."), &UrdfOptions::default())?];
     for urdf in &args.urdf {
         let options = UrdfOptions {
@@ -324,7 +331,7 @@ struct SessionRun {
 /// seeds, on one recorded session, for the refined estimator and the
 /// grid of points it refines (at the same and at seven times the points).
 fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
-    use proprioscope::app::session::session_robot;
+    use proprioscope::batch::session_robot;
     use proprioscope::io::session::Session;
     let session = Session::read(path)?;
     let robot = session_robot(&session, None, &args.package_paths, &[])?;

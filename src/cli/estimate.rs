@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::{Context as _, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use proprioscope::app::session::{FrameEstimate, frame_outcome, session_robot};
+use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot};
 use proprioscope::core::bias::{estimate_drifting_bias, without_drifting_bias};
 use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, metrics_by_sensing_joints, percentile};
 use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, Update, automatic_temporal, estimate_sequence};

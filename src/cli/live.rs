@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
-use proprioscope::app::session::{FrameEstimate, frame_outcome, session_robot};
+use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot};
 use proprioscope::core::pipeline::{Estimator, Temporal};
 use proprioscope::core::surface::SurfaceRequest;
 use proprioscope::core::temporal::{FilterState, TemporalModel};

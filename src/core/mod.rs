@@ -11,6 +11,7 @@ pub mod fastmath;
 pub mod kinematics;
 pub mod mesh;
 pub mod metrics;
+pub mod observability;
 pub mod phases;
 pub mod picking;
 pub mod pipeline;

@@ -91,6 +91,20 @@ pub struct View {
     /// Draw every sensed joint's axis. Default: false.
     #[serde(default)]
     pub joint_axes: bool,
+    /// What the arm is painted with. Default: the posterior.
+    #[serde(default)]
+    pub layer: Layer,
+}
+
+/// What the arm is painted with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Layer {
+    /// The posterior over the contact point.
+    #[default]
+    Posterior,
+    /// How sharply the sensed joints would locate a push at each point.
+    Observability,
 }
 
 fn default_true() -> bool {

@@ -127,6 +127,32 @@ impl OrbitCamera {
         self.distance = (self.distance * factor).clamp(0.05, 100.0);
     }
 
+    /// Looks at the box `min`–`max` from the current direction, from just
+    /// far enough that its eight corners fit a view of aspect `aspect`
+    /// (width over height) with a small margin.
+    pub fn fit(&mut self, min: Vec3, max: Vec3, aspect: f32) {
+        const MARGIN: f32 = 0.92;
+        self.target = 0.5 * (min + max);
+        let back = -self.forward();
+        let right = self.forward().cross(Vec3::Z).normalize_or(Vec3::X);
+        let up = right.cross(self.forward());
+        let tan_y = (0.5 * self.fov_y).tan() * MARGIN;
+        let tan_x = tan_y * aspect.max(0.1);
+        // A corner at (x, y) across and z towards the eye is in view from a
+        // distance d when |x| ≤ (d - z)·tan_x and |y| ≤ (d - z)·tan_y.
+        let mut distance: f32 = 0.05;
+        for i in 0..8 {
+            let corner = Vec3::new(
+                if i & 1 == 0 { min.x } else { max.x },
+                if i & 2 == 0 { min.y } else { max.y },
+                if i & 4 == 0 { min.z } else { max.z },
+            ) - self.target;
+            let (x, y, z) = (corner.dot(right), corner.dot(up), corner.dot(back));
+            distance = distance.max(z + x.abs() / tan_x).max(z + y.abs() / tan_y);
+        }
+        self.distance = distance.clamp(0.05, 100.0);
+    }
+
     /// Double click: look at `point` from where we are.
     pub fn centre_on(&mut self, point: Vec3) {
         self.target = point;
@@ -147,6 +173,36 @@ mod tests {
         let (origin, dir) = cam.ray(SIZE / 2.0, SIZE);
         let miss = (cam.target - origin).cross(dir).length();
         assert!(miss < 1e-4, "{miss}");
+    }
+
+    #[test]
+    fn a_fitted_box_lies_inside_the_view_at_any_aspect() {
+        for (aspect, min, max) in [
+            (800.0 / 600.0, Vec3::new(-0.1, -0.1, 0.0), Vec3::new(0.1, 0.1, 1.3)),
+            (0.5, Vec3::new(-0.6, -0.2, 0.0), Vec3::new(0.6, 0.2, 0.4)),
+            (2.5, Vec3::new(-0.05, -0.05, 0.0), Vec3::new(0.05, 0.05, 0.1)),
+        ] {
+            let mut cam = OrbitCamera::default();
+            cam.fit(min, max, aspect);
+            let size = Vec2::new(600.0 * aspect, 600.0);
+            let mut extent = (f32::MAX, f32::MIN);
+            for i in 0..8 {
+                let corner = Vec3::new(
+                    if i & 1 == 0 { min.x } else { max.x },
+                    if i & 2 == 0 { min.y } else { max.y },
+                    if i & 4 == 0 { min.z } else { max.z },
+                );
+                let p = cam.project(corner, size).unwrap();
+                assert!(
+                    p.x >= 0.0 && p.y >= 0.0 && p.x <= size.x && p.y <= size.y,
+                    "{aspect}: {p}"
+                );
+                extent = (extent.0.min(p.y), extent.1.max(p.y));
+            }
+            // Not lost in the distance either: the box spans a good part of the view.
+            let span = (extent.1 - extent.0).max(0.0) / size.y;
+            assert!(span > 0.25, "{aspect}: {span}");
+        }
     }
 
     #[test]

@@ -1,6 +1,7 @@
-//! Recorded sessions in the app: loading and estimating every frame in the
-//! background, the timeline with plots linked to it, the session's metrics,
-//! and recording the interactive mode.
+//! Whole sessions, headless: their robot, loading them in the background,
+//! estimating every frame (alone or over time) off the caller's thread,
+//! and their metrics. Shared by the command line and the app; no egui, so
+//! that the CLI builds without the GUI stack (`--no-default-features`).
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -1,0 +1,658 @@
+//! The user's model and the commands that change it: no egui here.
+
+use super::*;
+
+/// A push on the robot, kept in the link frame so that it moves with the arm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Push {
+    /// The link pushed.
+    pub link: LinkId,
+    /// Contact point in the link frame, m.
+    pub point_in_link: DVec3,
+    /// The push's unit direction in the link frame: the inward normal for
+    /// a click, any direction into the surface for a dragged push.
+    pub inward_normal_in_link: DVec3,
+    /// Magnitude, N.
+    pub force_newtons: f64,
+}
+
+/// Everything the user can change; changed only by [`Command`]s.
+#[derive(Debug, Clone)]
+pub struct Model {
+    /// The robot.
+    pub robot: Arc<Robot>,
+    /// Sensed joint positions, rad.
+    pub q: Vec<f64>,
+    /// The applied push.
+    pub push: Option<Push>,
+    /// Likelihood σ per sensed joint, N·m.
+    pub sigma: Vec<f64>,
+    /// Surface points over the candidate links.
+    pub surface_points: usize,
+    /// Links that can be touched: only these are sampled and evaluated.
+    pub candidate_links: Vec<LinkId>,
+    /// Sensor noise added to the push's torques, N·m.
+    pub noise_sigma: f64,
+    /// Seed of that noise.
+    pub noise_seed: u64,
+    /// Push magnitudes considered by the estimator, N.
+    pub force_range_newtons: (f64, f64),
+    /// Estimator mode and phases.
+    pub estimator: EstimatorChoice,
+    /// Seed of the surface sampling.
+    pub surface_seed: u64,
+    /// Positions of joints that are neither sensed nor fixed, by name.
+    pub other_joints: Vec<(String, f64)>,
+    /// The scene's title and description (saved with it).
+    pub title: (String, String),
+    /// How the posterior is shown (changing it re-runs nothing).
+    pub view: ViewOptions,
+    /// A recorded session being replayed: its current frame sets `q`, the
+    /// measured torques and the true contact (shown as the push).
+    pub replay: Option<Replay>,
+}
+
+/// A session on the timeline.
+#[derive(Debug, Clone)]
+pub struct Replay {
+    /// The session (good frames only).
+    pub session: Arc<session::SessionData>,
+    /// The frame shown (index into the good frames).
+    pub frame: usize,
+    /// Playing (else paused).
+    pub playing: bool,
+    /// Playback speed, 0.1–10× real time.
+    pub speed: f64,
+    /// Start over at the end.
+    pub looping: bool,
+    /// Session time the playback has reached, s.
+    pub clock_secs: f64,
+    /// How the session's frames are estimated: each alone, with the
+    /// frames before (filtered) or with the whole session (smoothed).
+    pub over_time: Temporal,
+}
+
+/// Slowest and fastest playback.
+pub const SPEED_RANGE: (f64, f64) = (0.1, 10.0);
+
+/// The estimator's mode as the panel offers it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModeChoice {
+    /// Closed form per surface point.
+    Exact,
+    /// Thesis particles, m magnitudes per point.
+    ParticlesDeterministic,
+    /// Thesis particles, uniform random.
+    ParticlesRandom,
+}
+
+/// Estimator settings beyond σ and the resolution.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EstimatorChoice {
+    /// The mode.
+    pub mode: ModeChoice,
+    /// N for random particles.
+    pub particles: usize,
+    /// m for deterministic particles.
+    pub magnitudes_per_point: usize,
+    /// Phases A/B/C on.
+    pub phases: bool,
+    /// Sizes of phases A and B.
+    pub phase_sizes: [usize; 2],
+    /// α between phases.
+    pub alpha: f64,
+}
+
+impl EstimatorChoice {
+    /// The choice a scene's estimator section makes.
+    #[must_use]
+    pub fn from_scene(e: &crate::io::scene::EstimatorSettings) -> Self {
+        use crate::io::scene as sc;
+        Self {
+            mode: match (e.mode, e.sampling) {
+                (sc::Mode::Exact, _) => ModeChoice::Exact,
+                (sc::Mode::Particles, sc::Sampling::Deterministic) => ModeChoice::ParticlesDeterministic,
+                (sc::Mode::Particles, sc::Sampling::Random) => ModeChoice::ParticlesRandom,
+            },
+            particles: e.particles,
+            magnitudes_per_point: e.magnitudes_per_point,
+            phases: e.phases.enabled,
+            phase_sizes: e.phases.sizes,
+            alpha: e.phases.alpha,
+        }
+    }
+}
+
+impl Default for EstimatorChoice {
+    fn default() -> Self {
+        Self {
+            mode: ModeChoice::Exact,
+            particles: 20_000,
+            magnitudes_per_point: 5,
+            phases: false,
+            phase_sizes: [200, 1000],
+            alpha: 0.5,
+        }
+    }
+}
+
+/// How the heatmap is drawn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[allow(clippy::struct_excessive_bools)] // Independent display toggles, one checkbox each.
+pub struct ViewOptions {
+    /// Log scale (else linear in probability).
+    pub log_scale: bool,
+    /// Hide points below this fraction of the scale (0 shows all).
+    pub threshold: f64,
+    /// The thesis' red-to-green map instead of viridis.
+    pub red_green: bool,
+    /// Draw the candidate points (phase A red, B orange, the 90 % credible set white).
+    pub show_points: bool,
+    /// Draw every sensed joint's axis.
+    pub show_axes: bool,
+    /// The posterior, or the observability map.
+    pub layer: super::heat::HeatLayer,
+}
+
+impl Default for ViewOptions {
+    fn default() -> Self {
+        Self {
+            log_scale: true,
+            threshold: 0.0,
+            red_green: false,
+            show_points: false,
+            show_axes: false,
+            layer: super::heat::HeatLayer::Posterior,
+        }
+    }
+}
+
+/// Everything the 3-D view's picture depends on.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct ViewKey {
+    pub(crate) inputs: EstimateInputs,
+    pub(crate) view: ViewOptions,
+    pub(crate) generation: Option<u64>,
+    pub(crate) hovered_joint: Option<usize>,
+    pub(crate) camera: OrbitCamera,
+    pub(crate) size: [u32; 2],
+}
+
+/// The parts of the [`Model`] an estimate depends on, to tell whether a
+/// command calls for a new one.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct EstimateInputs {
+    pub(crate) q: Vec<f64>,
+    pub(crate) push: Option<Push>,
+    pub(crate) sigma: Vec<f64>,
+    pub(crate) surface_points: usize,
+    pub(crate) candidate_links: Vec<LinkId>,
+    pub(crate) noise: (f64, u64),
+    pub(crate) estimator: EstimatorChoice,
+    pub(crate) force_range_newtons: (f64, f64),
+    pub(crate) frame: Option<usize>,
+    pub(crate) surface_seed: u64,
+    pub(crate) other_joints: Vec<(String, f64)>,
+}
+
+/// Estimator and sensor settings to start the app with.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StartSettings {
+    /// Likelihood σ, N·m: one value for every joint, or one per sensed joint.
+    pub sigma: Vec<f64>,
+    /// Surface points.
+    pub surface_points: usize,
+    /// Sensor noise σ, N·m, and its seed.
+    pub noise: (f64, u64),
+    /// Push magnitudes considered, N.
+    pub force_range_newtons: (f64, f64),
+    /// Candidate links by name; `None`: every link a revolute joint moves.
+    pub candidate_links: Option<Vec<LinkId>>,
+    /// Mode, particles and phases.
+    pub estimator: EstimatorChoice,
+    /// Seed of the surface sampling.
+    pub surface_seed: u64,
+    /// Positions of joints that are neither sensed nor fixed, by name.
+    pub other_joints: Vec<(String, f64)>,
+    /// How to show the posterior (`None`: keep the app's current choice).
+    pub view: Option<ViewOptions>,
+    /// The scene's title and description, kept for saving.
+    pub title: (String, String),
+}
+
+impl Default for StartSettings {
+    /// σ 0.1 N·m, 5000 points, 0.05 N·m of sensor noise, 1–30 N.
+    fn default() -> Self {
+        Self {
+            sigma: vec![0.1],
+            surface_points: 5000,
+            noise: (0.05, 1),
+            force_range_newtons: (1.0, 30.0),
+            candidate_links: None,
+            estimator: EstimatorChoice::default(),
+            surface_seed: 0,
+            other_joints: Vec::new(),
+            view: None,
+            title: (String::new(), String::new()),
+        }
+    }
+}
+
+/// A change to the [`Model`], sent by the UI and applied in one place.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Command {
+    /// Set sensed joint `index` to a position, rad.
+    SetJoint(usize, f64),
+    /// Every joint to 0.
+    ZeroJoints,
+    /// Every joint to a random position within its limits (seeded).
+    RandomPose(u64),
+    /// Set the seed of the sensor noise.
+    SetNoiseSeed(u64),
+    /// Apply a push.
+    Push(Push),
+    /// Set the push's magnitude, N.
+    SetForce(f64),
+    /// Remove the push.
+    ClearPush,
+    /// Set the likelihood σ of every joint, N·m.
+    SetSigma(f64),
+    /// Set one joint's likelihood σ, N·m.
+    SetJointSigma(usize, f64),
+    /// Set the surface resolution.
+    SetSurfacePoints(usize),
+    /// Make a link a candidate (true) or not.
+    SetCandidate(LinkId, bool),
+    /// Set the sensor noise, N·m.
+    SetNoise(f64),
+    /// Set the estimator's mode and phases.
+    SetEstimator(EstimatorChoice),
+    /// Set the force range, N.
+    SetForceRange(f64, f64),
+    /// Set how the heatmap is drawn.
+    SetView(ViewOptions),
+    /// Show a session frame (index into its good frames).
+    SetFrame(usize),
+    /// Move this many frames (negative: back).
+    StepFrames(i64),
+    /// Play (true) or pause.
+    Play(bool),
+    /// Set the playback speed (clamped to [`SPEED_RANGE`]).
+    SetSpeed(f64),
+    /// Loop at the end (true) or stop.
+    SetLoop(bool),
+    /// Estimate the session's frames alone, filtered or smoothed.
+    SetOverTime(Temporal),
+    /// Advance playback by this much wall-clock time, s.
+    Tick(f64),
+}
+
+impl Model {
+    /// Applies a command; true when something changed.
+    pub fn apply(&mut self, command: Command) -> bool {
+        let before = self.estimate_inputs();
+        match command {
+            Command::SetJoint(i, value) => {
+                if let Some(q) = self.q.get_mut(i) {
+                    *q = value;
+                }
+            }
+            Command::ZeroJoints => self.q.iter_mut().for_each(|q| *q = 0.0),
+            Command::RandomPose(seed) => {
+                let mut rng = crate::core::rng::Rng::new(seed);
+                for (q, &j) in self.q.iter_mut().zip(self.robot.sensed()) {
+                    let (lo, hi) = self.robot.joints[j]
+                        .limits
+                        .map_or((-std::f64::consts::PI, std::f64::consts::PI), |l| (l.lower, l.upper));
+                    *q = rng.uniform_in(lo, hi);
+                }
+            }
+            Command::SetNoiseSeed(seed) => self.noise_seed = seed,
+            Command::Push(push) => self.push = Some(push),
+            Command::SetForce(f) => {
+                if let Some(p) = self.push.as_mut() {
+                    p.force_newtons = f.max(0.0);
+                }
+            }
+            Command::ClearPush => self.push = None,
+            Command::SetSigma(s) => self.sigma.iter_mut().for_each(|v| *v = s.max(1e-6)),
+            Command::SetJointSigma(i, s) => {
+                if let Some(v) = self.sigma.get_mut(i) {
+                    *v = s.max(1e-6);
+                }
+            }
+            Command::SetSurfacePoints(n) => self.surface_points = n.clamp(10, crate::core::surface::MAX_POINTS),
+            Command::SetCandidate(link, on) => {
+                let can_touch = self.robot.default_candidate_links().contains(&link);
+                if on && can_touch && !self.candidate_links.contains(&link) {
+                    self.candidate_links.push(link);
+                    self.candidate_links.sort_unstable();
+                } else if !on && self.candidate_links.len() > 1 {
+                    // At least one link stays: an empty surface has no posterior.
+                    self.candidate_links.retain(|l| *l != link);
+                }
+            }
+            Command::SetNoise(s) => self.noise_sigma = s.max(0.0),
+            Command::SetEstimator(choice) => {
+                self.estimator = EstimatorChoice {
+                    particles: choice.particles.clamp(1, crate::core::estimator::MAX_PARTICLES),
+                    magnitudes_per_point: choice
+                        .magnitudes_per_point
+                        .clamp(1, crate::core::estimator::MAX_MAGNITUDES),
+                    alpha: choice.alpha.clamp(0.0, 0.99),
+                    ..choice
+                };
+            }
+            Command::SetForceRange(lo, hi) => {
+                let lo = lo.max(0.0);
+                self.force_range_newtons = (lo, hi.max(lo));
+            }
+            Command::SetView(view) => self.view = view,
+            Command::SetFrame(i) => self.show_frame(i),
+            Command::StepFrames(by) => {
+                if let Some(r) = &self.replay {
+                    let last = r.session.frames.len().saturating_sub(1);
+                    let target = i64::try_from(r.frame).unwrap_or(0).saturating_add(by).max(0);
+                    self.show_frame(usize::try_from(target).unwrap_or(0).min(last));
+                }
+            }
+            Command::Play(on) => {
+                let at_end = self
+                    .replay
+                    .as_ref()
+                    .is_some_and(|r| r.frame + 1 >= r.session.frames.len());
+                if on && at_end {
+                    self.show_frame(0);
+                }
+                if let Some(r) = &mut self.replay {
+                    r.playing = on;
+                }
+            }
+            Command::SetSpeed(speed) => {
+                if let Some(r) = &mut self.replay {
+                    r.speed = speed.clamp(SPEED_RANGE.0, SPEED_RANGE.1);
+                }
+            }
+            Command::SetLoop(on) => {
+                if let Some(r) = &mut self.replay {
+                    r.looping = on;
+                }
+            }
+            Command::SetOverTime(temporal) => {
+                if let Some(r) = &mut self.replay {
+                    r.over_time = temporal;
+                }
+            }
+            Command::Tick(dt_secs) => self.tick(dt_secs),
+        }
+        before != self.estimate_inputs()
+    }
+
+    /// Shows session frame `i` (clamped to the last): its `q`, and its true
+    /// contact as the push.
+    fn show_frame(&mut self, i: usize) {
+        let Some(replay) = &mut self.replay else {
+            return;
+        };
+        let i = i.min(replay.session.frames.len().saturating_sub(1));
+        let Some(frame) = replay.session.frames.get(i) else {
+            return;
+        };
+        replay.frame = i;
+        replay.clock_secs = frame.t;
+        if frame.q.len() == self.q.len() {
+            self.q.clone_from(&frame.q);
+        }
+        let truth = frame.truth.clone();
+        let positions = self.joint_positions();
+        let pose = RobotPose::new(&self.robot, &positions);
+        self.push = match truth {
+            crate::io::session::Truth::Contact { link, point, force } => {
+                self.robot.link_id(&link).ok().and_then(|link| {
+                    let link_from_world = pose.world_from_link.get(link)?.inverse();
+                    let force = DVec3::from_array(force);
+                    Some(Push {
+                        link,
+                        point_in_link: link_from_world.transform_point3(DVec3::from_array(point)),
+                        inward_normal_in_link: link_from_world.transform_vector3(force.try_normalize()?),
+                        force_newtons: force.length(),
+                    })
+                })
+            }
+            _ => None,
+        };
+    }
+
+    /// Advances playback by `dt_secs` of wall-clock time.
+    fn tick(&mut self, dt_secs: f64) {
+        let Some(replay) = &mut self.replay else {
+            return;
+        };
+        if !replay.playing {
+            return;
+        }
+        let frames = &replay.session.frames;
+        let (Some(first), Some(last)) = (frames.first().map(|f| f.t), frames.last().map(|f| f.t)) else {
+            return;
+        };
+        let mut clock = replay.clock_secs + dt_secs.max(0.0) * replay.speed;
+        if clock > last {
+            if replay.looping {
+                clock = first;
+            } else {
+                clock = last;
+                replay.playing = false;
+            }
+        }
+        let target = replay.session.frame_at(clock);
+        let changed = target != replay.frame;
+        if changed {
+            self.show_frame(target);
+        }
+        if let Some(replay) = &mut self.replay {
+            replay.clock_secs = clock;
+        }
+    }
+
+    /// The torques the sensors read: the session frame's, or the push's
+    /// with the sensor noise.
+    #[must_use]
+    pub fn measured_torques(&self, pose: &RobotPose) -> Vec<f64> {
+        if let Some(frame) = self.replay.as_ref().and_then(|r| r.session.frames.get(r.frame)) {
+            return frame.tau.clone();
+        }
+        with_sensor_noise(&self.applied_torques(pose), self.noise_sigma, self.noise_seed)
+    }
+
+    /// What the estimate depends on (view options excluded).
+    pub(crate) fn estimate_inputs(&self) -> EstimateInputs {
+        EstimateInputs {
+            q: self.q.clone(),
+            push: self.push,
+            sigma: self.sigma.clone(),
+            surface_points: self.surface_points,
+            candidate_links: self.candidate_links.clone(),
+            noise: (self.noise_sigma, self.noise_seed),
+            estimator: self.estimator,
+            force_range_newtons: self.force_range_newtons,
+            frame: self.replay.as_ref().map(|r| r.frame),
+            surface_seed: self.surface_seed,
+            other_joints: self.other_joints.clone(),
+        }
+    }
+
+    /// The core estimator's settings.
+    #[must_use]
+    pub fn estimator_settings(&self) -> EstimatorSettings {
+        use crate::core::estimator::{ParticleSettings, Sampling};
+        let e = self.estimator;
+        EstimatorSettings {
+            sigma: self.sigma.clone(),
+            force_min_newtons: self.force_range_newtons.0,
+            force_max_newtons: self.force_range_newtons.1,
+            mode: match e.mode {
+                ModeChoice::Exact => Mode::Exact,
+                ModeChoice::ParticlesDeterministic => Mode::Particles(ParticleSettings {
+                    sampling: Sampling::Deterministic {
+                        magnitudes_per_point: e.magnitudes_per_point,
+                    },
+                }),
+                ModeChoice::ParticlesRandom => Mode::Particles(ParticleSettings {
+                    sampling: Sampling::Random {
+                        count: e.particles,
+                        seed: 7,
+                    },
+                }),
+            },
+            phase_alpha: e.phases.then_some(e.alpha),
+            patches: true,
+        }
+    }
+
+    /// Every joint's position.
+    #[must_use]
+    pub fn joint_positions(&self) -> Vec<f64> {
+        self.robot
+            .joint_positions(&self.q, &self.other_joints)
+            .or_else(|_| self.robot.joint_positions(&self.q, &[]))
+            .unwrap_or_else(|_| vec![0.0; self.robot.joints.len()])
+    }
+
+    /// The model a robot opens with: its configuration, push and settings
+    /// (`view` when the settings name none).
+    #[must_use]
+    pub fn from_start(
+        robot: Robot,
+        q: Vec<f64>,
+        push: Option<Push>,
+        settings: StartSettings,
+        view: ViewOptions,
+    ) -> Self {
+        let joints = robot.sensed().len();
+        let candidate_links = settings
+            .candidate_links
+            .unwrap_or_else(|| robot.default_candidate_links());
+        Self {
+            robot: Arc::new(robot),
+            q,
+            push,
+            sigma: per_joint(&settings.sigma, joints),
+            surface_points: settings.surface_points,
+            candidate_links,
+            noise_sigma: settings.noise.0,
+            noise_seed: settings.noise.1,
+            force_range_newtons: settings.force_range_newtons,
+            estimator: settings.estimator,
+            surface_seed: settings.surface_seed,
+            other_joints: settings.other_joints,
+            title: settings.title,
+            view: settings.view.unwrap_or(view),
+            replay: None,
+        }
+    }
+
+    /// The push in the world: (point, force).
+    #[must_use]
+    pub fn push_world(&self, pose: &RobotPose) -> Option<(LinkId, DVec3, DVec3)> {
+        let p = self.push?;
+        let frame = pose.world_from_link[p.link];
+        Some((
+            p.link,
+            frame.transform_point3(p.point_in_link),
+            frame.transform_vector3(p.inward_normal_in_link) * p.force_newtons,
+        ))
+    }
+
+    /// Exact torques of the push (zeros without one).
+    #[must_use]
+    pub fn applied_torques(&self, pose: &RobotPose) -> Vec<f64> {
+        match self.push_world(pose) {
+            Some((link, point, force)) => joint_torques(&self.robot, pose, link, point, force),
+            None => vec![0.0; self.robot.sensed().len()],
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model() -> Model {
+        let robot = crate::core::builtin::lwr4plus_generated().unwrap();
+        let candidate_links = robot.default_candidate_links();
+        Model {
+            q: vec![0.0; 7],
+            push: None,
+            sigma: vec![0.1; 7],
+            surface_points: 1000,
+            candidate_links,
+            noise_sigma: 0.0,
+            noise_seed: 1,
+            force_range_newtons: (1.0, 30.0),
+            estimator: EstimatorChoice::default(),
+            surface_seed: 0,
+            other_joints: Vec::new(),
+            title: (String::new(), String::new()),
+            view: ViewOptions::default(),
+            replay: None,
+            robot: Arc::new(robot),
+        }
+    }
+
+    #[test]
+    fn sigma_commands_set_all_joints_or_one() {
+        let mut m = model();
+        assert!(m.apply(Command::SetSigma(0.3)));
+        assert!(m.sigma.iter().all(|s| (s - 0.3).abs() < 1e-15));
+        assert!(m.apply(Command::SetJointSigma(2, 0.05)));
+        assert!((m.sigma[2] - 0.05).abs() < 1e-15 && (m.sigma[1] - 0.3).abs() < 1e-15);
+        assert!(
+            !m.apply(Command::SetJointSigma(99, 0.05)),
+            "no such joint: nothing changes"
+        );
+        assert_eq!(m.estimator_settings().sigma, m.sigma);
+    }
+
+    #[test]
+    fn view_commands_change_no_estimate_input() {
+        let mut m = model();
+        let view = ViewOptions {
+            log_scale: false,
+            ..ViewOptions::default()
+        };
+        assert!(!m.apply(Command::SetView(view)));
+        assert_eq!(m.view, view);
+    }
+
+    #[test]
+    fn at_least_one_candidate_link_stays_and_only_touchable_links_join() {
+        let mut m = model();
+        let all = m.candidate_links.clone();
+        for &l in &all {
+            m.apply(Command::SetCandidate(l, false));
+        }
+        assert_eq!(m.candidate_links.len(), 1);
+        assert!(
+            !m.apply(Command::SetCandidate(0, true)),
+            "the base is not a touchable link"
+        );
+        let kept = m.candidate_links[0];
+        let other = *all.iter().find(|&&l| l != kept).unwrap();
+        assert!(m.apply(Command::SetCandidate(other, true)));
+        assert_eq!(m.candidate_links.len(), 2);
+        assert!(
+            !m.apply(Command::SetCandidate(other, true)),
+            "ticking twice changes nothing"
+        );
+    }
+
+    #[test]
+    fn random_poses_are_seeded() {
+        let (mut a, mut b) = (model(), model());
+        a.apply(Command::RandomPose(3));
+        b.apply(Command::RandomPose(3));
+        assert_eq!(a.q, b.q);
+        b.apply(Command::RandomPose(4));
+        assert_ne!(a.q, b.q);
+    }
+}

@@ -1,0 +1,239 @@
+//! Start-up: what the app opens on (scene, URDF, robot, session), and
+//! the headless harness behind `proprioscope screenshot` and the UI tests.
+
+use super::{EstimatorChoice, ProprioscopeApp, Push, Robot, StartSettings, ViewOptions, egui, timeline};
+
+/// Renders the app headless (Mesa's software Vulkan or a GPU, no window):
+/// runs frames until the estimate for the current model has arrived, then
+/// returns the image. The path of `proprioscope screenshot` and the UI tests.
+pub fn render_headless(start: AppStart, size: [f32; 2]) -> Result<image::RgbaImage, String> {
+    let mut harness = headless_harness(start, size);
+    // Names from the user's files (links, joints, paths) may hold
+    // characters no bundled font has: a box, as in the app, not a panic
+    // (the UI tests keep the harness's panic, to catch our own text).
+    harness
+        .ctx
+        .set_missing_glyph_policy(egui::epaint::text::MissingGlyphPolicy::Tofu);
+    settle(&mut harness)?;
+    // A session that failed to load in the background is an error here,
+    // not a picture of the scene it would have replaced.
+    if let Some(error) = &harness.state().error {
+        return Err(error.clone());
+    }
+    harness.render()
+}
+
+/// The app in a headless harness (wgpu), not yet settled.
+#[must_use]
+pub fn headless_harness(start: AppStart, size: [f32; 2]) -> egui_kittest::Harness<'static, ProprioscopeApp> {
+    egui_kittest::Harness::builder()
+        .with_size(egui::vec2(size[0], size[1]))
+        .wgpu()
+        .build_eframe(move |cc| ProprioscopeApp::from_start(cc, start))
+}
+
+/// What the app opens on.
+#[derive(Debug, Clone)]
+pub struct AppStart {
+    /// How the robot was named (built-in name or URDF path), for saving.
+    pub robot_spec: String,
+    /// The robot.
+    pub robot: Robot,
+    /// Sensed joint positions, rad.
+    pub q: Vec<f64>,
+    /// The push, if any.
+    pub push: Option<Push>,
+    /// Estimator and sensor settings.
+    pub settings: StartSettings,
+    /// A session to open once the app runs (loaded in the background).
+    pub session: Option<timeline::SessionTarget>,
+    /// Folders for `package://` URIs.
+    pub package_paths: Vec<std::path::PathBuf>,
+    /// An address to listen on for a live session.
+    pub live: Option<String>,
+    /// The robot was named (a scene, URDF or built-in name), not the
+    /// default: sessions that name no robot may be shown on it.
+    pub robot_chosen: bool,
+}
+
+/// Whether `path` is a recorded session: a CSV file, or JSON that says it
+/// is a `contact-session`.
+#[must_use]
+pub fn is_session_file(path: &std::path::Path) -> bool {
+    use std::io::Read as _;
+    let extension = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    match extension.as_deref() {
+        Some("csv" | "mcap" | "bag") => true,
+        Some("json") => {
+            let mut head = [0u8; 512];
+            let read = std::fs::File::open(path)
+                .and_then(|mut f| f.read(&mut head))
+                .unwrap_or(0);
+            String::from_utf8_lossy(head.get(..read).unwrap_or_default()).contains("contact-session")
+        }
+        _ => false,
+    }
+}
+
+/// The default scene (`None`), a scene file (`.json`, with its push and
+/// settings), a URDF or a built-in robot name.
+pub fn open_target(target: Option<&str>) -> anyhow::Result<AppStart> {
+    open_target_with(target, None, &[])
+}
+
+/// [`open_target`], where `target` may also be a recorded session (opened
+/// on the default scene, then loaded in the background), with a robot
+/// override for sessions and folders for `package://` URIs.
+pub fn open_target_with(
+    target: Option<&str>,
+    robot: Option<&str>,
+    package_paths: &[std::path::PathBuf],
+) -> anyhow::Result<AppStart> {
+    use crate::io::builtin::load_robot;
+    use crate::io::urdf::UrdfOptions;
+    use std::path::Path;
+    if let Some(t) = target
+        && is_session_file(Path::new(t))
+    {
+        if robot.is_none() && crate::io::session::names_no_robot(Path::new(t)) {
+            anyhow::bail!(
+                "{t} names no robot (CSV sessions and recordings do not): give it with --robot URDF (or a built-in name)"
+            );
+        }
+        let mut start = open_target_with(None, None, package_paths)?;
+        start.session = Some(timeline::SessionTarget {
+            path: t.into(),
+            robot: robot.map(str::to_owned),
+            frame: None,
+        });
+        return Ok(start);
+    }
+    Ok(match target {
+        None => {
+            let robot = load_robot("lwr4plus", Path::new("."), &UrdfOptions::default())?;
+            let (q, push) = ProprioscopeApp::default_scene(&robot);
+            AppStart {
+                robot_spec: "lwr4plus".to_owned(),
+                robot,
+                q,
+                push,
+                settings: StartSettings::default(),
+                session: None,
+                live: None,
+                package_paths: package_paths.to_vec(),
+                robot_chosen: false,
+            }
+        }
+        Some(t) if t.to_ascii_lowercase().ends_with(".json") => scene_start(Path::new(t), package_paths)?,
+        Some(t) => {
+            let options = UrdfOptions {
+                package_paths: package_paths.to_vec(),
+                ..UrdfOptions::default()
+            };
+            let robot = load_robot(t, Path::new("."), &options)?;
+            let q = vec![0.0; robot.sensed().len()];
+            AppStart {
+                robot_spec: if crate::io::builtin::is_builtin(t) {
+                    t.to_owned()
+                } else {
+                    absolute_spec(Path::new(t))
+                },
+                robot,
+                q,
+                push: None,
+                settings: StartSettings::default(),
+                session: None,
+                live: None,
+                package_paths: package_paths.to_vec(),
+                robot_chosen: true,
+            }
+        }
+    })
+}
+
+/// What a scene file opens on: its robot, pose, push and every setting.
+fn scene_start(path: &std::path::Path, package_paths: &[std::path::PathBuf]) -> anyhow::Result<AppStart> {
+    use crate::io::scene::{Scene, Sigma};
+    use std::path::Path;
+    let loaded = Scene::read(path)?.load(path)?;
+    let push = loaded.push.and_then(|p| {
+        let link_from_world = loaded.pose.world_from_link[p.link].inverse();
+        Some(Push {
+            link: p.link,
+            point_in_link: link_from_world.transform_point3(p.point_world),
+            inward_normal_in_link: link_from_world.transform_vector3(p.force_world.try_normalize()?),
+            force_newtons: p.force_world.length(),
+        })
+    });
+    let e = &loaded.scene.estimator;
+    let settings = StartSettings {
+        sigma: match &e.sigma_newton_metres {
+            Sigma::All(s) => vec![*s],
+            Sigma::PerJoint(v) => v.clone(),
+        },
+        surface_points: loaded.scene.surface_points,
+        noise: (loaded.scene.noise.sigma_newton_metres, loaded.scene.noise.seed),
+        force_range_newtons: (e.force_min_newtons, e.force_max_newtons),
+        candidate_links: loaded
+            .scene
+            .candidate_links
+            .is_some()
+            .then(|| loaded.candidate_links.clone()),
+        estimator: EstimatorChoice::from_scene(e),
+        surface_seed: loaded.scene.surface_seed,
+        other_joints: loaded.scene.other_joints.iter().map(|(k, v)| (k.clone(), *v)).collect(),
+        view: loaded.scene.view.map(|v| ViewOptions {
+            log_scale: v.log_scale,
+            threshold: v.threshold,
+            red_green: v.red_green,
+            show_points: v.candidate_points,
+            show_axes: v.joint_axes,
+            layer: v.layer,
+        }),
+        title: (loaded.scene.name.clone(), loaded.scene.description.clone()),
+    };
+    let folder = path.parent().unwrap_or(Path::new("."));
+    let mut package_paths = package_paths.to_vec();
+    package_paths.extend(
+        loaded
+            .scene
+            .package_paths
+            .iter()
+            .map(|p| crate::io::scene::normalized_path(&folder.join(p))),
+    );
+    let spec = if crate::io::builtin::is_builtin(&loaded.scene.robot) {
+        loaded.scene.robot.clone()
+    } else {
+        absolute_spec(&folder.join(&loaded.scene.robot))
+    };
+    Ok(AppStart {
+        robot_spec: spec,
+        q: loaded.scene.q.clone(),
+        robot: loaded.robot,
+        push,
+        settings,
+        session: None,
+        live: None,
+        package_paths,
+        robot_chosen: true,
+    })
+}
+
+/// A URDF path as the app keeps it: absolute, so that a scene saved
+/// anywhere can name it relative to itself.
+fn absolute_spec(path: &std::path::Path) -> String {
+    crate::io::scene::normalized_path(path).display().to_string()
+}
+
+/// Runs frames until the newest estimate has arrived (at most ~10 s).
+pub fn settle(harness: &mut egui_kittest::Harness<'_, ProprioscopeApp>) -> Result<(), String> {
+    for _ in 0..1000 {
+        harness.step();
+        if harness.state().is_up_to_date() {
+            harness.run_steps(2);
+            return Ok(());
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    Err("the estimate did not arrive within 10 s".to_owned())
+}

@@ -1,0 +1,495 @@
+//! The 3-D view: the frame drawn (robot, heatmap, arrows, markers),
+//! its texture, picking and the mouse.
+
+use super::*;
+
+/// Width of the small arrow beside each name in the view's caption, points.
+const CAPTION_SWATCH: f32 = 22.0;
+
+impl ProprioscopeApp {
+    /// Renders the 3-D view into its texture and shows it in `rect`.
+    pub(super) fn paint_view(&mut self, ui: &egui::Ui, frame: &eframe::Frame, rect: egui::Rect) {
+        let pixels = rect.size() * ui.ctx().pixels_per_point();
+        let size = [pixels.x.round() as u32, pixels.y.round() as u32];
+        // The vertex lists and the GPU pass are redone only when something
+        // they show has changed, not every frame.
+        let key = ViewKey {
+            inputs: self.model.estimate_inputs(),
+            view: self.model.view,
+            generation: self.current_outcome().map(|o| o.generation),
+            hovered_joint: self.hovered_joint,
+            camera: self.camera,
+            size,
+        };
+        let scene = (self.drawn.as_ref() != Some(&key)).then(|| {
+            let (scene, legend) = self.scene_frame();
+            self.legend = legend;
+            scene
+        });
+        match (frame.wgpu_render_state(), self.renderer.as_mut()) {
+            (Some(state), Some(renderer)) => {
+                let resized = renderer.resize(&state.device, size);
+                if let Some(scene) = &scene {
+                    renderer.render(&state.device, &state.queue, &self.camera, scene);
+                    self.drawn = Some(key);
+                }
+                let mut egui_renderer = state.renderer.write();
+                match self.texture {
+                    None => {
+                        self.texture = Some(egui_renderer.register_native_texture(
+                            &state.device,
+                            renderer.color_view(),
+                            wgpu::FilterMode::Linear,
+                        ));
+                    }
+                    Some(id) if resized => {
+                        egui_renderer.update_egui_texture_from_wgpu_texture(
+                            &state.device,
+                            renderer.color_view(),
+                            wgpu::FilterMode::Linear,
+                            id,
+                        );
+                    }
+                    Some(_) => {}
+                }
+                if let Some(id) = self.texture {
+                    let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+                    ui.painter().image(id, rect, uv, egui::Color32::WHITE);
+                }
+            }
+            _ => {
+                ui.painter().text(
+                    rect.center(),
+                    egui::Align2::CENTER_CENTER,
+                    "no GPU renderer",
+                    egui::FontId::default(),
+                    egui::Color32::GRAY,
+                );
+            }
+        }
+        self.paint_overlay(ui, rect);
+        if !self.status.is_empty() {
+            ui.painter().text(
+                rect.left_top() + egui::vec2(8.0, 8.0),
+                egui::Align2::LEFT_TOP,
+                &self.status,
+                egui::FontId::default(),
+                egui::Color32::LIGHT_GRAY,
+            );
+        }
+    }
+
+    /// The arm under a pixel of the view, with the pose it was found in.
+    pub(super) fn pick(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<crate::core::picking::Pick> {
+        let local = pos - rect.min;
+        let (origin, dir) = self
+            .camera
+            .ray(Vec2::new(local.x, local.y), Vec2::new(rect.width(), rect.height()));
+        let positions = self.model.joint_positions();
+        let pose = RobotPose::new(&self.model.robot, &positions);
+        self.picker.pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])
+    }
+
+    /// The push a drag from `drag`'s contact to `pointer` sets: it comes
+    /// from where the pointer is (the arrow's tail follows it, on the plane
+    /// through the contact facing the eye), never pulling (a component
+    /// out of the surface is turned inward), `PUSH_NEWTONS_PER_POINT` per
+    /// point of drag, 0.5–30 N.
+    pub(super) fn dragged_push(
+        &self,
+        drag: &crate::core::picking::Pick,
+        pointer: egui::Pos2,
+        rect: egui::Rect,
+    ) -> Push {
+        let local = pointer - rect.min;
+        let size = Vec2::new(rect.width(), rect.height());
+        let (origin, dir) = self.camera.ray(Vec2::new(local.x, local.y), size);
+        let (origin, dir) = (origin.as_dvec3(), dir.as_dvec3());
+        let facing = self.camera.forward().as_dvec3();
+        let contact = drag.point_world;
+        let denom = dir.dot(facing);
+        let tail = if denom.abs() > 1e-9 {
+            origin + dir * ((contact - origin).dot(facing) / denom)
+        } else {
+            contact
+        };
+        let inward = drag.inward_normal_world;
+        let mut direction = (contact - tail).try_normalize().unwrap_or(inward);
+        let into = direction.dot(inward);
+        if into < 0.0 {
+            direction = (direction - 2.0 * into * inward).try_normalize().unwrap_or(inward);
+        }
+        let pixels = self
+            .camera
+            .project(contact.as_vec3(), size)
+            .map_or(0.0, |c| (Vec2::new(local.x, local.y) - c).length());
+        let force = (f64::from(pixels) * PUSH_NEWTONS_PER_POINT).clamp(0.5, 30.0);
+        let positions = self.model.joint_positions();
+        let pose = RobotPose::new(&self.model.robot, &positions);
+        let link_from_world = pose.world_from_link[drag.link].inverse();
+        Push {
+            link: drag.link,
+            point_in_link: drag.point_in_link,
+            inward_normal_in_link: link_from_world.transform_vector3(direction),
+            force_newtons: force,
+        }
+    }
+
+    /// Points the camera at the robot in its current pose, from where it
+    /// looks, just far enough that all of it is in view.
+    pub(super) fn fit_camera(&mut self, aspect: f32) {
+        let positions = self.model.joint_positions();
+        let pose = RobotPose::new(&self.model.robot, &positions);
+        if let Some((min, max)) = robot_bounds(&self.model.robot, &pose) {
+            self.camera.fit(min.as_vec3(), max.as_vec3(), aspect);
+        }
+    }
+
+    /// The arrows, the legend, the caption and the hover readout over the
+    /// picture.
+    fn paint_overlay(&self, ui: &egui::Ui, rect: egui::Rect) {
+        let painter = ui.painter().with_clip_rect(rect);
+        let positions = self.model.joint_positions();
+        let pose = RobotPose::new(&self.model.robot, &positions);
+        let markers = self.markers();
+        let size = Vec2::new(rect.width(), rect.height());
+        let arrows = overlay::screen_arrows(&markers, &self.camera, size, &self.picker, &pose);
+        overlay::paint_arrows(&painter, rect, &arrows);
+        if let Some(legend) = &self.legend {
+            overlay::paint_legend(&painter, rect, legend);
+        }
+        // The caption names each arrow beside a small one in its colour.
+        let replay = self.model.replay.is_some();
+        let font = egui::FontId::proportional(13.0);
+        let mut items: Vec<(Option<MarkerRole>, String)> = Vec::new();
+        for role in [MarkerRole::Push, MarkerRole::Estimate, MarkerRole::OverTime] {
+            if role == MarkerRole::OverTime && self.over_time_estimate().is_none() {
+                continue;
+            }
+            items.push((Some(role), role.name(replay).to_owned()));
+        }
+        items.push((None, "length: log of the force; dashed: hidden".to_owned()));
+        let galleys: Vec<_> = items
+            .into_iter()
+            .map(|(role, text)| {
+                let grey = if role.is_some() { 225 } else { 175 };
+                (
+                    role,
+                    painter.layout_no_wrap(text, font.clone(), egui::Color32::from_gray(grey)),
+                )
+            })
+            .collect();
+        let height = galleys.iter().map(|(_, g)| g.size().y).fold(0.0, f32::max);
+        let width: f32 = galleys
+            .iter()
+            .map(|(role, g)| g.size().x + 14.0 + if role.is_some() { CAPTION_SWATCH + 4.0 } else { 0.0 })
+            .sum();
+        let mut pos = rect.left_bottom() + egui::vec2(10.0, -10.0 - height);
+        painter.rect_filled(
+            egui::Rect::from_min_size(pos, egui::vec2(width, height)).expand(5.0),
+            3.0,
+            egui::Color32::from_black_alpha(150),
+        );
+        for (role, galley) in galleys {
+            if let Some(role) = role {
+                let y = pos.y + 0.5 * height;
+                let (a, b) = (egui::pos2(pos.x, y), egui::pos2(pos.x + CAPTION_SWATCH, y));
+                painter.line_segment([a, b - egui::vec2(6.0, 0.0)], egui::Stroke::new(3.0, role.colour()));
+                painter.add(egui::Shape::convex_polygon(
+                    vec![b, b + egui::vec2(-7.0, 4.5), b + egui::vec2(-7.0, -4.5)],
+                    role.colour(),
+                    egui::Stroke::NONE,
+                ));
+                pos.x += CAPTION_SWATCH + 4.0;
+            }
+            let advance = galley.size().x + 14.0;
+            painter.galley(pos, galley, egui::Color32::WHITE);
+            pos.x += advance;
+        }
+        if let Some(text) = &self.hover_text {
+            overlay::paint_readout(&painter, rect, text);
+        }
+    }
+
+    /// What the candidate under the pointer would explain: its force and
+    /// the torques it produces beside the measured ones.
+    pub(super) fn candidate_tooltip(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<String> {
+        let outcome = self.current_outcome()?;
+        let update = outcome.update.as_ref().ok()?;
+        let surface = &outcome.estimator.surface;
+        let size = Vec2::new(rect.width(), rect.height());
+        let local = pos - rect.min;
+        let (origin, dir) = self.camera.ray(Vec2::new(local.x, local.y), size);
+        let hit = self.picker.pick(&update.pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
+        let k = (0..surface.len())
+            .filter(|&k| surface.link[k] == hit.link)
+            .min_by(|&a, &b| {
+                surface.point_in_link[a]
+                    .distance_squared(hit.point_in_link)
+                    .total_cmp(&surface.point_in_link[b].distance_squared(hit.point_in_link))
+            })?;
+        let contact = crate::core::summary::contact_at(&update.posterior, surface, &update.pose, k);
+        let produced = joint_torques(
+            &self.model.robot,
+            &update.pose,
+            contact.link,
+            contact.point_world,
+            contact.force_world,
+        );
+        let measured = self.model.measured_torques(&update.pose);
+        let mut text = format!(
+            "{}: P = {:.2e}, best push {:.1} N\njoint   produces   measured",
+            self.model.robot.links[contact.link].name, contact.probability, contact.force_newtons
+        );
+        for (i, (p, m)) in produced.iter().zip(&measured).enumerate() {
+            let _ = write!(text, "\n{:>5}   {:>8.3}   {:>8.3}", i + 1, p, m);
+        }
+        Some(text)
+    }
+
+    /// The sensed joints' axes (all with the toggle; the hovered one in
+    /// yellow with its lever arm to the push).
+    pub(super) fn joint_axes(&self, pose: &RobotPose, lines: &mut Vec<crate::render::renderer::LineVertex>) {
+        let view = self.model.view;
+        let cyan = [0.3, 0.9, 1.0, 1.0];
+        for (i, &j) in self.model.robot.sensed().iter().enumerate() {
+            let hovered = self.hovered_joint == Some(i);
+            if !(view.show_axes || hovered) {
+                continue;
+            }
+            let o = pose.joint_origin_world(j);
+            let a = pose.joint_axis_world(&self.model.robot, j);
+            let colour = if hovered { [1.0, 1.0, 0.2, 1.0] } else { cyan };
+            crate::render::scene::line(lines, (o - a * 0.2).as_vec3(), (o + a * 0.2).as_vec3(), colour);
+            if hovered && let Some((_, point, _)) = self.model.push_world(pose) {
+                // The lever: from the axis to the contact, at right angles to the axis.
+                let foot = o + a * a.dot(point - o);
+                crate::render::scene::line(lines, foot.as_vec3(), point.as_vec3(), [1.0, 1.0, 0.2, 1.0]);
+            }
+        }
+    }
+
+    /// What the arm is painted with for the current estimate, and its legend.
+    #[must_use]
+    pub fn heat(&self) -> Option<Heat> {
+        let outcome = self.current_outcome()?;
+        let update = outcome.update.as_ref().ok()?;
+        let surface = &outcome.estimator.surface;
+        let view = self.model.view;
+        Some(match view.layer {
+            HeatLayer::Posterior => {
+                heat::posterior_heat(update, surface, view.log_scale, view.threshold, view.red_green)
+            }
+            HeatLayer::Observability => heat::observability_heat(
+                &self.model.robot,
+                &update.pose,
+                surface,
+                &self.model.sigma,
+                self.model.push.map_or(OBSERVABILITY_PUSH_NEWTONS, |p| p.force_newtons),
+                view.red_green,
+            ),
+        })
+    }
+
+    /// The legend of the picture last drawn.
+    #[must_use]
+    pub fn legend(&self) -> Option<&Legend> {
+        self.legend.as_ref()
+    }
+
+    /// The posed robot with its heat and the candidate points; the arrows
+    /// and markers are drawn over the picture (see [`Self::markers`]).
+    pub(super) fn scene_frame(&self) -> (Frame, Option<Legend>) {
+        let positions = self.model.joint_positions();
+        let pose = RobotPose::new(&self.model.robot, &positions);
+        let mut frame = Frame::default();
+        let outcome = self.current_outcome().filter(|o| o.update.is_ok());
+        let heat = self.heat();
+        let colour = |link: LinkId, vertex: usize| -> [f32; 4] {
+            let (Some(o), Some(h)) = (outcome, heat.as_ref()) else {
+                return ROBOT_GREY;
+            };
+            match o.nearest.get(link).and_then(|v| v.get(vertex)) {
+                Some(weights) if !weights.is_empty() => {
+                    let mut c = [0.0f32; 4];
+                    for &(k, w) in weights {
+                        let sample = h.colours.get(k).copied().unwrap_or(ROBOT_GREY);
+                        for (ci, si) in c.iter_mut().zip(sample) {
+                            *ci += w as f32 * si;
+                        }
+                    }
+                    c
+                }
+                _ => ROBOT_GREY,
+            }
+        };
+        robot_triangles(&self.model.robot, &pose, &colour, &mut frame.triangles);
+        grid_and_axes(1.0, 0.1, &mut frame.lines);
+        self.joint_axes(&pose, &mut frame.lines);
+        if let (true, Some(o), Some(h)) = (self.model.view.show_points, outcome, heat.as_ref())
+            && let Ok(u) = &o.update
+        {
+            let surface = &o.estimator.surface;
+            let in_set: std::collections::HashSet<usize> = u.summary.credible90.points.iter().copied().collect();
+            for k in 0..surface.len() {
+                let flags = u.posterior.phase_flags.get(k).copied().unwrap_or(0);
+                let colour = if in_set.contains(&k) {
+                    [1.0, 1.0, 1.0, 1.0]
+                } else if flags & crate::core::estimator::phase_flag::A != 0 {
+                    [0.95, 0.2, 0.2, 1.0]
+                } else if flags & crate::core::estimator::phase_flag::B != 0 {
+                    [1.0, 0.6, 0.1, 1.0]
+                } else {
+                    h.colours.get(k).copied().unwrap_or(ROBOT_GREY)
+                };
+                let world_from_link = pose.world_from_link[surface.link[k]];
+                let p = world_from_link.transform_point3(surface.point_in_link[k]);
+                let n = world_from_link.transform_vector3(surface.inward_normal_in_link[k]);
+                // A short hair standing out of the surface at each candidate.
+                crate::render::scene::line(&mut frame.lines, p.as_vec3(), (p - n * 0.012).as_vec3(), colour);
+            }
+        }
+        (frame, heat.map(|h| h.legend))
+    }
+
+    /// The arrows drawn over the view: the push (or the recorded true
+    /// contact), the frame's most probable contact and, over time, the
+    /// frames' together.
+    #[must_use]
+    pub fn markers(&self) -> Vec<Marker> {
+        let positions = self.model.joint_positions();
+        let pose = RobotPose::new(&self.model.robot, &positions);
+        let mut out = Vec::new();
+        if let Some((_, point, force)) = self.model.push_world(&pose) {
+            out.push(Marker {
+                role: MarkerRole::Push,
+                point_world: point,
+                force_world: force,
+            });
+        }
+        if let Some(u) = self.current_outcome().and_then(|o| o.update.as_ref().ok())
+            && (u.summary.verdict != Verdict::NoContact || u.summary.contact_probability.is_some_and(|p| p >= 0.5))
+        {
+            out.push(Marker {
+                role: MarkerRole::Estimate,
+                point_world: u.summary.map.point_world,
+                force_world: u.summary.map.force_world,
+            });
+        }
+        if let Some(e) = self.over_time_estimate()
+            && e.verdict != Verdict::NoContact
+        {
+            out.push(Marker {
+                role: MarkerRole::OverTime,
+                point_world: e.point_world,
+                force_world: e.force_world,
+            });
+        }
+        out
+    }
+
+    /// The session frame's estimate from the frames together (filtered or
+    /// smoothed), once the background has it.
+    pub(super) fn over_time_estimate(&self) -> Option<session::FrameEstimate> {
+        let replay = self.model.replay.as_ref()?;
+        if replay.over_time == Temporal::None {
+            return None;
+        }
+        self.session_estimates.get(replay.frame).copied().flatten()
+    }
+
+    pub(super) fn view_ui(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) -> Vec<Command> {
+        let mut commands = Vec::new();
+        let rect = ui.available_rect_before_wrap();
+        self.view_rect = Some(rect);
+        let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+        let size = Vec2::new(rect.width(), rect.height());
+        // A drag that starts on the arm sets a push (unless Ctrl is held);
+        // elsewhere it turns the view.
+        if response.drag_started_by(egui::PointerButton::Primary) && !ui.input(|i| i.modifiers.command) {
+            let origin = ui.input(|i| i.pointer.press_origin());
+            self.push_drag = origin.and_then(|p| self.pick(p, rect));
+        }
+        if response.dragged_by(egui::PointerButton::Primary) {
+            if let Some(drag) = self.push_drag {
+                if let Some(pointer) = response.interact_pointer_pos() {
+                    commands.push(Command::Push(self.dragged_push(&drag, pointer, rect)));
+                }
+            } else {
+                let d = response.drag_delta();
+                self.camera.orbit(Vec2::new(d.x, d.y));
+            }
+        }
+        if response.drag_stopped() {
+            self.push_drag = None;
+        }
+        if response.dragged_by(egui::PointerButton::Secondary) || response.dragged_by(egui::PointerButton::Middle) {
+            let d = response.drag_delta();
+            self.camera.pan(Vec2::new(d.x, d.y), size);
+        }
+        if let Some(hover) = response.hover_pos() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                let local = hover - rect.min;
+                self.camera
+                    .zoom_towards((-scroll * 0.002).exp(), Vec2::new(local.x, local.y), size);
+            }
+        }
+        if ui.input(|i| i.key_pressed(egui::Key::R)) && !ui.ctx().egui_wants_keyboard_input() {
+            self.camera = OrbitCamera::default();
+            self.fit_pending = true;
+        }
+        if self.fit_pending && rect.width() > 1.0 && rect.height() > 1.0 {
+            self.fit_camera(rect.width() / rect.height());
+            self.fit_pending = false;
+        }
+        let pick_at = |pos: egui::Pos2, camera: &OrbitCamera| {
+            let local = pos - rect.min;
+            let (origin, dir) = camera.ray(Vec2::new(local.x, local.y), size);
+            let positions = self.model.joint_positions();
+            let pose = RobotPose::new(&self.model.robot, &positions);
+            self.picker
+                .pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])
+                .map(|hit| (hit, pose))
+        };
+        self.hover_text = response
+            .hover_pos()
+            .filter(|_| !response.dragged())
+            .and_then(|pos| self.candidate_tooltip(pos, rect));
+        if response.double_clicked() {
+            if let Some((hit, _)) = response.interact_pointer_pos().and_then(|p| pick_at(p, &self.camera)) {
+                self.camera.centre_on(hit.point_world.as_vec3());
+            }
+        } else if response.clicked()
+            && let Some((hit, pose)) = response.interact_pointer_pos().and_then(|p| pick_at(p, &self.camera))
+        {
+            let force = self.model.push.map_or(15.0, |p| p.force_newtons);
+            commands.push(Command::Push(Push {
+                link: hit.link,
+                point_in_link: hit.point_in_link,
+                inward_normal_in_link: pose.world_from_link[hit.link]
+                    .inverse()
+                    .transform_vector3(hit.inward_normal_world),
+                force_newtons: force,
+            }));
+        }
+        self.paint_view(ui, frame, rect);
+        commands
+    }
+}
+
+/// The box around the posed robot's meshes (`None` without vertices).
+#[must_use]
+pub fn robot_bounds(robot: &Robot, pose: &RobotPose) -> Option<(DVec3, DVec3)> {
+    let mut bounds: Option<(DVec3, DVec3)> = None;
+    for (link, l) in robot.links.iter().enumerate() {
+        let Some(world_from_link) = pose.world_from_link.get(link) else {
+            continue;
+        };
+        for p in &l.mesh.positions {
+            let w = world_from_link.transform_point3(*p);
+            bounds = Some(bounds.map_or((w, w), |(lo, hi)| (lo.min(w), hi.max(w))));
+        }
+    }
+    bounds
+}
