@@ -288,3 +288,29 @@ fn a_csv_session_needs_a_robot() {
     }
     assert!(harness.state().model.replay.is_some(), "{:?}", harness.state().error);
 }
+
+/// The static example has contacts on every link: its metrics by sensing
+/// joints once made the side panel wider than the window, under the view.
+#[test]
+#[ignore = "needs ../shared"]
+fn a_session_with_contacts_on_every_link_keeps_the_panels_beside_the_view() {
+    let path = "../shared/sessions/lwr4plus_static_example.session.json";
+    let mut harness = proprioscope::app::headless_harness(open_target(Some(path)).unwrap(), [1280.0, 720.0]);
+    settle(&mut harness);
+    for _ in 0..300 {
+        harness.step();
+        if harness.state().session_estimates.iter().all(Option::is_some) {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    harness.run_steps(3);
+    let view = harness.state().view_rect().unwrap();
+    assert!(view.width() >= 640.0 && view.height() >= 360.0, "{view:?}");
+    let heading = harness.get_by_label("Estimator");
+    assert!(
+        heading.rect().left() >= view.right() - 1.0,
+        "{:?} vs {view:?}",
+        heading.rect()
+    );
+}

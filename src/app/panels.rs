@@ -472,7 +472,7 @@ fn torque_grid(reach: f64) -> Vec<egui_plot::GridMark> {
         .map(|m| m * magnitude)
         .find(|s| *s >= rough)
         .unwrap_or(rough);
-    let n = (reach / step).ceil() as i64;
+    let n = (reach / step).floor() as i64;
     (-n..=n)
         .map(|i| egui_plot::GridMark {
             value: i as f64 * step,

@@ -618,11 +618,9 @@ impl ProprioscopeApp {
             ui.label("no frame has a known contact: no errors to report");
             return;
         };
-        // One column per group of frames (all, then by how many joints sense
-        // the contact), one row per metric: narrow enough for the side panel.
-        let columns: Vec<(String, &Metrics)> = std::iter::once(("all".to_owned(), &all))
-            .chain(by_joints.iter().map(|(k, m)| (format!("{k} joints"), m)))
-            .collect();
+        // The metrics of all frames as a table; by how many joints sense the
+        // contact as lines that wrap (a column per group grew the side
+        // panel past the window on sessions with contacts on every link).
         let rows: [(&str, &MetricText); 6] = [
             ("frames", &|m| m.frames.to_string()),
             ("position median / p90 [mm]", &|m| {
@@ -639,18 +637,31 @@ impl ProprioscopeApp {
         ];
         egui::Grid::new("session-metrics").striped(true).show(ui, |ui| {
             ui.label("frames with a contact");
-            for (name, _) in &columns {
-                ui.strong(name);
-            }
+            ui.strong("all");
             ui.end_row();
             for (name, value) in rows {
                 ui.label(name);
-                for (_, m) in &columns {
-                    ui.label(value(m));
-                }
+                ui.label(value(&all));
                 ui.end_row();
             }
         });
+        if !by_joints.is_empty() {
+            egui::CollapsingHeader::new("by the number of joints that sense the contact")
+                .default_open(false)
+                .show(ui, |ui| {
+                    for (joints, m) in &by_joints {
+                        ui.label(format!(
+                            "{joints} joints: {} frames, position {:.1} / {:.1} mm, force {:.2} / {:.2} N, link right {:.0} %",
+                            m.frames,
+                            m.position_median_m * 1e3,
+                            m.position_p90_m * 1e3,
+                            m.force_median_newtons,
+                            m.force_p90_newtons,
+                            m.link_accuracy * 100.0
+                        ));
+                    }
+                });
+        }
         if ui.button("Export metrics as JSON…").clicked()
             && let Some(path) = self.picked(super::files::pick(|| {
                 rfd::FileDialog::new().add_filter("JSON", &["json"]).save_file()
