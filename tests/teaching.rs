@@ -10,7 +10,7 @@ use std::path::Path;
 
 use eframe::egui;
 use egui_kittest::Harness;
-use egui_kittest::kittest::Queryable as _;
+use egui_kittest::kittest::{NodeT as _, Queryable as _};
 use proprioscope::app::{ProprioscopeApp, open_target, open_target_with};
 use proprioscope::core::kinematics::RobotPose;
 
@@ -313,4 +313,79 @@ fn a_session_with_contacts_on_every_link_keeps_the_panels_beside_the_view() {
         "{:?} vs {view:?}",
         heading.rect()
     );
+}
+
+/// A number typed into a slider's field counts once, when Enter is
+/// pressed: typing N = 20000 does not estimate at 2, 20, 200 and 2000.
+#[test]
+fn a_typed_number_counts_on_enter_not_at_every_keystroke() {
+    let mut harness = harness_at(None, [1280.0, 720.0]);
+    let before = harness.state().model.surface_points;
+    let field = harness
+        .get_all_by_label("N (surface points)")
+        .find(|n| n.accesskit_node().role() == egui::accesskit::Role::SpinButton)
+        .expect("the N field");
+    // A click (press and release in place) turns the field into text.
+    let at = field.rect().center();
+    harness.hover_at(at);
+    harness.drag_at(at);
+    harness.drop_at(at);
+    harness.run_steps(2);
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    harness.run_steps(1);
+    for ch in ["2", "0", "0", "0", "0"] {
+        harness.event(egui::Event::Text(ch.to_owned()));
+        harness.run_steps(1);
+        assert_eq!(harness.state().model.surface_points, before, "after typing {ch}");
+    }
+    harness.key_press(egui::Key::Enter);
+    harness.run_steps(3);
+    assert_eq!(harness.state().model.surface_points, 20_000);
+}
+
+/// Shift while dragging a joint's slider moves it ten times slower.
+#[test]
+fn shift_drags_a_joint_slider_ten_times_slower() {
+    let drag = |shift: bool| -> f64 {
+        let mut harness = harness_at(None, [1280.0, 720.0]);
+        let slider = harness
+            .get_all_by_label("lwr_joint_1")
+            .find(|n| n.accesskit_node().role() == egui::accesskit::Role::Slider)
+            .expect("joint 1's slider");
+        let rect = slider.rect();
+        let from = rect.center();
+        harness.hover_at(from);
+        let modifiers = if shift {
+            egui::Modifiers::SHIFT
+        } else {
+            egui::Modifiers::NONE
+        };
+        harness.event(egui::Event::ModifiersChanged(modifiers));
+        harness.event(egui::Event::PointerButton {
+            pos: from,
+            button: egui::PointerButton::Primary,
+            pressed: true,
+            modifiers,
+        });
+        harness.run_steps(1);
+        // A press jumps the slider to the pointer: measure from there.
+        let before = harness.state().model.q[0];
+        for step in 1..=4 {
+            harness.event(egui::Event::PointerMoved(from + egui::vec2(5.0 * step as f32, 0.0)));
+            harness.run_steps(1);
+        }
+        harness.event(egui::Event::PointerButton {
+            pos: from + egui::vec2(20.0, 0.0),
+            button: egui::PointerButton::Primary,
+            pressed: false,
+            modifiers,
+        });
+        harness.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+        harness.run_steps(2);
+        (harness.state().model.q[0] - before).to_degrees()
+    };
+    let coarse = drag(false);
+    let fine = drag(true);
+    assert!(coarse > 1.0, "a 20-point drag moved {coarse}°");
+    assert!(fine > 0.0 && fine < 0.3 * coarse, "fine {fine}° against {coarse}°");
 }

@@ -5,9 +5,12 @@
 pub mod files;
 pub mod heat;
 pub mod live;
+mod menus;
 mod model;
 pub mod overlay;
 mod panels;
+mod recorder;
+mod session_panel;
 mod start;
 mod view;
 pub use crate::batch as session;
@@ -139,7 +142,7 @@ pub struct ProprioscopeApp {
     /// the next recording).
     topic_choices: std::collections::HashMap<std::path::PathBuf, crate::io::recording::TopicChoice>,
     last_topic_choice: Option<crate::io::recording::TopicChoice>,
-    recording: Option<timeline::Recording>,
+    recording: Option<recorder::Recording>,
     /// Folders for `package://` URIs when opening URDFs and sessions.
     pub package_paths: Vec<std::path::PathBuf>,
     /// The frame a session being loaded opens on.
@@ -151,7 +154,7 @@ pub struct ProprioscopeApp {
     /// Session frames shown again from [`Self::visited`] (for tests).
     pub visited_hits: usize,
     /// The session's metrics, with the estimation run they belong to.
-    session_metrics: Option<((u64, usize), Option<timeline::SessionMetrics>)>,
+    session_metrics: Option<((u64, usize), Option<session_panel::SessionMetrics>)>,
     /// A scene, URDF or robot being opened in the background.
     opening: Option<worker::Background<AppStart>>,
     /// The legend of the heat last drawn.
@@ -314,177 +317,6 @@ impl ProprioscopeApp {
             }
             Err(e) => self.error = Some(format!("could not open {target}: {e}")),
         }
-    }
-
-    /// The current model as a scene file to be written at `scene_path`:
-    /// everything the app shows, a URDF robot and package folders named
-    /// relative to the scene's folder.
-    #[must_use]
-    pub fn to_scene(&self, scene_path: &std::path::Path) -> crate::io::scene::Scene {
-        use crate::io::scene as sc;
-        let m = &self.model;
-        let positions = m.joint_positions();
-        let pose = RobotPose::new(&m.robot, &positions);
-        let folder = scene_path.parent().unwrap_or(std::path::Path::new("."));
-        let relative = |p: &std::path::Path| sc::relative_path(p, folder).display().to_string();
-        let builtin = crate::io::builtin::is_builtin(&self.robot_spec);
-        sc::Scene {
-            version: sc::SCENE_VERSION,
-            name: m.title.0.clone(),
-            description: m.title.1.clone(),
-            robot: if builtin {
-                self.robot_spec.clone()
-            } else {
-                relative(std::path::Path::new(&self.robot_spec))
-            },
-            package_paths: self.package_paths.iter().map(|p| relative(p)).collect(),
-            sensed_joints: (!builtin).then(|| m.robot.sensed_names().into_iter().map(str::to_owned).collect()),
-            q: m.q.clone(),
-            other_joints: m.other_joints.iter().cloned().collect(),
-            candidate_links: (m.candidate_links != m.robot.default_candidate_links()).then(|| {
-                m.candidate_links
-                    .iter()
-                    .map(|&l| m.robot.links[l].name.clone())
-                    .collect()
-            }),
-            surface_points: m.surface_points,
-            surface_seed: m.surface_seed,
-            push: m.push_world(&pose).map(|(link, point, force)| sc::Push {
-                link: m.robot.links[link].name.clone(),
-                point_in_link: None,
-                point_world: Some(point.to_array()),
-                force_world: Some(force.to_array()),
-                force_newtons: None,
-            }),
-            noise: sc::Noise {
-                sigma_newton_metres: m.noise_sigma,
-                seed: m.noise_seed,
-            },
-            estimator: sc::EstimatorSettings {
-                mode: if m.estimator.mode == ModeChoice::Exact {
-                    sc::Mode::Exact
-                } else {
-                    sc::Mode::Particles
-                },
-                sigma_newton_metres: if m.sigma.iter().all(|v| (v - m.sigma[0]).abs() < 1e-15) {
-                    sc::Sigma::All(m.sigma.first().copied().unwrap_or(0.1))
-                } else {
-                    sc::Sigma::PerJoint(m.sigma.clone())
-                },
-                sampling: if m.estimator.mode == ModeChoice::ParticlesRandom {
-                    sc::Sampling::Random
-                } else {
-                    sc::Sampling::Deterministic
-                },
-                particles: m.estimator.particles,
-                magnitudes_per_point: m.estimator.magnitudes_per_point,
-                phases: sc::Phases {
-                    enabled: m.estimator.phases,
-                    sizes: m.estimator.phase_sizes,
-                    alpha: m.estimator.alpha,
-                },
-                force_min_newtons: m.force_range_newtons.0,
-                force_max_newtons: m.force_range_newtons.1,
-            },
-            view: Some(sc::View {
-                log_scale: m.view.log_scale,
-                threshold: m.view.threshold,
-                red_green: m.view.red_green,
-                candidate_points: m.view.show_points,
-                joint_axes: m.view.show_axes,
-                layer: m.view.layer,
-            }),
-        }
-    }
-
-    /// Writes the current scene as JSON.
-    pub fn save(&mut self, path: &std::path::Path) {
-        let result = self
-            .to_scene(path)
-            .to_json()
-            .map_err(|e| e.to_string())
-            .and_then(|json| std::fs::write(path, json).map_err(|e| e.to_string()));
-        self.error = result.err().map(|e| format!("could not save {}: {e}", path.display()));
-    }
-
-    fn menu_ui(&mut self, ui: &mut egui::Ui) {
-        egui::MenuBar::new().ui(ui, |ui| {
-            ui.menu_button("Scenes", |ui| {
-                if ui.button("Open scene or URDF…").clicked() {
-                    ui.close();
-                    if let Some(path) = self.picked(files::pick(|| {
-                        rfd::FileDialog::new()
-                            .add_filter("scene or URDF", &["json", "urdf"])
-                            .pick_file()
-                    })) {
-                        self.open(&path.display().to_string());
-                    }
-                }
-                if ui
-                    .button("Add package folder…")
-                    .on_hover_text("a folder where package:// mesh URIs of URDFs are looked up")
-                    .clicked()
-                {
-                    ui.close();
-                    if let Some(folder) = self.picked(files::pick(|| rfd::FileDialog::new().pick_folder())) {
-                        self.package_paths.push(folder);
-                    }
-                }
-                if ui.button("Save scene…").clicked() {
-                    ui.close();
-                    if let Some(path) = self.picked(files::pick(|| {
-                        rfd::FileDialog::new().add_filter("scene", &["json"]).save_file()
-                    })) {
-                        self.save(&path);
-                    }
-                }
-                ui.horizontal(|ui| {
-                    ui.add(
-                        egui::TextEdit::singleline(&mut self.path_input)
-                            .hint_text("path of a scene, URDF, session or recording")
-                            .desired_width(220.0),
-                    );
-                    if ui.button("Open path").clicked() {
-                        ui.close();
-                        let path = self.path_input.trim().to_owned();
-                        if !path.is_empty() {
-                            self.open(&path);
-                        }
-                    }
-                });
-                ui.separator();
-                for path in shipped_scenes() {
-                    let name = path
-                        .file_stem()
-                        .map(|s| s.to_string_lossy().into_owned())
-                        .unwrap_or_default();
-                    if ui.button(name).clicked() {
-                        ui.close();
-                        self.open(&path.display().to_string());
-                    }
-                }
-            });
-            self.session_menu_ui(ui);
-            ui.menu_button("View", |ui| {
-                ui.checkbox(&mut self.panels.robot, "Robot panel");
-                ui.checkbox(&mut self.panels.estimator, "Estimator panel");
-                if ui.button("Fit the robot in view (R)").clicked() {
-                    ui.close();
-                    self.fit_pending = true;
-                }
-            });
-            ui.menu_button("Robot", |ui| {
-                for name in crate::core::builtin::BUILTIN_NAMES {
-                    if ui.button(name).clicked() {
-                        ui.close();
-                        self.open(name);
-                    }
-                }
-            });
-            if let Some(error) = &self.error {
-                ui.colored_label(egui::Color32::LIGHT_RED, error);
-            }
-        });
     }
 
     /// The built-in LWR in a bent pose with a push on its upper arm (link

@@ -101,6 +101,8 @@ pub struct EstimatorChoice {
     pub phase_sizes: [usize; 2],
     /// α between phases.
     pub alpha: f64,
+    /// Seed of random particles.
+    pub particle_seed: u64,
 }
 
 impl EstimatorChoice {
@@ -119,6 +121,7 @@ impl EstimatorChoice {
             phases: e.phases.enabled,
             phase_sizes: e.phases.sizes,
             alpha: e.phases.alpha,
+            particle_seed: e.particle_seed,
         }
     }
 }
@@ -132,6 +135,7 @@ impl Default for EstimatorChoice {
             phases: false,
             phase_sizes: [200, 1000],
             alpha: 0.5,
+            particle_seed: 0,
         }
     }
 }
@@ -481,31 +485,59 @@ impl Model {
         }
     }
 
+    /// The estimator settings as a scene file writes them: what the
+    /// panel shows, mapped once (see [`crate::io::scene::EstimatorSettings::to_core`]).
+    #[must_use]
+    pub fn scene_estimator(&self) -> crate::io::scene::EstimatorSettings {
+        use crate::io::scene as sc;
+        let e = self.estimator;
+        sc::EstimatorSettings {
+            mode: if e.mode == ModeChoice::Exact {
+                sc::Mode::Exact
+            } else {
+                sc::Mode::Particles
+            },
+            sigma_newton_metres: if self.sigma.iter().all(|v| (v - self.sigma[0]).abs() < 1e-15) {
+                sc::Sigma::All(self.sigma.first().copied().unwrap_or(0.1))
+            } else {
+                sc::Sigma::PerJoint(self.sigma.clone())
+            },
+            sampling: if e.mode == ModeChoice::ParticlesRandom {
+                sc::Sampling::Random
+            } else {
+                sc::Sampling::Deterministic
+            },
+            particles: e.particles,
+            magnitudes_per_point: e.magnitudes_per_point,
+            phases: sc::Phases {
+                enabled: e.phases,
+                sizes: e.phase_sizes,
+                alpha: e.alpha,
+            },
+            force_min_newtons: self.force_range_newtons.0,
+            force_max_newtons: self.force_range_newtons.1,
+            particle_seed: e.particle_seed,
+        }
+    }
+
     /// The core estimator's settings.
     #[must_use]
     pub fn estimator_settings(&self) -> EstimatorSettings {
-        use crate::core::estimator::{ParticleSettings, Sampling};
-        let e = self.estimator;
-        EstimatorSettings {
-            sigma: self.sigma.clone(),
-            force_min_newtons: self.force_range_newtons.0,
-            force_max_newtons: self.force_range_newtons.1,
-            mode: match e.mode {
-                ModeChoice::Exact => Mode::Exact,
-                ModeChoice::ParticlesDeterministic => Mode::Particles(ParticleSettings {
-                    sampling: Sampling::Deterministic {
-                        magnitudes_per_point: e.magnitudes_per_point,
-                    },
-                }),
-                ModeChoice::ParticlesRandom => Mode::Particles(ParticleSettings {
-                    sampling: Sampling::Random {
-                        count: e.particles,
-                        seed: 7,
-                    },
-                }),
+        let joints = self.robot.sensed().len();
+        let mut scene = self.scene_estimator();
+        // One σ per sensed joint (an invariant the monkey checks), so the
+        // mapping cannot fail on the σ count, its only error.
+        scene.sigma_newton_metres = crate::io::scene::Sigma::PerJoint(per_joint(&self.sigma, joints));
+        match scene.to_core(joints) {
+            Ok(settings) => settings,
+            Err(_) => EstimatorSettings {
+                sigma: vec![0.1; joints],
+                force_min_newtons: self.force_range_newtons.0,
+                force_max_newtons: self.force_range_newtons.1,
+                mode: Mode::Exact,
+                phase_alpha: None,
+                patches: true,
             },
-            phase_alpha: e.phases.then_some(e.alpha),
-            patches: true,
         }
     }
 
@@ -611,6 +643,33 @@ mod tests {
             "no such joint: nothing changes"
         );
         assert_eq!(m.estimator_settings().sigma, m.sigma);
+    }
+
+    /// The panel's settings reach the core through the scene's mapping:
+    /// a scene written from them maps to the very same settings, random
+    /// particles' seed included, and reads back as the same choice.
+    #[test]
+    fn the_panel_maps_to_the_estimator_as_a_scene_does() {
+        let mut m = model();
+        m.estimator = EstimatorChoice {
+            mode: ModeChoice::ParticlesRandom,
+            particles: 1234,
+            phases: true,
+            particle_seed: 3,
+            ..EstimatorChoice::default()
+        };
+        m.sigma[2] = 0.3;
+        let scene = m.scene_estimator();
+        assert_eq!(m.estimator_settings(), scene.to_core(7).unwrap());
+        assert_eq!(EstimatorChoice::from_scene(&scene), m.estimator);
+        match m.estimator_settings().mode {
+            Mode::Particles(p) => assert_eq!(
+                p.sampling,
+                crate::core::estimator::Sampling::Random { count: 1234, seed: 3 }
+            ),
+            Mode::Exact => panic!("random particles expected"),
+        }
+        assert!((m.estimator_settings().sigma[2] - 0.3).abs() < 1e-15);
     }
 
     #[test]

@@ -400,6 +400,10 @@ impl ProprioscopeApp {
             .include_x(applied.len() as f64 + 0.6)
             .y_axis_min_width(36.0)
             .y_grid_spacer(move |_| torque_grid(reach))
+            .y_axis_formatter(|mark, _| {
+                let decimals = (-mark.step_size.log10().floor()).max(0.0) as usize;
+                format!("{:.*}", decimals, mark.value)
+            })
             .y_axis_label("N·m")
             .x_axis_label("joint")
             .allow_drag(false)
@@ -453,9 +457,13 @@ pub(super) fn fine_slider(
             .update_while_editing(false),
     );
     let mut changed = response.changed();
-    if response.dragged() && ui.input(|i| i.modifiers.shift) {
+    // The slider follows the pointer while the button is down on it (not
+    // only once a drag has begun) and where it is let go: with Shift, undo
+    // that and move by a tenth of the pointer's motion instead.
+    let held = response.is_pointer_button_down_on() || response.drag_stopped() || response.clicked();
+    if held && ui.input(|i| i.modifiers.shift) {
         let span = range.end() - range.start();
-        let step = f64::from(response.drag_delta().x) * span / f64::from(width) / 10.0;
+        let step = f64::from(ui.input(|i| i.pointer.delta().x)) * span / f64::from(width) / 10.0;
         *value = (before + step).clamp(*range.start(), *range.end());
         changed = (*value - before).abs() > 0.0;
     }
@@ -465,13 +473,15 @@ pub(super) fn fine_slider(
 /// Grid marks for the torque plot: four or so steps of a round size on
 /// each side of zero, so that numbers show on both sides at any height.
 fn torque_grid(reach: f64) -> Vec<egui_plot::GridMark> {
-    let rough = reach / 2.0;
-    let magnitude = 10f64.powf(rough.log10().floor());
-    let step = [1.0, 2.0, 5.0, 10.0]
+    // The largest round step that leaves at least one mark beside zero
+    // on each side (1 to 7 of them).
+    let target = reach / 1.5;
+    let magnitude = 10f64.powf(target.log10().floor());
+    let step = [5.0, 2.0, 1.0]
         .into_iter()
         .map(|m| m * magnitude)
-        .find(|s| *s >= rough)
-        .unwrap_or(rough);
+        .find(|s| *s <= target)
+        .unwrap_or(magnitude);
     let n = (reach / step).floor() as i64;
     (-n..=n)
         .map(|i| egui_plot::GridMark {
@@ -479,4 +489,20 @@ fn torque_grid(reach: f64) -> Vec<egui_plot::GridMark> {
             step_size: step,
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::torque_grid;
+
+    #[test]
+    fn the_torque_axis_has_round_marks_on_both_sides_of_zero() {
+        for reach in [0.011, 0.62, 1.0, 4.44, 6.1, 17.0, 99.0] {
+            let marks: Vec<f64> = torque_grid(reach).iter().map(|m| m.value).collect();
+            let beside = marks.iter().filter(|v| **v > 0.0).count();
+            assert!((1..=7).contains(&beside), "{reach}: {marks:?}");
+            assert!(marks.iter().all(|v| v.abs() <= reach), "{reach}: {marks:?}");
+            assert!(marks.contains(&0.0));
+        }
+    }
 }

@@ -1,7 +1,7 @@
 //! Start-up: what the app opens on (scene, URDF, robot, session), and
 //! the headless harness behind `proprioscope screenshot` and the UI tests.
 
-use super::{EstimatorChoice, ProprioscopeApp, Push, Robot, StartSettings, ViewOptions, egui, timeline};
+use super::{EstimatorChoice, ProprioscopeApp, Push, Robot, RobotPose, StartSettings, ViewOptions, egui, timeline};
 
 /// Renders the app headless (Mesa's software Vulkan or a GPU, no window):
 /// runs frames until the estimate for the current model has arrived, then
@@ -236,4 +236,72 @@ pub fn settle(harness: &mut egui_kittest::Harness<'_, ProprioscopeApp>) -> Resul
         std::thread::sleep(std::time::Duration::from_millis(10));
     }
     Err("the estimate did not arrive within 10 s".to_owned())
+}
+
+impl ProprioscopeApp {
+    /// The current model as a scene file to be written at `scene_path`:
+    /// everything the app shows, a URDF robot and package folders named
+    /// relative to the scene's folder.
+    #[must_use]
+    pub fn to_scene(&self, scene_path: &std::path::Path) -> crate::io::scene::Scene {
+        use crate::io::scene as sc;
+        let m = &self.model;
+        let positions = m.joint_positions();
+        let pose = RobotPose::new(&m.robot, &positions);
+        let folder = scene_path.parent().unwrap_or(std::path::Path::new("."));
+        let relative = |p: &std::path::Path| sc::relative_path(p, folder).display().to_string();
+        let builtin = crate::io::builtin::is_builtin(&self.robot_spec);
+        sc::Scene {
+            version: sc::SCENE_VERSION,
+            name: m.title.0.clone(),
+            description: m.title.1.clone(),
+            robot: if builtin {
+                self.robot_spec.clone()
+            } else {
+                relative(std::path::Path::new(&self.robot_spec))
+            },
+            package_paths: self.package_paths.iter().map(|p| relative(p)).collect(),
+            sensed_joints: (!builtin).then(|| m.robot.sensed_names().into_iter().map(str::to_owned).collect()),
+            q: m.q.clone(),
+            other_joints: m.other_joints.iter().cloned().collect(),
+            candidate_links: (m.candidate_links != m.robot.default_candidate_links()).then(|| {
+                m.candidate_links
+                    .iter()
+                    .map(|&l| m.robot.links[l].name.clone())
+                    .collect()
+            }),
+            surface_points: m.surface_points,
+            surface_seed: m.surface_seed,
+            push: m.push_world(&pose).map(|(link, point, force)| sc::Push {
+                link: m.robot.links[link].name.clone(),
+                point_in_link: None,
+                point_world: Some(point.to_array()),
+                force_world: Some(force.to_array()),
+                force_newtons: None,
+            }),
+            noise: sc::Noise {
+                sigma_newton_metres: m.noise_sigma,
+                seed: m.noise_seed,
+            },
+            estimator: m.scene_estimator(),
+            view: Some(sc::View {
+                log_scale: m.view.log_scale,
+                threshold: m.view.threshold,
+                red_green: m.view.red_green,
+                candidate_points: m.view.show_points,
+                joint_axes: m.view.show_axes,
+                layer: m.view.layer,
+            }),
+        }
+    }
+
+    /// Writes the current scene as JSON.
+    pub fn save(&mut self, path: &std::path::Path) {
+        let result = self
+            .to_scene(path)
+            .to_json()
+            .map_err(|e| e.to_string())
+            .and_then(|json| std::fs::write(path, json).map_err(|e| e.to_string()));
+        self.error = result.err().map(|e| format!("could not save {}: {e}", path.display()));
+    }
 }

@@ -1,10 +1,13 @@
-//! The estimator off the UI thread: requests go in, the newest one is
-//! worked on (older ones waiting are dropped), results come back.
+//! The estimator off the UI thread, on the one worker mechanism
+//! ([`Latest`]): requests go in, the newest one is worked on (older ones
+//! waiting are dropped), results come back. And one-shot jobs
+//! ([`Background`]: opening a scene or a robot).
 
 use std::sync::Arc;
-use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::Instant;
 
+pub use crate::batch::Background;
+use crate::batch::{Latest, Serving};
 use crate::core::estimator::EstimatorSettings;
 use crate::core::pipeline::{Estimator, Update};
 use crate::core::robot::{LinkId, Robot};
@@ -62,10 +65,10 @@ pub struct Outcome {
     pub update_ms: f64,
 }
 
-/// Handle to the worker thread.
+/// Handle to the worker thread (a [`Latest`] thread: the newest request
+/// wins).
 pub struct Worker {
-    requests: Sender<Request>,
-    outcomes: Receiver<Outcome>,
+    thread: Latest<Request, Outcome>,
 }
 
 impl Worker {
@@ -84,15 +87,10 @@ impl Worker {
     where
         S: FnMut(&Request) -> Outcome + Send + 'static,
     {
-        let (requests, inbox) = channel::<Request>();
-        let (outbox, outcomes) = channel::<Outcome>();
-        std::thread::spawn(move || {
-            let mut serve = serve;
-            while let Ok(mut request) = inbox.recv() {
-                // Only the newest request matters.
-                while let Ok(newer) = inbox.try_recv() {
-                    request = newer;
-                }
+        let mut serve = serve;
+        let thread = Latest::spawn(
+            wake,
+            move |request: Request, serving: &Serving<'_, Request, Outcome>| {
                 let outcome = match crate::io::guard::isolated(|| serve(&request)) {
                     Ok(outcome) => outcome,
                     Err(message) => {
@@ -100,60 +98,21 @@ impl Worker {
                         failed(&request, format!("the estimator failed and was restarted: {message}"))
                     }
                 };
-                if outbox.send(outcome).is_err() {
-                    break;
-                }
-                wake();
-            }
-        });
-        Self { requests, outcomes }
+                serving.send(outcome);
+            },
+        );
+        Self { thread }
     }
 
     /// Queues a request (it supersedes any still waiting).
     pub fn request(&self, request: Request) {
-        let _ = self.requests.send(request);
+        self.thread.request(request);
     }
 
     /// The newest outcome that has arrived, if any.
     #[must_use]
     pub fn latest(&self) -> Option<Outcome> {
-        self.outcomes.try_iter().last()
-    }
-}
-
-/// One job on a thread of its own, supervised (a panic is its error),
-/// polled by the UI: how scenes, URDFs and robots are opened without
-/// freezing the window.
-pub struct Background<T> {
-    result: Receiver<Result<T, String>>,
-    /// What is being done, for the status line.
-    pub what: String,
-}
-
-impl<T: Send + 'static> Background<T> {
-    /// Starts `job`; `wake` is called when it is done.
-    pub fn spawn(
-        what: String,
-        job: impl FnOnce() -> Result<T, String> + Send + 'static,
-        wake: impl Fn() + Send + 'static,
-    ) -> Self {
-        let (tx, result) = channel();
-        std::thread::spawn(move || {
-            let done = crate::io::guard::isolated(job).and_then(|r| r);
-            let _ = tx.send(done);
-            wake();
-        });
-        Self { result, what }
-    }
-
-    /// The result, once it is there.
-    #[must_use]
-    pub fn poll(&self) -> Option<Result<T, String>> {
-        match self.result.try_recv() {
-            Ok(r) => Some(r),
-            Err(std::sync::mpsc::TryRecvError::Empty) => None,
-            Err(std::sync::mpsc::TryRecvError::Disconnected) => Some(Err("the loading thread stopped".to_owned())),
-        }
+        self.thread.results().last()
     }
 }
 

@@ -9,11 +9,12 @@ pub mod topics;
 use std::path::Path;
 
 use anyhow::{Result, bail};
-use proprioscope::core::estimator::{EstimatorSettings, Mode, ParticleSettings, Sampling};
+use proprioscope::core::estimator::EstimatorSettings;
 use proprioscope::core::pipeline::Temporal;
 use proprioscope::core::robot::{LinkId, Robot};
 use proprioscope::core::temporal::TemporalSettings;
 use proprioscope::io::recording::{self, TopicChoice, is_recording};
+use proprioscope::io::scene::{self as sc, Sigma};
 use proprioscope::io::session::{FrameProblem, Session};
 
 /// Topics of a robot recording (MCAP, ROS 1 bag); each left out is
@@ -238,49 +239,53 @@ impl EstimatorArgs {
         };
         let joints = robot.sensed().len();
         let sigma = match self.sigma.as_slice() {
-            [s] => vec![*s; joints],
-            v if v.len() == joints => v.to_vec(),
+            [s] => Sigma::All(*s),
+            v if v.len() == joints => Sigma::PerJoint(v.to_vec()),
             v => bail!(
                 "--sigma has {} values; give one, or one per sensed joint ({joints})",
                 v.len()
             ),
         };
-        let (mode, surface_points) = match (self.mode, self.sampling) {
-            (ModeArg::Exact, _) => (Mode::Exact, self.n.unwrap_or(self.points)),
-            (ModeArg::Particles, SamplingArg::Deterministic) => (
-                Mode::Particles(ParticleSettings {
-                    sampling: Sampling::Deterministic {
-                        magnitudes_per_point: self.m.max(1),
-                    },
-                }),
-                self.n.map_or(self.points, |n| n.div_ceil(self.m.max(1))),
-            ),
-            (ModeArg::Particles, SamplingArg::Random) => (
-                Mode::Particles(ParticleSettings {
-                    sampling: Sampling::Random {
-                        count: self.n.unwrap_or(20_000),
-                        seed: self.seed,
-                    },
-                }),
-                self.points,
-            ),
+        let (mode, sampling) = match (self.mode, self.sampling) {
+            (ModeArg::Exact, _) => (sc::Mode::Exact, sc::Sampling::Deterministic),
+            (ModeArg::Particles, SamplingArg::Deterministic) => (sc::Mode::Particles, sc::Sampling::Deterministic),
+            (ModeArg::Particles, SamplingArg::Random) => (sc::Mode::Particles, sc::Sampling::Random),
+        };
+        let surface_points = match (self.mode, self.sampling) {
+            (ModeArg::Exact, _) => self.n.unwrap_or(self.points),
+            (ModeArg::Particles, SamplingArg::Deterministic) => {
+                self.n.map_or(self.points, |n| n.div_ceil(self.m.max(1)))
+            }
+            (ModeArg::Particles, SamplingArg::Random) => self.points,
         };
         let phase_sizes = match (self.phases, self.phase_sizes.as_slice()) {
             (false, _) => None,
             (true, [a, b]) => Some([*a, *b]),
             (true, v) => bail!("--phase-sizes needs two numbers (A,B), got {}", v.len()),
         };
+        // The options as a scene's estimator section: mapped to the core's
+        // settings in one place, as scenes and the app are.
+        let scene = sc::EstimatorSettings {
+            mode,
+            sigma_newton_metres: sigma,
+            sampling,
+            particles: self.n.unwrap_or(20_000),
+            magnitudes_per_point: self.m.max(1),
+            phases: sc::Phases {
+                enabled: self.phases,
+                sizes: phase_sizes.unwrap_or([200, 1000]),
+                alpha: self.alpha,
+            },
+            force_min_newtons: self.fmin,
+            force_max_newtons: self.fmax,
+            particle_seed: self.seed,
+        };
+        let mut settings = scene.to_core(joints).map_err(|e| anyhow::anyhow!(e))?;
+        settings.patches = !self.points_only;
         Ok(Resolved {
             links,
             surface_points,
-            settings: EstimatorSettings {
-                sigma,
-                force_min_newtons: self.fmin,
-                force_max_newtons: self.fmax,
-                mode,
-                phase_alpha: self.phases.then_some(self.alpha),
-                patches: !self.points_only,
-            },
+            settings,
             phase_sizes,
         })
     }

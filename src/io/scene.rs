@@ -296,11 +296,15 @@ pub struct EstimatorSettings {
     /// Largest push considered, N. Default: 30.
     #[serde(default = "default_force_max")]
     pub force_max_newtons: f64,
+    /// Seed of random particles. Default: 0.
+    #[serde(default)]
+    pub particle_seed: u64,
 }
 
 impl Default for EstimatorSettings {
     fn default() -> Self {
         Self {
+            particle_seed: 0,
             mode: Mode::default(),
             sigma_newton_metres: Sigma::default(),
             sampling: Sampling::default(),
@@ -410,6 +414,11 @@ pub struct LoadedScene {
 impl EstimatorSettings {
     /// The core estimator's settings for `joints` sensed joints (a single
     /// σ is repeated; a per-joint list must have one value per joint).
+    ///
+    /// The one place where estimator settings are mapped to the core's: a
+    /// scene file, the command line's options and the app's panel all
+    /// make these settings first, so that the same choice estimates the
+    /// same everywhere (random particles included: one seed field).
     pub fn to_core(&self, joints: usize) -> Result<crate::core::estimator::EstimatorSettings, String> {
         use crate::core::estimator as est;
         let sigma = match &self.sigma_newton_metres {
@@ -432,7 +441,7 @@ impl EstimatorSettings {
             (Mode::Particles, Sampling::Random) => est::Mode::Particles(est::ParticleSettings {
                 sampling: est::Sampling::Random {
                     count: self.particles,
-                    seed: 0,
+                    seed: self.particle_seed,
                 },
             }),
         };

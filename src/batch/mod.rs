@@ -5,20 +5,21 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::Instant;
+
+mod estimate;
+mod latest;
+
+pub use estimate::{EVERY_FRAME, EstimateJob, Estimated, SessionWorker};
+pub use latest::{Background, Latest, Serving};
 
 use anyhow::{Context as _, Result, bail};
 use glam::DVec3;
-use rayon::prelude::*;
 
-use crate::core::estimator::EstimatorSettings;
 use crate::core::metrics::{FrameOutcome, Metrics, metrics, metrics_by_sensing_joints};
-use crate::core::pipeline::{Estimator, SequenceFrame, Temporal, Update, estimate_sequence_while};
+use crate::core::pipeline::Update;
 use crate::core::robot::{LinkId, Robot};
 use crate::core::summary::Verdict;
-use crate::core::surface::SurfaceRequest;
-use crate::core::temporal::{TemporalModel, TemporalSettings};
 use crate::io::builtin::load_robot;
 use crate::io::recording::{RecordingError, TopicChoice};
 use crate::io::session::{Frame, FrameProblem, Session, SessionError, Truth};
@@ -279,15 +280,22 @@ pub enum LoadFailure {
     NeedsTopics(Box<TopicPrompt>),
 }
 
-/// Loads a session on a thread of its own.
+/// Loads a session on a thread of its own ([`Background`]: a panic while
+/// reading is an error shown, not a load that never ends).
 pub struct Loader {
-    result: Receiver<Result<Loaded, LoadFailure>>,
+    job: Background<Loaded, LoadFailure>,
     /// What is being loaded.
     pub path: PathBuf,
     /// When it started.
     pub started: Instant,
     /// How far it is, 0 to 1 (an `f64`'s bits).
     progress: Arc<std::sync::atomic::AtomicU64>,
+}
+
+impl From<String> for LoadFailure {
+    fn from(message: String) -> Self {
+        Self::Failed(message)
+    }
 }
 
 impl Loader {
@@ -299,23 +307,24 @@ impl Loader {
         choice: TopicChoice,
         wake: impl Fn() + Send + 'static,
     ) -> Self {
-        let (tx, result) = channel();
         let thread_path = path.clone();
         let progress = Arc::new(std::sync::atomic::AtomicU64::new(0));
         let shared = progress.clone();
-        std::thread::spawn(move || {
-            let report = |f: f64| shared.store(f.to_bits(), std::sync::atomic::Ordering::Relaxed);
-            let loaded = load_session(&thread_path, robot.as_deref(), &package_paths, &choice, &report).map_err(|e| {
-                match TopicPrompt::for_error(&thread_path, robot.clone(), &e) {
-                    Some(prompt) => LoadFailure::NeedsTopics(Box::new(prompt)),
-                    None => LoadFailure::Failed(format!("{e:#}")),
-                }
-            });
-            let _ = tx.send(loaded);
-            wake();
-        });
+        let job = Background::spawn(
+            path.display().to_string(),
+            move || {
+                let report = |f: f64| shared.store(f.to_bits(), std::sync::atomic::Ordering::Relaxed);
+                load_session(&thread_path, robot.as_deref(), &package_paths, &choice, &report).map_err(|e| {
+                    match TopicPrompt::for_error(&thread_path, robot.clone(), &e) {
+                        Some(prompt) => LoadFailure::NeedsTopics(Box::new(prompt)),
+                        None => LoadFailure::Failed(format!("{e:#}")),
+                    }
+                })
+            },
+            wake,
+        );
         Self {
-            result,
+            job,
             path,
             started: Instant::now(),
             progress,
@@ -331,282 +340,8 @@ impl Loader {
     /// The result, once there.
     #[must_use]
     pub fn poll(&self) -> Option<Result<Loaded, LoadFailure>> {
-        self.result.try_recv().ok()
+        self.job.poll()
     }
-}
-
-/// Everything the background estimation of a session depends on.
-#[derive(Debug, Clone)]
-pub struct EstimateJob {
-    /// Supersedes every smaller one.
-    pub generation: u64,
-    /// The robot.
-    pub robot: Arc<Robot>,
-    /// The session.
-    pub session: Arc<SessionData>,
-    /// Candidate surface.
-    pub surface: SurfaceRequest,
-    /// Estimator settings.
-    pub settings: EstimatorSettings,
-    /// Phase sizes, with phases.
-    pub phase_sizes: Option<[usize; 2]>,
-    /// The frame to start from (the one on screen); the rest follow in
-    /// order, wrapping around (frames estimated together go in order).
-    pub first: usize,
-    /// Each frame alone, or together (filtered, smoothed).
-    pub over_time: Temporal,
-}
-
-/// One frame estimated in the background.
-#[derive(Debug, Clone)]
-pub struct Estimated {
-    /// The job's generation.
-    pub generation: u64,
-    /// Kept-frame index, or [`EVERY_FRAME`] when the job could not start.
-    pub frame: usize,
-    /// The estimate, or why there is none.
-    pub estimate: Result<FrameEstimate, String>,
-}
-
-/// [`Estimated::frame`] of a job that failed before any frame (its
-/// estimator could not be made): every frame failed with it.
-pub const EVERY_FRAME: usize = usize::MAX;
-
-/// Frames estimated together (in parallel) between looks for a newer job.
-const BATCH_FRAMES: usize = 32;
-
-/// Estimates every frame of a session on a thread of its own; a new job
-/// replaces the one under way.
-pub struct SessionWorker {
-    jobs: Sender<EstimateJob>,
-    results: Receiver<Estimated>,
-}
-
-impl SessionWorker {
-    /// Starts the thread; `wake` is called when results are waiting.
-    pub fn spawn(wake: impl Fn() + Send + 'static) -> Self {
-        let (jobs, inbox) = channel::<EstimateJob>();
-        let (outbox, results) = channel::<Estimated>();
-        std::thread::spawn(move || {
-            let mut next: Option<EstimateJob> = None;
-            loop {
-                let job = match next.take() {
-                    Some(job) => job,
-                    None => match inbox.recv() {
-                        Ok(job) => job,
-                        Err(_) => return,
-                    },
-                };
-                let made = crate::io::guard::isolated(|| {
-                    Estimator::new(&job.robot, &job.surface, job.settings.clone(), job.phase_sizes)
-                        .map_err(|e| e.to_string())
-                })
-                .and_then(|r| r);
-                let estimator = match made {
-                    Ok(e) => e,
-                    Err(e) => {
-                        let _ = outbox.send(Estimated {
-                            generation: job.generation,
-                            frame: EVERY_FRAME,
-                            estimate: Err(e),
-                        });
-                        wake();
-                        continue;
-                    }
-                };
-                let frames = &job.session.frames;
-                if job.over_time != Temporal::None {
-                    match estimate_together(&job, &estimator, &inbox, &outbox, &wake) {
-                        Together::Newer(newer) => next = Some(newer),
-                        Together::Done => {}
-                        Together::Gone => return,
-                    }
-                    wake();
-                    continue;
-                }
-                let estimate_frame = |index: usize| -> Estimated {
-                    // A panic on one frame fails that frame, not the thread.
-                    let estimate = crate::io::guard::isolated(|| {
-                        frames.get(index).map_or_else(
-                            || Err(format!("no frame {index}")),
-                            |frame| {
-                                let positions = job.robot.joint_positions(&frame.q, &[]).map_err(|e| e.to_string())?;
-                                let t0 = Instant::now();
-                                estimator
-                                    .update(&job.robot, &positions, &frame.tau)
-                                    .map(|u| FrameEstimate::of(&u, t0.elapsed().as_secs_f64() * 1e3))
-                                    .map_err(|e| e.to_string())
-                            },
-                        )
-                    })
-                    .map_err(|message| {
-                        eprintln!("proprioscope: estimating session frame {index} failed: {message}");
-                        format!("the estimator failed: {message}")
-                    })
-                    .and_then(|r| r);
-                    Estimated {
-                        generation: job.generation,
-                        frame: index,
-                        estimate,
-                    }
-                };
-                // Frames in order from the one on screen, a batch at a time
-                // shared among threads; a newer job is looked for between
-                // batches.
-                let order: Vec<usize> = (0..frames.len())
-                    .map(|step| (job.first + step) % frames.len())
-                    .collect();
-                let mut last_wake: Option<Instant> = None;
-                for batch in order.chunks(BATCH_FRAMES) {
-                    if let Some(newer) = inbox.try_iter().last() {
-                        next = Some(newer);
-                        break;
-                    }
-                    let done: Vec<Estimated> = batch.par_iter().map(|&i| estimate_frame(i)).collect();
-                    for estimated in done {
-                        if outbox.send(estimated).is_err() {
-                            return;
-                        }
-                    }
-                    // Wake the UI a few times a second, not per batch.
-                    if last_wake.is_none_or(|at| at.elapsed().as_secs_f64() > 0.1) {
-                        wake();
-                        last_wake = Some(Instant::now());
-                    }
-                }
-                wake();
-            }
-        });
-        Self { jobs, results }
-    }
-
-    /// Starts a job (superseding the one under way).
-    pub fn start(&self, job: EstimateJob) {
-        let _ = self.jobs.send(job);
-    }
-
-    /// Everything estimated since the last call.
-    pub fn drain(&self) -> impl Iterator<Item = Estimated> + '_ {
-        self.results.try_iter()
-    }
-}
-
-/// How a job of frames estimated together ended.
-enum Together {
-    /// Every frame was sent (or the job failed, also sent).
-    Done,
-    /// A newer job arrived first.
-    Newer(EstimateJob),
-    /// The app is gone.
-    Gone,
-}
-
-/// Estimates `job`'s frames together (filtered or smoothed), in order,
-/// sending each as it is done; a newer job stops it between frames. A
-/// failure (or a panic) fails every frame not yet sent.
-fn estimate_together(
-    job: &EstimateJob,
-    estimator: &Estimator,
-    inbox: &Receiver<EstimateJob>,
-    outbox: &Sender<Estimated>,
-    wake: &impl Fn(),
-) -> Together {
-    let frames = &job.session.frames;
-    let mut newer: Option<EstimateJob> = None;
-    let sent = std::cell::RefCell::new(vec![false; frames.len()]);
-    let gone = std::cell::Cell::new(false);
-    let mut last_wake = Instant::now();
-    let result = crate::io::guard::isolated(|| -> Result<bool, String> {
-        let positions = frames
-            .iter()
-            .map(|f| job.robot.joint_positions(&f.q, &[]).map_err(|e| e.to_string()))
-            .collect::<Result<Vec<_>, _>>()?;
-        let sequence: Vec<SequenceFrame> = frames
-            .iter()
-            .zip(&positions)
-            .map(|(f, p)| SequenceFrame {
-                t_secs: f.t,
-                joint_positions: p,
-                tau: &f.tau,
-            })
-            .collect();
-        let model = TemporalModel::new(
-            &estimator.surface,
-            TemporalSettings::default(),
-            estimator.uses_patches(),
-        )
-        .map_err(|e| e.to_string())?;
-        estimate_sequence_while(
-            estimator,
-            &job.robot,
-            (Some(&model), job.over_time),
-            &sequence,
-            || {
-                if let Some(job) = inbox.try_iter().last() {
-                    newer = Some(job);
-                }
-                newer.is_none() && !gone.get()
-            },
-            |frame, update, ms| {
-                let estimated = Estimated {
-                    generation: job.generation,
-                    frame,
-                    estimate: Ok(FrameEstimate::of(&update, ms)),
-                };
-                if outbox.send(estimated).is_err() {
-                    gone.set(true);
-                }
-                if let Some(s) = sent.borrow_mut().get_mut(frame) {
-                    *s = true;
-                }
-                if last_wake.elapsed().as_secs_f64() > 0.1 {
-                    wake();
-                    last_wake = Instant::now();
-                }
-            },
-            // A frame that cannot be estimated is counted and left out;
-            // the frames around it carry the contact over.
-            |frame, error| {
-                eprintln!("proprioscope: estimating session frame {frame} failed: {error}");
-                let failed = Estimated {
-                    generation: job.generation,
-                    frame,
-                    estimate: Err(error.to_string()),
-                };
-                if outbox.send(failed).is_err() {
-                    gone.set(true);
-                }
-                if let Some(s) = sent.borrow_mut().get_mut(frame) {
-                    *s = true;
-                }
-                true
-            },
-        )
-        .map_err(|e| e.to_string())
-    });
-    if gone.get() {
-        return Together::Gone;
-    }
-    if let Some(job) = newer {
-        return Together::Newer(job);
-    }
-    let failure = match result {
-        Ok(Ok(_)) => return Together::Done,
-        Ok(Err(e)) => e,
-        Err(panic) => format!("the estimator failed: {panic}"),
-    };
-    eprintln!("proprioscope: estimating the session over time failed: {failure}");
-    for (frame, _) in sent.into_inner().iter().enumerate().filter(|(_, s)| !**s) {
-        let failed = Estimated {
-            generation: job.generation,
-            frame,
-            estimate: Err(failure.clone()),
-        };
-        if outbox.send(failed).is_err() {
-            return Together::Gone;
-        }
-    }
-    Together::Done
 }
 
 /// The metrics of the frames with a known contact and an estimate: over

@@ -1,0 +1,229 @@
+//! Every frame of a session estimated in the background, alone or over
+//! time, on a [`Latest`] thread: a new job (new settings, another
+//! session) replaces the one under way.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use super::{FrameEstimate, Latest, Serving, SessionData};
+use crate::core::estimator::EstimatorSettings;
+use crate::core::pipeline::{Estimator, SequenceFrame, Temporal, estimate_sequence_while};
+use crate::core::robot::Robot;
+use crate::core::surface::SurfaceRequest;
+use crate::core::temporal::{TemporalModel, TemporalSettings};
+
+/// Everything the background estimation of a session depends on.
+#[derive(Debug, Clone)]
+pub struct EstimateJob {
+    /// Supersedes every smaller one.
+    pub generation: u64,
+    /// The robot.
+    pub robot: Arc<Robot>,
+    /// The session.
+    pub session: Arc<SessionData>,
+    /// Candidate surface.
+    pub surface: SurfaceRequest,
+    /// Estimator settings.
+    pub settings: EstimatorSettings,
+    /// Phase sizes, with phases.
+    pub phase_sizes: Option<[usize; 2]>,
+    /// The frame to start from (the one on screen); the rest follow in
+    /// order, wrapping around (frames estimated together go in order).
+    pub first: usize,
+    /// Each frame alone, or together (filtered, smoothed).
+    pub over_time: Temporal,
+}
+
+/// One frame estimated in the background.
+#[derive(Debug, Clone)]
+pub struct Estimated {
+    /// The job's generation.
+    pub generation: u64,
+    /// Kept-frame index, or [`EVERY_FRAME`] when the job could not start.
+    pub frame: usize,
+    /// The estimate, or why there is none.
+    pub estimate: Result<FrameEstimate, String>,
+}
+
+/// [`Estimated::frame`] of a job that failed before any frame (its
+/// estimator could not be made): every frame failed with it.
+pub const EVERY_FRAME: usize = usize::MAX;
+
+/// Frames estimated together (in parallel) between looks for a newer job.
+const BATCH_FRAMES: usize = 32;
+
+/// Estimates every frame of a session on a thread of its own; a new job
+/// replaces the one under way (between batches of frames).
+pub struct SessionWorker {
+    thread: Latest<EstimateJob, Estimated>,
+}
+
+impl SessionWorker {
+    /// Starts the thread; `wake` is called when results are waiting.
+    pub fn spawn(wake: impl Fn() + Send + 'static) -> Self {
+        Self {
+            thread: Latest::spawn(wake, |job, serving| serve(&job, serving)),
+        }
+    }
+
+    /// Starts a job (superseding the one under way).
+    pub fn start(&self, job: EstimateJob) {
+        self.thread.request(job);
+    }
+
+    /// Everything estimated since the last call.
+    pub fn drain(&self) -> impl Iterator<Item = Estimated> + '_ {
+        self.thread.results()
+    }
+}
+
+/// Serves one job: every frame, alone in parallel batches from the one on
+/// screen, or together in order; a newer job stops it.
+fn serve(job: &EstimateJob, serving: &Serving<'_, EstimateJob, Estimated>) {
+    let made = crate::io::guard::isolated(|| {
+        Estimator::new(&job.robot, &job.surface, job.settings.clone(), job.phase_sizes).map_err(|e| e.to_string())
+    })
+    .and_then(|r| r);
+    let estimator = match made {
+        Ok(e) => e,
+        Err(e) => {
+            serving.send(Estimated {
+                generation: job.generation,
+                frame: EVERY_FRAME,
+                estimate: Err(e),
+            });
+            return;
+        }
+    };
+    if job.over_time != Temporal::None {
+        estimate_together(job, &estimator, serving);
+        return;
+    }
+    let frames = &job.session.frames;
+    let estimate_frame = |index: usize| -> Estimated {
+        // A panic on one frame fails that frame, not the thread.
+        let estimate = crate::io::guard::isolated(|| {
+            frames.get(index).map_or_else(
+                || Err(format!("no frame {index}")),
+                |frame| {
+                    let positions = job.robot.joint_positions(&frame.q, &[]).map_err(|e| e.to_string())?;
+                    let t0 = Instant::now();
+                    estimator
+                        .update(&job.robot, &positions, &frame.tau)
+                        .map(|u| FrameEstimate::of(&u, t0.elapsed().as_secs_f64() * 1e3))
+                        .map_err(|e| e.to_string())
+                },
+            )
+        })
+        .map_err(|message| {
+            eprintln!("proprioscope: estimating session frame {index} failed: {message}");
+            format!("the estimator failed: {message}")
+        })
+        .and_then(|r| r);
+        Estimated {
+            generation: job.generation,
+            frame: index,
+            estimate,
+        }
+    };
+    // Frames in order from the one on screen, a batch at a time shared
+    // among threads; a newer job is looked for between batches.
+    let order: Vec<usize> = (0..frames.len())
+        .map(|step| (job.first + step) % frames.len())
+        .collect();
+    for batch in order.chunks(BATCH_FRAMES) {
+        if serving.should_stop() {
+            return;
+        }
+        let done: Vec<Estimated> = batch.par_iter().map(|&i| estimate_frame(i)).collect();
+        for estimated in done {
+            if !serving.send(estimated) {
+                return;
+            }
+        }
+        serving.wake_now_and_then();
+    }
+}
+
+/// Estimates `job`'s frames together (filtered or smoothed), in order,
+/// sending each as it is done; a newer job stops it between frames. A
+/// failure (or a panic) fails every frame not yet sent.
+fn estimate_together(job: &EstimateJob, estimator: &Estimator, serving: &Serving<'_, EstimateJob, Estimated>) {
+    let frames = &job.session.frames;
+    let sent = std::cell::RefCell::new(vec![false; frames.len()]);
+    let result = crate::io::guard::isolated(|| -> Result<bool, String> {
+        let positions = frames
+            .iter()
+            .map(|f| job.robot.joint_positions(&f.q, &[]).map_err(|e| e.to_string()))
+            .collect::<Result<Vec<_>, _>>()?;
+        let sequence: Vec<SequenceFrame> = frames
+            .iter()
+            .zip(&positions)
+            .map(|(f, p)| SequenceFrame {
+                t_secs: f.t,
+                joint_positions: p,
+                tau: &f.tau,
+            })
+            .collect();
+        let model = TemporalModel::new(
+            &estimator.surface,
+            TemporalSettings::default(),
+            estimator.uses_patches(),
+        )
+        .map_err(|e| e.to_string())?;
+        estimate_sequence_while(
+            estimator,
+            &job.robot,
+            (Some(&model), job.over_time),
+            &sequence,
+            || !serving.should_stop(),
+            |frame, update, ms| {
+                serving.send(Estimated {
+                    generation: job.generation,
+                    frame,
+                    estimate: Ok(FrameEstimate::of(&update, ms)),
+                });
+                if let Some(s) = sent.borrow_mut().get_mut(frame) {
+                    *s = true;
+                }
+                serving.wake_now_and_then();
+            },
+            // A frame that cannot be estimated is counted and left out;
+            // the frames around it carry the contact over.
+            |frame, error| {
+                eprintln!("proprioscope: estimating session frame {frame} failed: {error}");
+                serving.send(Estimated {
+                    generation: job.generation,
+                    frame,
+                    estimate: Err(error.to_string()),
+                });
+                if let Some(s) = sent.borrow_mut().get_mut(frame) {
+                    *s = true;
+                }
+                true
+            },
+        )
+        .map_err(|e| e.to_string())
+    });
+    if serving.should_stop() {
+        return;
+    }
+    let failure = match result {
+        Ok(Ok(_)) => return,
+        Ok(Err(e)) => e,
+        Err(panic) => format!("the estimator failed: {panic}"),
+    };
+    eprintln!("proprioscope: estimating the session over time failed: {failure}");
+    for (frame, _) in sent.into_inner().iter().enumerate().filter(|(_, s)| !**s) {
+        let failed = Estimated {
+            generation: job.generation,
+            frame,
+            estimate: Err(failure.clone()),
+        };
+        if !serving.send(failed) {
+            return;
+        }
+    }
+}
