@@ -2,6 +2,7 @@
 //! click to push, the torques it causes and the live posterior heatmap.
 //! The only place where egui, `render` and `io` meet.
 
+pub mod bias;
 pub mod files;
 pub mod heat;
 pub mod live;
@@ -161,6 +162,9 @@ pub struct ProprioscopeApp {
     legend: Option<Legend>,
     /// A push being dragged: the contact found where the drag started.
     push_drag: Option<crate::core::picking::Pick>,
+    /// The session's torque bias, when it is taken off, with what it was
+    /// estimated from.
+    session_bias: Option<(bias::BiasKey, bias::SessionBias)>,
     /// The path typed under Scenes → Open path.
     path_input: String,
     /// The robot was chosen by the user (a scene, URDF or name), not the
@@ -233,6 +237,7 @@ impl ProprioscopeApp {
             opening: None,
             legend: None,
             path_input: String::new(),
+            session_bias: None,
             push_drag: None,
             robot_chosen: false,
             hover_text: None,
@@ -367,7 +372,7 @@ impl ProprioscopeApp {
         self.pending = Some((self.generation, inputs));
         let positions = self.model.joint_positions();
         let pose = RobotPose::new(&self.model.robot, &positions);
-        let tau = self.model.measured_torques(&pose);
+        let tau = self.measured_less_bias(&pose);
         self.worker.request(Request {
             generation: self.generation,
             robot: self.model.robot.clone(),
@@ -449,6 +454,18 @@ impl ProprioscopeApp {
             return Err(format!("frame {} of {}", r.frame, r.session.frames.len()));
         }
         Ok(())
+    }
+
+    /// The torques the estimator is given: the measured ones, less the
+    /// session's bias when it is taken off.
+    #[must_use]
+    pub fn measured_less_bias(&mut self, pose: &RobotPose) -> Vec<f64> {
+        self.update_session_bias();
+        let tau = self.model.measured_torques(pose);
+        match self.model.replay.as_ref().and_then(|r| self.frame_bias(r.frame)) {
+            Some(bias) => tau.iter().zip(bias).map(|(t, b)| t - b).collect(),
+            None => tau,
+        }
     }
 
     /// The 3-D view's camera.

@@ -70,6 +70,9 @@ pub struct Replay {
     /// How the session's frames are estimated: each alone, with the
     /// frames before (filtered) or with the whole session (smoothed).
     pub over_time: Temporal,
+    /// Take each joint's torque bias, estimated from the session, off
+    /// every frame (as `estimate --bias auto`).
+    pub bias_auto: bool,
 }
 
 /// Slowest and fastest playback.
@@ -195,6 +198,7 @@ pub(crate) struct EstimateInputs {
     pub(crate) estimator: EstimatorChoice,
     pub(crate) force_range_newtons: (f64, f64),
     pub(crate) frame: Option<usize>,
+    pub(crate) bias_auto: bool,
     pub(crate) surface_seed: u64,
     pub(crate) other_joints: Vec<(String, f64)>,
 }
@@ -287,6 +291,8 @@ pub enum Command {
     SetLoop(bool),
     /// Estimate the session's frames alone, filtered or smoothed.
     SetOverTime(Temporal),
+    /// Take the session's estimated torque bias off its frames (true) or not.
+    SetBias(bool),
     /// Advance playback by this much wall-clock time, s.
     Tick(f64),
 }
@@ -387,6 +393,11 @@ impl Model {
                     r.over_time = temporal;
                 }
             }
+            Command::SetBias(on) => {
+                if let Some(r) = &mut self.replay {
+                    r.bias_auto = on;
+                }
+            }
             Command::Tick(dt_secs) => self.tick(dt_secs),
         }
         before != self.estimate_inputs()
@@ -480,6 +491,7 @@ impl Model {
             estimator: self.estimator,
             force_range_newtons: self.force_range_newtons,
             frame: self.replay.as_ref().map(|r| r.frame),
+            bias_auto: self.replay.as_ref().is_some_and(|r| r.bias_auto),
             surface_seed: self.surface_seed,
             other_joints: self.other_joints.clone(),
         }

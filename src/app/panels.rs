@@ -323,6 +323,21 @@ impl ProprioscopeApp {
         }
     }
 
+    /// The measured torques as the estimator is given them (less the
+    /// session's bias when it is taken off), and their name.
+    fn measured_shown(&self, pose: &RobotPose) -> (Vec<f64>, &'static str) {
+        let mut measured = self.model.measured_torques(pose);
+        match self.model.replay.as_ref().and_then(|r| self.frame_bias(r.frame)) {
+            Some(bias) => {
+                for (m, b) in measured.iter_mut().zip(bias) {
+                    *m -= b;
+                }
+                (measured, "measured less bias")
+            }
+            None => (measured, "measured"),
+        }
+    }
+
     pub(super) fn torques_ui(&mut self, ui: &mut egui::Ui) {
         use egui_plot::{Bar, BarChart, Plot};
         // In a session the push shown is the recorded true contact.
@@ -334,7 +349,7 @@ impl ProprioscopeApp {
         let positions = self.model.joint_positions();
         let pose = RobotPose::new(&self.model.robot, &positions);
         let applied = self.model.applied_torques(&pose);
-        let measured = self.model.measured_torques(&pose);
+        let (measured, measured_name) = self.measured_shown(&pose);
         let explained: Option<Vec<f64>> = self.current_outcome().and_then(|o| o.update.as_ref().ok()).map(|u| {
             let m = u.summary.map;
             joint_torques(&self.model.robot, &pose, m.link, m.point_world, m.force_world)
@@ -365,7 +380,12 @@ impl ProprioscopeApp {
                 -0.27,
                 egui::Color32::from_rgb(90, 140, 230),
             ),
-            ("measured", Some(&measured), 0.0, egui::Color32::from_rgb(230, 160, 60)),
+            (
+                measured_name,
+                Some(&measured),
+                0.0,
+                egui::Color32::from_rgb(230, 160, 60),
+            ),
             (
                 "explained by the estimate",
                 explained.as_ref(),

@@ -20,6 +20,9 @@ pub use super::recorder::interactive_frame;
 /// While recording, a frame at least this often even when nothing moves.
 pub const RECORD_RATE_HZ: f64 = 10.0;
 
+/// Named lines of a plot: (name, points).
+type PlotLines = Vec<(String, Vec<[f64; 2]>)>;
+
 /// Most points a plot line draws (long sessions are thinned).
 const PLOT_POINTS: usize = 1500;
 
@@ -34,6 +37,7 @@ pub(super) struct SessionKey {
     force_range_newtons: (f64, f64),
     surface_seed: u64,
     over_time: Temporal,
+    bias_auto: bool,
 }
 
 impl ProprioscopeApp {
@@ -195,6 +199,7 @@ impl ProprioscopeApp {
                 looping: false,
                 clock_secs: 0.0,
                 over_time,
+                bias_auto: false,
             }),
         };
         let first = self.first_frame.take().unwrap_or(0);
@@ -217,6 +222,7 @@ impl ProprioscopeApp {
     /// (Re)starts the background estimation when the session or the
     /// settings changed, and collects what it has done.
     pub(super) fn update_session_estimates(&mut self) {
+        self.update_session_bias();
         let Some(replay) = &self.model.replay else {
             return;
         };
@@ -247,6 +253,7 @@ impl ProprioscopeApp {
                 phase_sizes: m.estimator.phases.then_some(m.estimator.phase_sizes),
                 first: replay.frame,
                 over_time: replay.over_time,
+                bias: self.session_bias.as_ref().and_then(|(_, b)| b.as_ref().ok().cloned()),
             });
             self.session_key = Some(key);
         }
@@ -292,6 +299,7 @@ impl ProprioscopeApp {
             force_range_newtons: m.force_range_newtons,
             surface_seed: m.surface_seed,
             over_time: replay.over_time,
+            bias_auto: replay.bias_auto,
         })
     }
 
@@ -390,24 +398,7 @@ impl ProprioscopeApp {
             if ui.checkbox(&mut looping, "loop").changed() {
                 commands.push(Command::SetLoop(looping));
             }
-            let name = |t: Temporal| match t {
-                Temporal::None => "each frame alone",
-                Temporal::Filter => "filtered (frames before)",
-                Temporal::Smooth => "smoothed (whole session)",
-            };
-            egui::ComboBox::new("over-time", "over time")
-                .selected_text(name(replay.over_time))
-                .show_ui(ui, |ui| {
-                    for t in [Temporal::None, Temporal::Filter, Temporal::Smooth] {
-                        if ui.selectable_label(replay.over_time == t, name(t)).clicked() && replay.over_time != t {
-                            commands.push(Command::SetOverTime(t));
-                        }
-                    }
-                })
-                .response
-                .on_hover_text(
-                    "how the session's frames are estimated: a contact lasts, so frames together say more than alone",
-                );
+            commands.extend(Self::over_time_ui(ui, replay));
             if let Some(frame) = frames.get(replay.frame) {
                 let file_frame = replay.session.file_frames.get(replay.frame).copied().unwrap_or(0);
                 ui.label(format!(
@@ -449,6 +440,82 @@ impl ProprioscopeApp {
 
     /// Four plots over session time, sharing the x axis, with the current
     /// frame marked; returns the time clicked.
+    /// How the frames are estimated over time, and the bias.
+    fn over_time_ui(ui: &mut egui::Ui, replay: &Replay) -> Vec<Command> {
+        let mut commands = Vec::new();
+        let name = |t: Temporal| match t {
+            Temporal::None => "each frame alone",
+            Temporal::Filter => "filtered (frames before)",
+            Temporal::Smooth => "smoothed (whole session)",
+        };
+        egui::ComboBox::new("over-time", "over time")
+            .selected_text(name(replay.over_time))
+            .show_ui(ui, |ui| {
+                for t in [Temporal::None, Temporal::Filter, Temporal::Smooth] {
+                    if ui.selectable_label(replay.over_time == t, name(t)).clicked() && replay.over_time != t {
+                        commands.push(Command::SetOverTime(t));
+                    }
+                }
+            })
+            .response
+            .on_hover_text(
+                "how the session's frames are estimated: a contact lasts, so frames together say more than alone",
+            );
+        let mut bias_auto = replay.bias_auto;
+        if ui
+            .checkbox(&mut bias_auto, "take off bias")
+            .on_hover_text(
+                "each joint's torque offset (what it reads with nothing touching), estimated from the session over 30 s windows and taken off every frame, as estimate --bias auto",
+            )
+            .changed()
+        {
+            commands.push(Command::SetBias(bias_auto));
+        }
+        commands
+    }
+
+    /// Per sensed joint, the torque over time (less the bias when it is
+    /// taken off) and the bias, every `stride`-th frame.
+    fn torque_and_bias_lines(&self, replay: &Replay, stride: usize) -> (PlotLines, Option<PlotLines>) {
+        let frames = &replay.session.frames;
+        let robot = &self.model.robot;
+        // With the bias taken off, the torques as the estimator sees them,
+        // and the bias in a plot of its own.
+        let bias = self.session_bias();
+        let less_bias =
+            |i: usize, j: usize, tau: f64| tau - bias.and_then(|b| b.get(i)?.get(j).copied()).unwrap_or(0.0);
+        let torque_lines: Vec<(String, Vec<[f64; 2]>)> = (0..robot.sensed().len())
+            .map(|j| {
+                let name = format!("τ{}", j + 1);
+                (
+                    name,
+                    frames
+                        .iter()
+                        .enumerate()
+                        .step_by(stride)
+                        .filter_map(|(i, f)| Some([f.t, less_bias(i, j, *f.tau.get(j)?)]))
+                        .collect(),
+                )
+            })
+            .collect();
+        let bias_lines: Option<Vec<(String, Vec<[f64; 2]>)>> = bias.map(|b| {
+            (0..robot.sensed().len())
+                .map(|j| {
+                    (
+                        format!("b{}", j + 1),
+                        frames
+                            .iter()
+                            .zip(b.iter())
+                            .step_by(stride)
+                            .filter_map(|(f, bias)| Some([f.t, *bias.get(j)?]))
+                            .collect(),
+                    )
+                })
+                .collect()
+        });
+        (torque_lines, bias_lines)
+    }
+
     fn session_plots_ui(&self, ui: &mut egui::Ui, replay: &Replay) -> Option<f64> {
         let frames = &replay.session.frames;
         let now = frames.get(replay.frame).map_or(0.0, |f| f.t);
@@ -461,15 +528,7 @@ impl ProprioscopeApp {
                 .zip(estimates.iter().chain(std::iter::repeat(&None)))
                 .step_by(stride)
         };
-        let torque_lines: Vec<(String, Vec<[f64; 2]>)> = (0..robot.sensed().len())
-            .map(|j| {
-                let name = format!("τ{}", j + 1);
-                (
-                    name,
-                    sampled().filter_map(|(f, _)| Some([f.t, *f.tau.get(j)?])).collect(),
-                )
-            })
-            .collect();
+        let (torque_lines, bias_lines) = self.torque_and_bias_lines(replay, stride);
         let truth_force = |f: &Frame| match &f.truth {
             Truth::Contact { force, .. } => Some(glam::DVec3::from_array(*force).length()),
             Truth::NoContact => Some(0.0),
@@ -519,11 +578,17 @@ impl ProprioscopeApp {
         }
         let height = (ui.available_height() - 24.0).max(150.0);
         let mut clicked = None;
-        ui.columns(4, |columns| {
+        let columns = if bias_lines.is_some() { 5 } else { 4 };
+        ui.columns(columns, |columns| {
             // The error exists only in frames with a contact: dots, so
             // that no line runs across the frames without one.
-            let plots = [
-                ("plot-torques", "measured torque [N·m]", torque_lines, false),
+            let torque_title = if bias_lines.is_some() {
+                "measured torque less bias [N·m]"
+            } else {
+                "measured torque [N·m]"
+            };
+            let mut plots = vec![
+                ("plot-torques", torque_title, torque_lines, false),
                 ("plot-force", "force [N]: estimated, true", force_lines, false),
                 ("plot-error", "position error [mm]", error_lines, true),
                 (
@@ -537,6 +602,9 @@ impl ProprioscopeApp {
                     false,
                 ),
             ];
+            if let Some(lines) = bias_lines {
+                plots.push(("plot-bias", "estimated torque bias [N·m]", lines, false));
+            }
             for (ui, (id, title, lines, dots)) in columns.iter_mut().zip(plots) {
                 ui.label(title);
                 if let Some(t) = linked_plot_ui(ui, id, lines, dots, now, height) {

@@ -34,6 +34,19 @@ pub struct EstimateJob {
     pub first: usize,
     /// Each frame alone, or together (filtered, smoothed).
     pub over_time: Temporal,
+    /// A torque bias per frame to take off (`bias[frame][joint]`, N·m).
+    pub bias: Option<Arc<Vec<Vec<f64>>>>,
+}
+
+impl EstimateJob {
+    /// Frame `index`'s torques, less the bias when there is one.
+    fn tau(&self, index: usize) -> Option<Vec<f64>> {
+        let frame = self.session.frames.get(index)?;
+        Some(match self.bias.as_ref().and_then(|b| b.get(index)) {
+            Some(bias) => frame.tau.iter().zip(bias).map(|(t, b)| t - b).collect(),
+            None => frame.tau.clone(),
+        })
+    }
 }
 
 /// One frame estimated in the background.
@@ -109,9 +122,10 @@ fn serve(job: &EstimateJob, serving: &Serving<'_, EstimateJob, Estimated>) {
                 || Err(format!("no frame {index}")),
                 |frame| {
                     let positions = job.robot.joint_positions(&frame.q, &[]).map_err(|e| e.to_string())?;
+                    let tau = job.tau(index).unwrap_or_default();
                     let t0 = Instant::now();
                     estimator
-                        .update(&job.robot, &positions, &frame.tau)
+                        .update(&job.robot, &positions, &tau)
                         .map(|u| FrameEstimate::of(&u, t0.elapsed().as_secs_f64() * 1e3))
                         .map_err(|e| e.to_string())
                 },
@@ -158,13 +172,15 @@ fn estimate_together(job: &EstimateJob, estimator: &Estimator, serving: &Serving
             .iter()
             .map(|f| job.robot.joint_positions(&f.q, &[]).map_err(|e| e.to_string()))
             .collect::<Result<Vec<_>, _>>()?;
+        let taus: Vec<Vec<f64>> = (0..frames.len()).map(|i| job.tau(i).unwrap_or_default()).collect();
         let sequence: Vec<SequenceFrame> = frames
             .iter()
             .zip(&positions)
-            .map(|(f, p)| SequenceFrame {
+            .zip(&taus)
+            .map(|((f, p), tau)| SequenceFrame {
                 t_secs: f.t,
                 joint_positions: p,
-                tau: &f.tau,
+                tau,
             })
             .collect();
         let model = TemporalModel::new(
