@@ -389,3 +389,29 @@ fn shift_drags_a_joint_slider_ten_times_slower() {
     assert!(coarse > 1.0, "a 20-point drag moved {coarse}°");
     assert!(fine > 0.0 && fine < 0.3 * coarse, "fine {fine}° against {coarse}°");
 }
+
+/// A focused joint slider steps by a thousandth of its range per arrow key.
+#[test]
+fn the_arrow_keys_step_a_joint_slider_finely() {
+    let mut harness = harness_at(None, [1280.0, 720.0]);
+    let before = harness.state().model.q[0];
+    harness
+        .get_all_by_label("lwr_joint_1")
+        .find(|n| n.accesskit_node().role() == egui::accesskit::Role::Slider)
+        .expect("joint 1's slider")
+        .focus();
+    harness.run_steps(1);
+    harness.key_press(egui::Key::ArrowRight);
+    harness.run_steps(1);
+    harness.key_press(egui::Key::ArrowRight);
+    harness.run_steps(2);
+    let app = harness.state();
+    let joint = &app.model.robot.joints[app.model.robot.sensed()[0]];
+    let limits = joint.limits.unwrap();
+    let step = (limits.upper - limits.lower) / 1000.0;
+    let moved = app.model.q[0] - before;
+    assert!(
+        (moved - 2.0 * step).abs() < 1e-9,
+        "moved {moved} rad, two steps of {step}"
+    );
+}
