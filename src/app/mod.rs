@@ -3,21 +3,27 @@
 //! The only place where egui, `render` and `io` meet.
 
 pub mod bias;
+mod commands;
 pub mod files;
 pub mod heat;
+mod inspect;
 pub mod live;
 mod menus;
 mod model;
 pub mod overlay;
 mod panels;
 mod recorder;
+mod robot_panel;
 mod session_panel;
 mod start;
+mod topic_prompt;
+mod torques;
 mod view;
 pub use crate::batch as session;
 pub mod timeline;
 pub mod worker;
 
+pub use commands::Command;
 pub use model::*;
 pub use start::*;
 pub use view::robot_bounds;
@@ -388,72 +394,12 @@ impl ProprioscopeApp {
         });
     }
 
-    /// Where a link's origin region appears in the window (the centre of
-    /// its sampled surface, projected), for tests and tours.
-    #[must_use]
-    pub fn pixel_of_link(&self, name: &str) -> Option<egui::Pos2> {
-        let link = self.model.robot.link_id(name).ok()?;
-        let positions = self.model.joint_positions();
-        let pose = RobotPose::new(&self.model.robot, &positions);
-        let rect = self.view_rect?;
-        let mesh = &self.model.robot.links[link].mesh;
-        let (lo, hi) = mesh.bounds()?;
-        let centre = pose.point_to_world(link, 0.5 * (lo + hi));
-        // Aim at the centre, then walk towards the eye until the ray hits this link.
-        let size = Vec2::new(rect.width(), rect.height());
-        let pixel = self.camera.project(centre.as_vec3(), size)?;
-        let (origin, dir) = self.camera.ray(pixel, size);
-        let hit = self.picker.pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
-        (hit.link == link).then(|| rect.min + egui::vec2(pixel.x, pixel.y))
-    }
-
     /// The newest estimate for the current model has arrived.
     #[must_use]
     pub fn is_up_to_date(&self) -> bool {
         self.opening.is_none()
             && self.current_outcome().is_some_and(|o| o.generation == self.generation)
             && self.session_settled()
-    }
-
-    /// The model's invariants (what the monkey test checks after every
-    /// action): one q and one σ per sensed joint, all finite; candidate
-    /// links, the push's link and the shown estimate of this robot; the
-    /// session frame within the session.
-    pub fn check_invariants(&self) -> Result<(), String> {
-        let m = &self.model;
-        let joints = m.robot.sensed().len();
-        if m.q.len() != joints || m.sigma.len() != joints {
-            return Err(format!(
-                "{} q and {} σ for {joints} sensed joints",
-                m.q.len(),
-                m.sigma.len()
-            ));
-        }
-        if !m.q.iter().chain(&m.sigma).all(|v| v.is_finite()) {
-            return Err(format!("non-finite q {:?} or σ {:?}", m.q, m.sigma));
-        }
-        let links = m.robot.links.len();
-        if m.candidate_links.is_empty() || m.candidate_links.iter().any(|&l| l >= links) {
-            return Err(format!("candidate links {:?} of {links}", m.candidate_links));
-        }
-        if let Some(p) = m.push
-            && (p.link >= links || !p.force_newtons.is_finite() || !p.point_in_link.is_finite())
-        {
-            return Err(format!("push {p:?} on a robot of {links} links"));
-        }
-        if let Some(o) = self.current_outcome()
-            && let Ok(u) = &o.update
-            && (u.summary.map.link >= links || u.posterior.probability.iter().any(|p| !p.is_finite()))
-        {
-            return Err("the shown estimate does not fit the robot".to_owned());
-        }
-        if let Some(r) = &m.replay
-            && !r.session.frames.is_empty()
-            && r.frame >= r.session.frames.len()
-        {
-            return Err(format!("frame {} of {}", r.frame, r.session.frames.len()));
-        }
-        Ok(())
     }
 
     /// The torques the estimator is given: the measured ones, less the
@@ -466,31 +412,6 @@ impl ProprioscopeApp {
             Some(bias) => tau.iter().zip(bias).map(|(t, b)| t - b).collect(),
             None => tau,
         }
-    }
-
-    /// The 3-D view's camera.
-    #[must_use]
-    pub fn camera(&self) -> &OrbitCamera {
-        &self.camera
-    }
-
-    /// The sensed joint whose torque bar the pointer is over.
-    #[must_use]
-    pub fn hovered_joint(&self) -> Option<usize> {
-        self.hovered_joint
-    }
-
-    /// Where the 3-D view was last drawn in the window.
-    #[must_use]
-    pub fn view_rect(&self) -> Option<egui::Rect> {
-        self.view_rect
-    }
-
-    /// How the robot was named when opened: a built-in name or the
-    /// URDF's absolute path.
-    #[must_use]
-    pub fn robot_spec(&self) -> &str {
-        &self.robot_spec
     }
 
     /// The estimate shown: the latest one, if it was made for the current

@@ -1,0 +1,230 @@
+//! The commands the UI sends, and the one place where they change the
+//! [`Model`] (playback included). No egui here.
+
+use glam::DVec3;
+
+use super::{EstimatorChoice, LinkId, Model, Push, RobotPose, SPEED_RANGE, Temporal, ViewOptions};
+
+/// A change to the [`Model`], sent by the UI and applied in one place.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Command {
+    /// Set sensed joint `index` to a position, rad.
+    SetJoint(usize, f64),
+    /// Every joint to 0.
+    ZeroJoints,
+    /// Every joint to a random position within its limits (seeded).
+    RandomPose(u64),
+    /// Set the seed of the sensor noise.
+    SetNoiseSeed(u64),
+    /// Apply a push.
+    Push(Push),
+    /// Set the push's magnitude, N.
+    SetForce(f64),
+    /// Remove the push.
+    ClearPush,
+    /// Set the likelihood σ of every joint, N·m.
+    SetSigma(f64),
+    /// Set one joint's likelihood σ, N·m.
+    SetJointSigma(usize, f64),
+    /// Set the surface resolution.
+    SetSurfacePoints(usize),
+    /// Make a link a candidate (true) or not.
+    SetCandidate(LinkId, bool),
+    /// Set the sensor noise, N·m.
+    SetNoise(f64),
+    /// Set the estimator's mode and phases.
+    SetEstimator(EstimatorChoice),
+    /// Set the force range, N.
+    SetForceRange(f64, f64),
+    /// Set how the heatmap is drawn.
+    SetView(ViewOptions),
+    /// Show a session frame (index into its good frames).
+    SetFrame(usize),
+    /// Move this many frames (negative: back).
+    StepFrames(i64),
+    /// Play (true) or pause.
+    Play(bool),
+    /// Set the playback speed (clamped to [`SPEED_RANGE`]).
+    SetSpeed(f64),
+    /// Loop at the end (true) or stop.
+    SetLoop(bool),
+    /// Estimate the session's frames alone, filtered or smoothed.
+    SetOverTime(Temporal),
+    /// Take the session's estimated torque bias off its frames (true) or not.
+    SetBias(bool),
+    /// Advance playback by this much wall-clock time, s.
+    Tick(f64),
+}
+
+impl Model {
+    /// Applies a command; true when something changed.
+    pub fn apply(&mut self, command: Command) -> bool {
+        let before = self.estimate_inputs();
+        match command {
+            Command::SetJoint(i, value) => {
+                if let Some(q) = self.q.get_mut(i) {
+                    *q = value;
+                }
+            }
+            Command::ZeroJoints => self.q.iter_mut().for_each(|q| *q = 0.0),
+            Command::RandomPose(seed) => {
+                let mut rng = crate::core::rng::Rng::new(seed);
+                for (q, &j) in self.q.iter_mut().zip(self.robot.sensed()) {
+                    let (lo, hi) = self.robot.joints[j]
+                        .limits
+                        .map_or((-std::f64::consts::PI, std::f64::consts::PI), |l| (l.lower, l.upper));
+                    *q = rng.uniform_in(lo, hi);
+                }
+            }
+            Command::SetNoiseSeed(seed) => self.noise_seed = seed,
+            Command::Push(push) => self.push = Some(push),
+            Command::SetForce(f) => {
+                if let Some(p) = self.push.as_mut() {
+                    p.force_newtons = f.max(0.0);
+                }
+            }
+            Command::ClearPush => self.push = None,
+            Command::SetSigma(s) => self.sigma.iter_mut().for_each(|v| *v = s.max(1e-6)),
+            Command::SetJointSigma(i, s) => {
+                if let Some(v) = self.sigma.get_mut(i) {
+                    *v = s.max(1e-6);
+                }
+            }
+            Command::SetSurfacePoints(n) => self.surface_points = n.clamp(10, crate::core::surface::MAX_POINTS),
+            Command::SetCandidate(link, on) => {
+                let can_touch = self.robot.default_candidate_links().contains(&link);
+                if on && can_touch && !self.candidate_links.contains(&link) {
+                    self.candidate_links.push(link);
+                    self.candidate_links.sort_unstable();
+                } else if !on && self.candidate_links.len() > 1 {
+                    // At least one link stays: an empty surface has no posterior.
+                    self.candidate_links.retain(|l| *l != link);
+                }
+            }
+            Command::SetNoise(s) => self.noise_sigma = s.max(0.0),
+            Command::SetEstimator(choice) => {
+                self.estimator = EstimatorChoice {
+                    particles: choice.particles.clamp(1, crate::core::estimator::MAX_PARTICLES),
+                    magnitudes_per_point: choice
+                        .magnitudes_per_point
+                        .clamp(1, crate::core::estimator::MAX_MAGNITUDES),
+                    alpha: choice.alpha.clamp(0.0, 0.99),
+                    ..choice
+                };
+            }
+            Command::SetForceRange(lo, hi) => {
+                let lo = lo.max(0.0);
+                self.force_range_newtons = (lo, hi.max(lo));
+            }
+            Command::SetView(view) => self.view = view,
+            Command::SetFrame(i) => self.show_frame(i),
+            Command::StepFrames(by) => {
+                if let Some(r) = &self.replay {
+                    let last = r.session.frames.len().saturating_sub(1);
+                    let target = i64::try_from(r.frame).unwrap_or(0).saturating_add(by).max(0);
+                    self.show_frame(usize::try_from(target).unwrap_or(0).min(last));
+                }
+            }
+            Command::Play(on) => {
+                let at_end = self
+                    .replay
+                    .as_ref()
+                    .is_some_and(|r| r.frame + 1 >= r.session.frames.len());
+                if on && at_end {
+                    self.show_frame(0);
+                }
+                if let Some(r) = &mut self.replay {
+                    r.playing = on;
+                }
+            }
+            Command::SetSpeed(speed) => {
+                if let Some(r) = &mut self.replay {
+                    r.speed = speed.clamp(SPEED_RANGE.0, SPEED_RANGE.1);
+                }
+            }
+            Command::SetLoop(on) => {
+                if let Some(r) = &mut self.replay {
+                    r.looping = on;
+                }
+            }
+            Command::SetOverTime(temporal) => {
+                if let Some(r) = &mut self.replay {
+                    r.over_time = temporal;
+                }
+            }
+            Command::SetBias(on) => {
+                if let Some(r) = &mut self.replay {
+                    r.bias_auto = on;
+                }
+            }
+            Command::Tick(dt_secs) => self.tick(dt_secs),
+        }
+        before != self.estimate_inputs()
+    }
+
+    /// Shows session frame `i` (clamped to the last): its `q`, and its true
+    /// contact as the push.
+    fn show_frame(&mut self, i: usize) {
+        let Some(replay) = &mut self.replay else {
+            return;
+        };
+        let i = i.min(replay.session.frames.len().saturating_sub(1));
+        let Some(frame) = replay.session.frames.get(i) else {
+            return;
+        };
+        replay.frame = i;
+        replay.clock_secs = frame.t;
+        if frame.q.len() == self.q.len() {
+            self.q.clone_from(&frame.q);
+        }
+        let truth = frame.truth.clone();
+        let positions = self.joint_positions();
+        let pose = RobotPose::new(&self.robot, &positions);
+        self.push = match truth {
+            crate::io::session::Truth::Contact { link, point, force } => {
+                self.robot.link_id(&link).ok().and_then(|link| {
+                    let link_from_world = pose.world_from_link.get(link)?.inverse();
+                    let force = DVec3::from_array(force);
+                    Some(Push {
+                        link,
+                        point_in_link: link_from_world.transform_point3(DVec3::from_array(point)),
+                        inward_normal_in_link: link_from_world.transform_vector3(force.try_normalize()?),
+                        force_newtons: force.length(),
+                    })
+                })
+            }
+            _ => None,
+        };
+    }
+
+    /// Advances playback by `dt_secs` of wall-clock time.
+    fn tick(&mut self, dt_secs: f64) {
+        let Some(replay) = &mut self.replay else {
+            return;
+        };
+        if !replay.playing {
+            return;
+        }
+        let frames = &replay.session.frames;
+        let (Some(first), Some(last)) = (frames.first().map(|f| f.t), frames.last().map(|f| f.t)) else {
+            return;
+        };
+        let mut clock = replay.clock_secs + dt_secs.max(0.0) * replay.speed;
+        if clock > last {
+            if replay.looping {
+                clock = first;
+            } else {
+                clock = last;
+                replay.playing = false;
+            }
+        }
+        let target = replay.session.frame_at(clock);
+        let changed = target != replay.frame;
+        if changed {
+            self.show_frame(target);
+        }
+        if let Some(replay) = &mut self.replay {
+            replay.clock_secs = clock;
+        }
+    }
+}

@@ -1,0 +1,73 @@
+//! The dialog that asks which topics of a recording make its frames.
+
+use super::{ProprioscopeApp, egui};
+
+impl ProprioscopeApp {
+    /// The dialog that asks which topics of a recording make its frames
+    /// (shown when the file leaves several choices).
+    pub(super) fn topic_prompt_ui(&mut self, ctx: &egui::Context) {
+        let Some(prompt) = self.topic_prompt.as_mut() else {
+            return;
+        };
+        let mut decided = None;
+        egui::Window::new("Recording topics")
+            .collapsible(false)
+            .resizable(false)
+            .anchor(egui::Align2::CENTER_CENTER, [0.0, 0.0])
+            .show(ctx, |ui| {
+                ui.label(format!(
+                    "Which topics make the frames of {}?",
+                    prompt
+                        .path
+                        .file_name()
+                        .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+                ));
+                ui.label(egui::RichText::new(&prompt.message).weak());
+                ui.separator();
+                let q = prompt.choice.q_topic.clone().unwrap_or_default();
+                egui::ComboBox::from_label("joint positions (JointState)")
+                    .selected_text(q)
+                    .show_ui(ui, |ui| {
+                        for topic in &prompt.position_topics {
+                            ui.selectable_value(&mut prompt.choice.q_topic, Some(topic.clone()), topic);
+                        }
+                    });
+                let tau = format!(
+                    "{} {}",
+                    prompt.choice.tau_topic.clone().unwrap_or_default(),
+                    prompt.choice.tau_field.clone().unwrap_or_default()
+                );
+                egui::ComboBox::from_label("external torques (topic, field)")
+                    .selected_text(tau)
+                    .show_ui(ui, |ui| {
+                        for (topic, field) in &prompt.torque_sources {
+                            let selected = prompt.choice.tau_topic.as_ref() == Some(topic)
+                                && prompt.choice.tau_field.as_ref() == Some(field);
+                            if ui.selectable_label(selected, format!("{topic} {field}")).clicked() {
+                                prompt.choice.tau_topic = Some(topic.clone());
+                                prompt.choice.tau_field = Some(field.clone());
+                            }
+                        }
+                    });
+                ui.horizontal(|ui| {
+                    if ui.button("Open").clicked() {
+                        decided = Some(true);
+                    }
+                    if ui.button("Cancel").clicked() {
+                        decided = Some(false);
+                    }
+                });
+            });
+        match decided {
+            Some(true) => {
+                if let Some(prompt) = self.topic_prompt.take() {
+                    self.topic_choices.insert(prompt.path.clone(), prompt.choice.clone());
+                    self.last_topic_choice = Some(prompt.choice);
+                    self.open_session(&prompt.path, prompt.robot);
+                }
+            }
+            Some(false) => self.topic_prompt = None,
+            None => {}
+        }
+    }
+}
