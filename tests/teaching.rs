@@ -129,10 +129,26 @@ fn a_plain_click_keeps_the_inward_push() {
     harness.drag_at(pixel);
     harness.drop_at(pixel);
     harness.run_steps(3);
-    let push = harness.state().model.push.unwrap();
-    // The direction is the surface's inward normal, exactly: the pick's.
-    assert!((push.inward_normal_in_link.length() - 1.0).abs() < 1e-9);
-    assert_eq!(harness.state().model.robot.links[push.link].name, "lwr_4_link");
+    let app = harness.state();
+    let push = app.model.push.unwrap();
+    assert_eq!(app.model.robot.links[push.link].name, "lwr_4_link");
+    // The direction is the inward normal of the triangle under the pointer,
+    // found here by a ray cast of our own.
+    let rect = app.view_rect().unwrap();
+    let local = pixel - rect.min;
+    let (origin, dir) = app.camera().ray(
+        glam::Vec2::new(local.x, local.y),
+        glam::Vec2::new(rect.width(), rect.height()),
+    );
+    let pose = app.model.pose();
+    let hit = proprioscope::core::picking::Picker::new(&app.model.robot)
+        .pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])
+        .unwrap();
+    let normal_in_link = pose.world_from_link[hit.link]
+        .inverse()
+        .transform_vector3(hit.inward_normal_world);
+    assert!((push.inward_normal_in_link - normal_in_link).length() < 1e-9);
+    assert!((push.point_in_link - hit.point_in_link).length() < 1e-9);
 }
 
 #[test]

@@ -3,7 +3,7 @@
 
 use glam::DVec3;
 
-use super::{EstimatorChoice, LinkId, Model, Push, RobotPose, SPEED_RANGE, Temporal, ViewOptions};
+use super::{EstimatorChoice, LinkId, Model, Push, SPEED_RANGE, Temporal, ViewOptions};
 
 /// A change to the [`Model`], sent by the UI and applied in one place.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -178,8 +178,7 @@ impl Model {
             self.q.clone_from(&frame.q);
         }
         let truth = frame.truth.clone();
-        let positions = self.joint_positions();
-        let pose = RobotPose::new(&self.robot, &positions);
+        let pose = self.pose();
         self.push = match truth {
             crate::io::session::Truth::Contact { link, point, force } => {
                 self.robot.link_id(&link).ok().and_then(|link| {

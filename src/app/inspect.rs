@@ -1,7 +1,7 @@
 //! What tests, tours and the monkey read of the app: where things are
 //! drawn, the camera, the model's invariants.
 
-use super::{OrbitCamera, ProprioscopeApp, RobotPose, Vec2, egui};
+use super::{OrbitCamera, ProprioscopeApp, Vec2, egui};
 
 impl ProprioscopeApp {
     /// Where a link's origin region appears in the window (the centre of
@@ -9,8 +9,7 @@ impl ProprioscopeApp {
     #[must_use]
     pub fn pixel_of_link(&self, name: &str) -> Option<egui::Pos2> {
         let link = self.model.robot.link_id(name).ok()?;
-        let positions = self.model.joint_positions();
-        let pose = RobotPose::new(&self.model.robot, &positions);
+        let pose = self.model.pose();
         let rect = self.view_rect?;
         let mesh = &self.model.robot.links[link].mesh;
         let (lo, hi) = mesh.bounds()?;

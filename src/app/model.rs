@@ -331,7 +331,13 @@ impl Model {
         }
     }
 
-    /// Every joint's position.
+    /// The robot posed at the model's joint positions.
+    #[must_use]
+    pub fn pose(&self) -> RobotPose {
+        RobotPose::new(&self.robot, &self.joint_positions())
+    }
+
+    /// Every joint's position (sensed from `q`, the others by name), rad.
     #[must_use]
     pub fn joint_positions(&self) -> Vec<f64> {
         self.robot

@@ -1,7 +1,7 @@
 //! The estimator panel: σ, resolution, mode and phases, the estimate's
 //! summary, and the heatmap's options.
 
-use super::{Command, HeatLayer, ModeChoice, ProprioscopeApp, RobotPose, Verdict, egui, phase_report};
+use super::{Command, HeatLayer, ModeChoice, ProprioscopeApp, Verdict, egui, phase_report};
 
 impl ProprioscopeApp {
     pub(super) fn estimator_panel_ui(&mut self, ui: &mut egui::Ui) -> Vec<Command> {
@@ -84,8 +84,7 @@ impl ProprioscopeApp {
                         s.credible90.points.len(),
                         s.credible90.radius_m * 1e3
                     ));
-                    let positions = self.model.joint_positions();
-                    let pose = RobotPose::new(&self.model.robot, &positions);
+                    let pose = self.model.pose();
                     if let Some((_, point, force)) = self.model.push_world(&pose) {
                         ui.label(format!(
                             "error: {:.0} mm, {:.1} N",

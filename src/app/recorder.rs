@@ -4,7 +4,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use super::timeline::RECORD_RATE_HZ;
-use super::{Model, ProprioscopeApp, RobotPose, egui};
+use super::{Model, ProprioscopeApp, egui};
 use crate::io::session::{Frame, Recorder, Truth};
 
 /// A recording under way.
@@ -90,8 +90,7 @@ impl ProprioscopeApp {
 /// The frame the recorder writes for the interactive mode at time `t`.
 #[must_use]
 pub fn interactive_frame(model: &Model, t: f64) -> Frame {
-    let positions = model.joint_positions();
-    let pose = RobotPose::new(&model.robot, &positions);
+    let pose = model.pose();
     Frame {
         t,
         q: model.q.clone(),

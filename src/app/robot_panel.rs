@@ -1,7 +1,7 @@
 //! The robot panel: joints, push, touchable links, sensor noise; and the
 //! fine slider it is built of.
 
-use super::{Command, ProprioscopeApp, RobotPose, egui};
+use super::{Command, ProprioscopeApp, egui};
 
 impl ProprioscopeApp {
     pub(super) fn robot_panel_ui(&mut self, ui: &mut egui::Ui) -> Vec<Command> {
@@ -37,8 +37,7 @@ impl ProprioscopeApp {
                 if fine_slider(ui, &mut f, 0.0..=30.0, " N", "force") {
                     commands.push(Command::SetForce(f));
                 }
-                let positions = self.model.joint_positions();
-                let pose = RobotPose::new(&self.model.robot, &positions);
+                let pose = self.model.pose();
                 let at = pose.point_to_world(p.link, p.point_in_link);
                 ui.label(format!(
                     "on {} at ({:.3}, {:.3}, {:.3}) m",

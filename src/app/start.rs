@@ -1,7 +1,7 @@
 //! Start-up: what the app opens on (scene, URDF, robot, session), and
 //! the headless harness behind `proprioscope screenshot` and the UI tests.
 
-use super::{EstimatorChoice, ProprioscopeApp, Push, Robot, RobotPose, StartSettings, ViewOptions, egui, timeline};
+use super::{EstimatorChoice, ProprioscopeApp, Push, Robot, StartSettings, ViewOptions, egui, timeline};
 
 /// Renders the app headless (Mesa's software Vulkan or a GPU, no window):
 /// runs frames until the estimate for the current model has arrived, then
@@ -246,8 +246,7 @@ impl ProprioscopeApp {
     pub fn to_scene(&self, scene_path: &std::path::Path) -> crate::io::scene::Scene {
         use crate::io::scene as sc;
         let m = &self.model;
-        let positions = m.joint_positions();
-        let pose = RobotPose::new(&m.robot, &positions);
+        let pose = m.pose();
         let folder = scene_path.parent().unwrap_or(std::path::Path::new("."));
         let relative = |p: &std::path::Path| sc::relative_path(p, folder).display().to_string();
         let builtin = crate::io::builtin::is_builtin(&self.robot_spec);

@@ -27,8 +27,7 @@ impl ProprioscopeApp {
         } else {
             "applied"
         };
-        let positions = self.model.joint_positions();
-        let pose = RobotPose::new(&self.model.robot, &positions);
+        let pose = self.model.pose();
         let applied = self.model.applied_torques(&pose);
         let (measured, measured_name) = self.measured_shown(&pose);
         let explained: Option<Vec<f64>> = self.current_outcome().and_then(|o| o.update.as_ref().ok()).map(|u| {

@@ -85,8 +85,7 @@ impl ProprioscopeApp {
         let (origin, dir) = self
             .camera
             .ray(Vec2::new(local.x, local.y), Vec2::new(rect.width(), rect.height()));
-        let positions = self.model.joint_positions();
-        let pose = RobotPose::new(&self.model.robot, &positions);
+        let pose = self.model.pose();
         self.picker.pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])
     }
 
@@ -124,8 +123,7 @@ impl ProprioscopeApp {
             .project(contact.as_vec3(), size)
             .map_or(0.0, |c| (Vec2::new(local.x, local.y) - c).length());
         let force = (f64::from(pixels) * PUSH_NEWTONS_PER_POINT).clamp(0.5, 30.0);
-        let positions = self.model.joint_positions();
-        let pose = RobotPose::new(&self.model.robot, &positions);
+        let pose = self.model.pose();
         let link_from_world = pose.world_from_link[drag.link].inverse();
         Push {
             link: drag.link,
@@ -138,8 +136,7 @@ impl ProprioscopeApp {
     /// Points the camera at the robot in its current pose, from where it
     /// looks, just far enough that all of it is in view.
     pub(super) fn fit_camera(&mut self, aspect: f32) {
-        let positions = self.model.joint_positions();
-        let pose = RobotPose::new(&self.model.robot, &positions);
+        let pose = self.model.pose();
         if let Some((min, max)) = robot_bounds(&self.model.robot, &pose) {
             self.camera.fit(min.as_vec3(), max.as_vec3(), aspect);
         }
@@ -149,9 +146,8 @@ impl ProprioscopeApp {
     /// picture.
     fn paint_overlay(&self, ui: &egui::Ui, rect: egui::Rect) {
         let painter = ui.painter().with_clip_rect(rect);
-        let positions = self.model.joint_positions();
-        let pose = RobotPose::new(&self.model.robot, &positions);
-        let markers = self.markers();
+        let pose = self.model.pose();
+        let markers = self.markers(&pose);
         let size = Vec2::new(rect.width(), rect.height());
         let arrows = overlay::screen_arrows(&markers, &self.camera, size, &self.picker, &pose);
         overlay::paint_arrows(&painter, rect, &arrows);
@@ -300,8 +296,7 @@ impl ProprioscopeApp {
     /// The posed robot with its heat and the candidate points; the arrows
     /// and markers are drawn over the picture (see [`Self::markers`]).
     pub(super) fn scene_frame(&self) -> (Frame, Option<Legend>) {
-        let positions = self.model.joint_positions();
-        let pose = RobotPose::new(&self.model.robot, &positions);
+        let pose = self.model.pose();
         let mut frame = Frame::default();
         let outcome = self.current_outcome().filter(|o| o.update.is_ok());
         let heat = self.heat();
@@ -354,13 +349,11 @@ impl ProprioscopeApp {
 
     /// The arrows drawn over the view: the push (or the recorded true
     /// contact), the frame's most probable contact and, over time, the
-    /// frames' together.
+    /// frames' together; `pose` is the model's.
     #[must_use]
-    pub fn markers(&self) -> Vec<Marker> {
-        let positions = self.model.joint_positions();
-        let pose = RobotPose::new(&self.model.robot, &positions);
+    pub fn markers(&self, pose: &RobotPose) -> Vec<Marker> {
         let mut out = Vec::new();
-        if let Some((_, point, force)) = self.model.push_world(&pose) {
+        if let Some((_, point, force)) = self.model.push_world(pose) {
             out.push(Marker {
                 role: MarkerRole::Push,
                 point_world: point,
@@ -446,8 +439,7 @@ impl ProprioscopeApp {
         let pick_at = |pos: egui::Pos2, camera: &OrbitCamera| {
             let local = pos - rect.min;
             let (origin, dir) = camera.ray(Vec2::new(local.x, local.y), size);
-            let positions = self.model.joint_positions();
-            let pose = RobotPose::new(&self.model.robot, &positions);
+            let pose = self.model.pose();
             self.picker
                 .pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])
                 .map(|hit| (hit, pose))

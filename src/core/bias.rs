@@ -52,6 +52,13 @@ pub enum BiasError {
 /// mean of the readings around it; a few suffice at σ resolution).
 const MEAN_SHIFT_STEPS: usize = 20;
 
+/// Histogram bins per kernel width when looking for the densest place.
+const BINS_PER_KERNEL: f64 = 8.0;
+
+/// At most this many histogram bins (readings spread over more than
+/// `MAX_BINS / BINS_PER_KERNEL` kernel widths get wider bins).
+const MAX_BINS: usize = 1 << 20;
+
 /// Readings further than this many kernel widths do not count.
 const KERNEL_REACH: f64 = 4.0;
 
@@ -175,28 +182,38 @@ pub fn without_drifting_bias(taus: &[&[f64]], bias: &[Vec<f64>]) -> Vec<Vec<f64>
 /// empty).
 fn mode(values: &[f64], h: f64) -> f64 {
     let reach = KERNEL_REACH * h;
-    let density = |x: f64| -> f64 {
-        let lo = values.partition_point(|&v| v < x - reach);
-        let hi = values.partition_point(|&v| v <= x + reach);
-        values
-            .get(lo..hi)
-            .unwrap_or(&[])
-            .iter()
-            .map(|&v| {
-                let z = (v - x) / h;
-                (-0.5 * z * z).exp()
-            })
-            .sum()
+    // The densest place, from a histogram a fraction of the kernel wide
+    // smoothed by the kernel: linear in the readings (the density at every
+    // reading cost their number squared: minutes on a long recording).
+    // Mean shift below then finds the mode itself.
+    let (Some(&lo), Some(&hi)) = (values.first(), values.last()) else {
+        return 0.0;
     };
-    // The densest reading (the lowest among equals: deterministic).
-    let mut best = (f64::NEG_INFINITY, 0.0);
-    for &x in values {
-        let d = density(x);
+    let bin = (h / BINS_PER_KERNEL).max((hi - lo) / MAX_BINS as f64);
+    let bins = (((hi - lo) / bin).floor() as usize).saturating_add(1).min(MAX_BINS + 1);
+    let mut counts = vec![0.0f64; bins];
+    for &v in values {
+        let b = (((v - lo) / bin) as usize).min(bins - 1);
+        counts[b] += 1.0;
+    }
+    let span = (reach / bin).ceil() as usize;
+    let kernel: Vec<f64> = (0..=span)
+        .map(|k| {
+            let z = k as f64 * bin / h;
+            (-0.5 * z * z).exp()
+        })
+        .collect();
+    // The densest bin (the lowest among equals: deterministic).
+    let mut best = (f64::NEG_INFINITY, 0usize);
+    for b in 0..bins {
+        let first = b.saturating_sub(span);
+        let last = (b + span).min(bins - 1);
+        let d: f64 = (first..=last).map(|c| counts[c] * kernel[c.abs_diff(b)]).sum();
         if d > best.0 {
-            best = (d, x);
+            best = (d, b);
         }
     }
-    let mut x = best.1;
+    let mut x = lo + (best.1 as f64 + 0.5) * bin;
     for _ in 0..MEAN_SHIFT_STEPS {
         let lo = values.partition_point(|&v| v < x - reach);
         let hi = values.partition_point(|&v| v <= x + reach);

@@ -19,7 +19,7 @@
 //! be found from fewer than three torques).
 
 use crate::core::surface::Surface;
-use crate::core::torque::TorqueModel;
+use crate::core::torque::{TorqueModel, weighted_dot};
 
 /// Widths above this are reported as unobservable: a metre is the size of
 /// the arm itself.
@@ -55,31 +55,18 @@ pub fn position_widths_m(
             let line = |columns: &[Vec<f64>]| -> [f64; 6] {
                 std::array::from_fn(|c| columns.get(c).and_then(|col| col.get(k)).copied().unwrap_or(0.0))
             };
-            torques_of_line(model, link, &line(&surface.push_lines), &mut u);
-            torques_of_line(model, link, &line(&surface.tangent_lines[..6]), &mut d1);
-            torques_of_line(model, link, &line(&surface.tangent_lines[6..]), &mut d2);
+            model.line_array_torques_into(link, &line(&surface.push_lines), &mut u);
+            model.line_array_torques_into(link, &line(&surface.tangent_lines[..6]), &mut d1);
+            model.line_array_torques_into(link, &line(&surface.tangent_lines[6..]), &mut d2);
             width_from_rows(&weights, &u, &d1, &d2, force_newtons)
         })
         .collect()
 }
 
-/// The torques per newton of a push line `(m, n)` (or of its change per
-/// metre) on every sensed joint.
-fn torques_of_line(model: &TorqueModel, link: usize, line: &[f64; 6], out: &mut [f64]) {
-    out.fill(0.0);
-    let m = glam::DVec3::new(line[0], line[1], line[2]);
-    let n = glam::DVec3::new(line[3], line[4], line[5]);
-    for t in model.twists(link) {
-        if let Some(slot) = out.get_mut(t.sensed_index) {
-            *slot += t.w.dot(m) + t.v.dot(n);
-        }
-    }
-}
-
 /// The width for torque rows `u` (per newton) and `d₁`, `d₂` (per newton
 /// and metre), weights `1/σ²`, magnitude `f`.
 fn width_from_rows(w: &[f64], u: &[f64], d1: &[f64], d2: &[f64], f: f64) -> Option<f64> {
-    let inner = |x: &[f64], y: &[f64]| -> f64 { w.iter().zip(x).zip(y).map(|((w, x), y)| w * x * y).sum() };
+    let inner = |x: &[f64], y: &[f64]| weighted_dot(w, x, y);
     let a = inner(u, u);
     let (h1, h2) = (f * inner(d1, u), f * inner(d2, u));
     let f2 = f * f;
@@ -89,8 +76,7 @@ fn width_from_rows(w: &[f64], u: &[f64], d1: &[f64], d2: &[f64], f: f64) -> Opti
     }
     // The position's information with the magnitude unknown.
     let (s11, s12, s22) = (g11 - h1 * h1 / a, g12 - h1 * h2 / a, g22 - h2 * h2 / a);
-    // Smallest eigenvalue of the symmetric 2×2, written to keep its
-    // precision when the two are close.
+    // Smallest eigenvalue of the symmetric 2×2.
     let mean = 0.5 * (s11 + s22);
     let spread = (0.25 * (s11 - s22) * (s11 - s22) + s12 * s12).sqrt();
     let smallest = mean - spread;

@@ -12,7 +12,7 @@ use crate::core::robot::LinkId;
 use crate::core::smooth::{MeshPoint, SurfaceFrame};
 use crate::core::special::ln_erf_difference;
 use crate::core::surface::{LinkShape, Surface};
-use crate::core::torque::TorqueModel;
+use crate::core::torque::{TorqueModel, weighted_dot as inner};
 
 /// Gauss–Newton steps per start.
 const MAX_STEPS: usize = 30;
@@ -62,26 +62,6 @@ pub struct Measurement<'a> {
     pub force_range_newtons: (f64, f64),
 }
 
-/// The torques per newton on every sensed joint of a push line `(m, n)`
-/// on `link`.
-fn unit_torques(model: &TorqueModel, link: LinkId, line: &[f64; 6], out: &mut [f64]) {
-    out.fill(0.0);
-    let (m, n) = (
-        DVec3::new(line[0], line[1], line[2]),
-        DVec3::new(line[3], line[4], line[5]),
-    );
-    for t in model.twists(link) {
-        if let Some(slot) = out.get_mut(t.sensed_index) {
-            *slot += t.w.dot(m) + t.v.dot(n);
-        }
-    }
-}
-
-/// Weighted inner product `Σ w x y`.
-fn inner(w: &[f64], x: &[f64], y: &[f64]) -> f64 {
-    w.iter().zip(x).zip(y).map(|((w, x), y)| w * x * y).sum()
-}
-
 /// The best magnitude in range for unit torques `u` and its residual.
 fn profile(m: &Measurement, u: &[f64]) -> (f64, f64) {
     let (a, b) = (inner(m.weights, u, u), inner(m.weights, u, m.tau));
@@ -129,9 +109,9 @@ fn step(m: &Measurement, u: &[f64], d1: &[f64], d2: &[f64]) -> Option<[f64; 2]> 
 /// A frame's unit torques: of its line and of its two derivatives.
 fn frame_torques(model: &TorqueModel, link: LinkId, frame: &SurfaceFrame, joints: usize) -> [Vec<f64>; 3] {
     let mut out = [vec![0.0; joints], vec![0.0; joints], vec![0.0; joints]];
-    unit_torques(model, link, &frame.line(), &mut out[0]);
-    unit_torques(model, link, &frame.line_derivatives[0], &mut out[1]);
-    unit_torques(model, link, &frame.line_derivatives[1], &mut out[2]);
+    model.line_array_torques_into(link, &frame.line(), &mut out[0]);
+    model.line_array_torques_into(link, &frame.line_derivatives[0], &mut out[1]);
+    model.line_array_torques_into(link, &frame.line_derivatives[1], &mut out[2]);
     out
 }
 

@@ -128,11 +128,25 @@ impl TorqueModel {
     /// `direction_in_link` at `point_in_link`, written into `out` (length:
     /// the number of sensed joints).
     pub fn unit_torques_into(&self, link: LinkId, point_in_link: DVec3, direction_in_link: DVec3, out: &mut [f64]) {
+        self.sum_into(link, point_in_link.cross(direction_in_link), direction_in_link, out);
+    }
+
+    /// Torque on every sensed joint of a push line `(moment, direction)`
+    /// about `link`'s origin in its frame, stored as six numbers `(mx, my,
+    /// mz, nx, ny, nz)` as the surface keeps them: per newton, or, for the
+    /// change of a line along the surface, per newton and metre.
+    pub fn line_array_torques_into(&self, link: LinkId, line: &[f64; 6], out: &mut [f64]) {
+        let moment = DVec3::new(line[0], line[1], line[2]);
+        let direction = DVec3::new(line[3], line[4], line[5]);
+        self.sum_into(link, moment, direction, out);
+    }
+
+    /// `out[j] = w_j · moment + v_j · direction` over the twists that move `link`.
+    fn sum_into(&self, link: LinkId, moment: DVec3, direction: DVec3, out: &mut [f64]) {
         out.fill(0.0);
-        let moment = point_in_link.cross(direction_in_link);
         for t in self.twists(link) {
             if let Some(slot) = out.get_mut(t.sensed_index) {
-                *slot = t.w.dot(moment) + t.v.dot(direction_in_link);
+                *slot += t.w.dot(moment) + t.v.dot(direction);
             }
         }
     }
@@ -144,6 +158,13 @@ impl TorqueModel {
         self.unit_torques_into(link, point_in_link, force_in_link, &mut out);
         out
     }
+}
+
+/// Weighted inner product of two torque vectors, `Σ w x y` (weights
+/// `1/σ²` per joint: the metric of the likelihood).
+#[must_use]
+pub fn weighted_dot(w: &[f64], x: &[f64], y: &[f64]) -> f64 {
+    w.iter().zip(x).zip(y).map(|((w, x), y)| w * x * y).sum()
 }
 
 #[cfg(test)]
