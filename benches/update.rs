@@ -24,6 +24,7 @@ fn update(c: &mut Criterion) {
         mode: Mode::Exact,
         phase_alpha: None,
         patches: true,
+        friction: 0.0,
     };
     let request = SurfaceRequest {
         links: links.clone(),

@@ -101,6 +101,7 @@ fn run(frames: usize, points: usize, seed: u64) -> Tally {
         mode: Mode::Exact,
         phase_alpha: None,
         patches: true,
+        friction: 0.0,
     };
     let request = SurfaceRequest {
         links,

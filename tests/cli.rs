@@ -328,6 +328,18 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
     assert!(!ok && err.contains("bias window"), "{err}");
     let (ok, _, err) = run(&["synth", session.to_str().unwrap(), "--links", "no_such_link"]);
     assert!(!ok && err.contains("no_such_link"), "{err}");
+    // Friction: the summary table as before, a bad μ refused by name.
+    let (ok, out, err) = run(&[
+        "estimate",
+        session.to_str().unwrap(),
+        "--friction",
+        "0.15",
+        "--n",
+        "1000",
+    ]);
+    assert!(ok && out.contains("median force error"), "{err}");
+    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--friction=-1", "--n", "1000"]);
+    assert!(!ok && err.contains("friction"), "{err}");
 }
 
 /// A free local TCP address (bound and let go: another program could take

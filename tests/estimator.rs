@@ -185,6 +185,7 @@ fn session_medians(name: &str, seeds: &[u64]) -> (Vec<f64>, f64) {
             mode: Mode::Exact,
             phase_alpha: None,
             patches: true,
+            friction: 0.0,
         };
         let request = SurfaceRequest {
             links: robot.default_candidate_links(),

@@ -61,6 +61,7 @@ fn run_with(seed: u64, surface_seed: u64, points: usize, offset: f64, debias: bo
         mode: Mode::Exact,
         phase_alpha: None,
         patches: true,
+        friction: 0.0,
     };
     let request = SurfaceRequest {
         links,

@@ -106,6 +106,8 @@ pub struct EstimatorChoice {
     pub alpha: f64,
     /// Seed of random particles.
     pub particle_seed: u64,
+    /// Friction μ (0: frictionless).
+    pub friction: f64,
 }
 
 impl EstimatorChoice {
@@ -125,6 +127,7 @@ impl EstimatorChoice {
             phase_sizes: e.phases.sizes,
             alpha: e.phases.alpha,
             particle_seed: e.particle_seed,
+            friction: e.friction,
         }
     }
 }
@@ -139,6 +142,7 @@ impl Default for EstimatorChoice {
             phase_sizes: [200, 1000],
             alpha: 0.5,
             particle_seed: 0,
+            friction: 0.0,
         }
     }
 }
@@ -307,6 +311,7 @@ impl Model {
             force_min_newtons: self.force_range_newtons.0,
             force_max_newtons: self.force_range_newtons.1,
             particle_seed: e.particle_seed,
+            friction: e.friction,
         }
     }
 
@@ -327,6 +332,7 @@ impl Model {
                 mode: Mode::Exact,
                 phase_alpha: None,
                 patches: true,
+                friction: 0.0,
             },
         }
     }
@@ -452,6 +458,7 @@ mod tests {
             particles: 1234,
             phases: true,
             particle_seed: 3,
+            friction: 0.3,
             ..EstimatorChoice::default()
         };
         m.sigma[2] = 0.3;
@@ -466,6 +473,7 @@ mod tests {
             Mode::Exact => panic!("random particles expected"),
         }
         assert!((m.estimator_settings().sigma[2] - 0.3).abs() < 1e-15);
+        assert!((m.estimator_settings().friction - 0.3).abs() < 1e-15);
     }
 
     #[test]

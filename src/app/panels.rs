@@ -157,6 +157,17 @@ impl ProprioscopeApp {
                 );
             }
         }
+        if choice.mode == ModeChoice::Exact {
+            ui.add(
+                egui::Slider::new(&mut choice.friction, 0.0..=1.0)
+                    .update_while_editing(false)
+                    .text("friction μ"),
+            )
+            .on_hover_text(
+                "The estimated force gets a tangential part, Gaussian with a spread of μ times the push \
+                 (0: frictionless). The place is the frictionless estimate's.",
+            );
+        }
         ui.checkbox(&mut choice.phases, "phases A/B/C");
         if choice.phases {
             ui.add(egui::Slider::new(&mut choice.alpha, 0.0..=0.99).text("α"));

@@ -217,6 +217,7 @@ mod tests {
                 mode: Mode::Exact,
                 phase_alpha: None,
                 patches: true,
+                friction: 0.0,
             },
             phase_sizes: None,
         }

@@ -211,6 +211,7 @@ fn run_config(robot: &Robot, config: &Config, contacts: &[Contact], seed: u64) -
         mode: config.mode,
         phase_alpha: config.phases.then_some(0.5),
         patches: true,
+        friction: 0.0,
     };
     let request = SurfaceRequest {
         links: robot.default_candidate_links(),
@@ -472,6 +473,7 @@ fn seed_run(
         mode: Mode::Exact,
         phase_alpha: None,
         patches: how.patches,
+        friction: 0.0,
     };
     let request = SurfaceRequest {
         links: robot.default_candidate_links(),

@@ -212,6 +212,10 @@ pub struct EstimatorArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Friction μ: the refined contact's force gets a tangential part
+    /// whose spread is μ times the push (0: frictionless).
+    #[arg(long, default_value_t = 0.0, value_parser = finite)]
+    pub friction: f64,
 }
 
 /// What the options ask for, resolved against a robot.
@@ -279,6 +283,7 @@ impl EstimatorArgs {
             force_min_newtons: self.fmin,
             force_max_newtons: self.fmax,
             particle_seed: self.seed,
+            friction: self.friction,
         };
         let mut settings = scene.to_core(joints).map_err(|e| anyhow::anyhow!(e))?;
         settings.patches = !self.points_only;

@@ -66,6 +66,11 @@ pub struct EstimatorSettings {
     /// `false` is the thesis' model (a point is a point); particle modes
     /// ignore it.
     pub patches: bool,
+    /// μ of the friction model ([`crate::core::friction`]): the spread of
+    /// the tangential force per newton of push, per tangent direction.
+    /// 0: frictionless. Only the refined contact's force (and its fit
+    /// test) uses it; the posterior over places is the frictionless one.
+    pub friction: f64,
 }
 
 /// Why an estimate cannot be made.
@@ -116,6 +121,12 @@ pub enum EstimateError {
     BadAlpha {
         /// The value.
         alpha: f64,
+    },
+    /// A friction μ that is negative or not a number.
+    #[error("friction is {friction}; it must be a finite number ≥ 0 (0: frictionless)")]
+    BadFriction {
+        /// The value.
+        friction: f64,
     },
     /// Phases asked for without a hierarchy, or a hierarchy of another surface.
     #[error("phases A/B/C need a phase hierarchy built on this surface")]
@@ -980,6 +991,11 @@ fn validate(model: &impl UnitTorqueSource, tau: &[f64], settings: &EstimatorSett
     {
         return Err(EstimateError::BadAlpha { alpha });
     }
+    if !(settings.friction.is_finite() && settings.friction >= 0.0) {
+        return Err(EstimateError::BadFriction {
+            friction: settings.friction,
+        });
+    }
     if model.points() == 0 {
         return Err(EstimateError::NoCandidates);
     }
@@ -1407,6 +1423,7 @@ mod tests {
             mode: Mode::Exact,
             phase_alpha: None,
             patches: true,
+            friction: 0.0,
         }
     }
 

@@ -8,6 +8,7 @@ pub mod bvh;
 pub mod contact;
 pub mod estimator;
 pub mod fastmath;
+pub mod friction;
 pub mod kinematics;
 pub mod mesh;
 pub mod metrics;

@@ -37,9 +37,13 @@ pub struct RefinedContact {
     pub point_in_link: DVec3,
     /// Inward unit normal, link frame.
     pub inward_normal_in_link: DVec3,
-    /// Push magnitude, N.
+    /// Push magnitude along the inward normal, N.
     pub force_newtons: f64,
-    /// `Σ (τ - f u)² / σ²` at this point and magnitude.
+    /// Tangential force, link frame, N: zero for a frictionless contact
+    /// (see [`crate::core::friction`]).
+    pub tangential_in_link: DVec3,
+    /// `Σ (τ - f u)² / σ²` at this point and magnitude (with friction,
+    /// the marginal model's residual).
     pub residual_chi2: f64,
     /// ln of the posterior mass of a patch centred here (the likelihood
     /// integrated over a window as wide as the start's patch and over the
@@ -158,6 +162,7 @@ impl State {
             point_in_link: self.frame.point,
             inward_normal_in_link: self.frame.inward_normal,
             force_newtons: self.f,
+            tangential_in_link: DVec3::ZERO,
             residual_chi2: self.chi2,
             patch_log_mass: centred_patch_log_mass(measurement, [u, d1, d2], self.chi2, self.f, window_m),
             start,

@@ -169,13 +169,14 @@ fn refined_estimate(r: &RefinedContact, posterior: &Posterior, surface: &Surface
         .unwrap_or(r.start);
     let frame = pose.world_from_link[r.link];
     let normal = frame.transform_vector3(r.inward_normal_in_link);
+    let force_world = normal * r.force_newtons + frame.transform_vector3(r.tangential_in_link);
     ContactEstimate {
         point: owner,
         link: r.link,
         point_world: frame.transform_point3(r.point_in_link),
         inward_normal_world: normal,
-        force_world: normal * r.force_newtons,
-        force_newtons: r.force_newtons,
+        force_world,
+        force_newtons: force_world.length(),
         probability: posterior.probability.get(owner).copied().unwrap_or(0.0),
     }
 }

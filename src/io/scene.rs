@@ -299,12 +299,17 @@ pub struct EstimatorSettings {
     /// Seed of random particles. Default: 0.
     #[serde(default)]
     pub particle_seed: u64,
+    /// μ of the friction model: the tangential force's spread per newton
+    /// of push (see `core::friction`). Default: 0, frictionless.
+    #[serde(default)]
+    pub friction: f64,
 }
 
 impl Default for EstimatorSettings {
     fn default() -> Self {
         Self {
             particle_seed: 0,
+            friction: 0.0,
             mode: Mode::default(),
             sigma_newton_metres: Sigma::default(),
             sampling: Sampling::default(),
@@ -316,6 +321,10 @@ impl Default for EstimatorSettings {
         }
     }
 }
+
+/// The largest friction μ accepted: beyond 2 the tangential force would
+/// be expected to exceed twice the push, which no press does.
+pub const MAX_FRICTION: f64 = 2.0;
 
 fn default_particles() -> usize {
     20_000
@@ -445,6 +454,12 @@ impl EstimatorSettings {
                 },
             }),
         };
+        if !(self.friction.is_finite() && (0.0..=MAX_FRICTION).contains(&self.friction)) {
+            return Err(format!(
+                "estimator.friction is {}; it must lie in [0, {MAX_FRICTION}] (0: frictionless)",
+                self.friction
+            ));
+        }
         Ok(est::EstimatorSettings {
             sigma,
             force_min_newtons: self.force_min_newtons,
@@ -452,6 +467,7 @@ impl EstimatorSettings {
             mode,
             phase_alpha: self.phases.enabled.then_some(self.phases.alpha),
             patches: true,
+            friction: self.friction,
         })
     }
 }
@@ -687,6 +703,13 @@ impl EstimatorSettings {
                 format!("{lo} is above force_max_newtons {hi}"),
             ));
         }
+        if !(self.friction.is_finite() && (0.0..=MAX_FRICTION).contains(&self.friction)) {
+            return Err(invalid(
+                path,
+                "estimator.friction",
+                format!("{} is not in [0, {MAX_FRICTION}] (0: frictionless)", self.friction),
+            ));
+        }
         if !(0.0..1.0).contains(&self.phases.alpha) {
             return Err(invalid(
                 path,
@@ -812,6 +835,7 @@ mod tests {
                 r#""estimator": {"sigma_newton_metres": [0.1, -1]}, "q""#,
                 "sigma_newton_metres",
             ),
+            (r#""estimator": {"friction": -0.2}, "q""#, "estimator.friction"),
             (r#""version": 2, "q""#, "version"),
         ];
         for (insert, field) in cases {
