@@ -263,6 +263,37 @@ fn with_a_session_open_the_view_keeps_half_the_window_at_1280_by_720() {
     );
 }
 
+/// In a window narrower than the layout is made for (1000×640), the
+/// estimator panel's rows fit its width: every slider, its value and its
+/// label lie right of the view and inside the window (they used to be
+/// pushed under the view and past the window's edge).
+#[test]
+fn a_narrow_window_keeps_the_estimator_panel_readable() {
+    let (w, h) = (1000.0, 640.0);
+    let mut harness = proprioscope::app::headless_harness(open_target(None).unwrap(), [w, h]);
+    settle(&mut harness);
+    harness.run_steps(3);
+    let view = harness.state().view_rect().unwrap();
+    for label in [
+        "Estimator",
+        "σ [N·m]",
+        "N (surface points)",
+        "friction μ",
+        "hide below",
+        "observability",
+        "red-green",
+    ] {
+        for node in harness.get_all_by_label(label) {
+            let r = node.rect();
+            assert!(
+                r.left() >= view.right() - 1.0 && r.right() <= w + 0.5,
+                "{label}: {r:?}, the view ends at {}",
+                view.right()
+            );
+        }
+    }
+}
+
 #[test]
 fn a_csv_session_needs_a_robot() {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("teaching");

@@ -1,11 +1,12 @@
 //! A session's torque bias in the app: estimated from the session (as
 //! `estimate --bias auto`: each joint's mode over 30 s windows, with the
-//! estimator's σ as the kernel), kept until the session or σ changes,
-//! taken off the frame shown and every frame estimated in the background.
+//! estimator's σ as the kernel) on a thread of its own (a second or more
+//! on a long recording), kept until the session or σ changes, taken off
+//! the frame shown and every frame estimated in the background.
 
 use std::sync::Arc;
 
-use super::ProprioscopeApp;
+use super::{ProprioscopeApp, worker};
 use crate::core::bias::estimate_drifting_bias;
 
 /// Window over which a drifting bias is estimated, s (as `--bias-window`).
@@ -21,9 +22,19 @@ pub(super) struct BiasKey {
 /// Per frame and joint, N·m; or why it could not be estimated.
 pub(super) type SessionBias = Result<Arc<Vec<Vec<f64>>>, String>;
 
+/// A session's bias: being estimated, or known.
+pub(super) enum BiasState {
+    /// On its thread.
+    Pending(worker::Background<Arc<Vec<Vec<f64>>>>),
+    /// Done.
+    Done(SessionBias),
+}
+
 impl ProprioscopeApp {
-    /// Estimates the session's bias when it is asked for and not yet known
-    /// for this session and σ; drops it when it is not asked for.
+    /// Starts estimating the session's bias when it is asked for and not
+    /// yet known (or being estimated) for this session and σ, collects it
+    /// when it is done (and then estimates the frame shown again), and
+    /// drops it when it is not asked for.
     pub(super) fn update_session_bias(&mut self) {
         let Some(replay) = self.model.replay.as_ref().filter(|r| r.bias_auto) else {
             self.session_bias = None;
@@ -33,31 +44,56 @@ impl ProprioscopeApp {
             session: Arc::as_ptr(&replay.session) as usize,
             sigma: self.model.sigma.clone(),
         };
-        if self.session_bias.as_ref().is_some_and(|(k, _)| *k == key) {
-            return;
+        match &self.session_bias {
+            Some((k, BiasState::Done(_))) if *k == key => {}
+            Some((k, BiasState::Pending(job))) if *k == key => {
+                let Some(done) = job.poll() else {
+                    return;
+                };
+                if let Err(e) = &done {
+                    self.error = Some(format!("the torque bias could not be estimated: {e}"));
+                }
+                self.session_bias = Some((key, BiasState::Done(done)));
+                self.request_estimate();
+            }
+            _ => {
+                let session = replay.session.clone();
+                let sigma = self.model.sigma.clone();
+                let ctx = self.ctx.clone();
+                let job = worker::Background::spawn(
+                    "the torque bias".to_owned(),
+                    move || {
+                        let times: Vec<f64> = session.frames.iter().map(|f| f.t).collect();
+                        let taus: Vec<&[f64]> = session.frames.iter().map(|f| f.tau.as_slice()).collect();
+                        estimate_drifting_bias(&times, &taus, &sigma, BIAS_WINDOW_SECS)
+                            .map(Arc::new)
+                            .map_err(|e| e.to_string())
+                    },
+                    move || ctx.request_repaint(),
+                );
+                self.session_bias = Some((key, BiasState::Pending(job)));
+            }
         }
-        let frames = &replay.session.frames;
-        let times: Vec<f64> = frames.iter().map(|f| f.t).collect();
-        let taus: Vec<&[f64]> = frames.iter().map(|f| f.tau.as_slice()).collect();
-        let bias = estimate_drifting_bias(&times, &taus, &self.model.sigma, BIAS_WINDOW_SECS)
-            .map(Arc::new)
-            .map_err(|e| e.to_string());
-        if let Err(e) = &bias {
-            self.error = Some(format!("the torque bias could not be estimated: {e}"));
-        }
-        self.session_bias = Some((key, bias));
+    }
+
+    /// Whether the bias is asked for and still being estimated.
+    #[must_use]
+    pub fn bias_pending(&self) -> bool {
+        matches!(self.session_bias, Some((_, BiasState::Pending(_))))
     }
 
     /// The bias of session frame `frame`, when it is taken off.
     #[must_use]
     pub fn frame_bias(&self, frame: usize) -> Option<&[f64]> {
-        let (_, bias) = self.session_bias.as_ref()?;
-        bias.as_ref().ok()?.get(frame).map(Vec::as_slice)
+        self.session_bias()?.get(frame).map(Vec::as_slice)
     }
 
-    /// The session's bias per frame, when it is taken off.
+    /// The session's bias per frame, when it is taken off (and known).
     #[must_use]
     pub fn session_bias(&self) -> Option<&Arc<Vec<Vec<f64>>>> {
-        self.session_bias.as_ref()?.1.as_ref().ok()
+        match &self.session_bias {
+            Some((_, BiasState::Done(Ok(bias)))) => Some(bias),
+            _ => None,
+        }
     }
 }

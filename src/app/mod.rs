@@ -170,7 +170,7 @@ pub struct ProprioscopeApp {
     push_drag: Option<crate::core::picking::Pick>,
     /// The session's torque bias, when it is taken off, with what it was
     /// estimated from.
-    session_bias: Option<(bias::BiasKey, bias::SessionBias)>,
+    session_bias: Option<(bias::BiasKey, bias::BiasState)>,
     /// The path typed under Scenes → Open path.
     path_input: String,
     /// The robot was chosen by the user (a scene, URDF or name), not the

@@ -3,11 +3,28 @@
 
 use super::{Command, HeatLayer, ModeChoice, ProprioscopeApp, Verdict, egui, phase_report};
 
+/// Sets the width of the next slider so that it, its value and `label`
+/// fit the panel's width (a narrow window keeps every row readable
+/// instead of pushing the panel under the view).
+fn fit_slider(ui: &mut egui::Ui, label: &str) {
+    let text = ui
+        .painter()
+        .layout_no_wrap(
+            label.to_owned(),
+            egui::TextStyle::Body.resolve(ui.style()),
+            egui::Color32::WHITE,
+        )
+        .size()
+        .x;
+    ui.spacing_mut().slider_width = (ui.available_width() - text - 80.0).clamp(40.0, 220.0);
+}
+
 impl ProprioscopeApp {
     pub(super) fn estimator_panel_ui(&mut self, ui: &mut egui::Ui) -> Vec<Command> {
         let mut commands = Vec::new();
         ui.heading("Estimator");
         let mut sigma = self.model.sigma.iter().copied().fold(0.0, f64::max);
+        fit_slider(ui, "σ [N·m]");
         if ui
             .add(
                 egui::Slider::new(&mut sigma, 0.005..=1.0)
@@ -38,6 +55,7 @@ impl ProprioscopeApp {
             }
         });
         let mut points = self.model.surface_points;
+        fit_slider(ui, "N (surface points)");
         if ui
             .add(
                 egui::Slider::new(&mut points, 200..=50_000)
@@ -146,9 +164,11 @@ impl ProprioscopeApp {
         match choice.mode {
             ModeChoice::Exact => {}
             ModeChoice::ParticlesDeterministic => {
+                fit_slider(ui, "m (magnitudes per point)");
                 ui.add(egui::Slider::new(&mut choice.magnitudes_per_point, 1..=20).text("m (magnitudes per point)"));
             }
             ModeChoice::ParticlesRandom => {
+                fit_slider(ui, "N (particles)");
                 ui.add(
                     egui::Slider::new(&mut choice.particles, 1000..=200_000)
                         .update_while_editing(false)
@@ -158,6 +178,7 @@ impl ProprioscopeApp {
             }
         }
         if choice.mode == ModeChoice::Exact {
+            fit_slider(ui, "friction μ");
             ui.add(
                 egui::Slider::new(&mut choice.friction, 0.0..=1.0)
                     .update_while_editing(false)
@@ -170,6 +191,7 @@ impl ProprioscopeApp {
         }
         ui.checkbox(&mut choice.phases, "phases A/B/C");
         if choice.phases {
+            fit_slider(ui, "α");
             ui.add(egui::Slider::new(&mut choice.alpha, 0.0..=0.99).text("α"));
             ui.horizontal(|ui| {
                 ui.add(
@@ -189,7 +211,7 @@ impl ProprioscopeApp {
         }
         let (mut lo, mut hi) = self.model.force_range_newtons;
         let mut commands = Vec::new();
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             let a = ui.add(
                 egui::DragValue::new(&mut lo)
                     .update_while_editing(false)
@@ -220,13 +242,13 @@ impl ProprioscopeApp {
         let mut view = self.model.view;
         ui.separator();
         ui.label("Heatmap");
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.radio_value(&mut view.layer, HeatLayer::Posterior, "posterior")
                 .on_hover_text("where the contact is, given the torques: probability per cm² of surface");
             ui.radio_value(&mut view.layer, HeatLayer::Observability, "observability")
                 .on_hover_text("how sharply the sensed joints would locate a push at each point, in this pose");
         });
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.add_enabled_ui(view.layer == HeatLayer::Posterior, |ui| {
                 ui.radio_value(&mut view.log_scale, true, "log");
                 ui.radio_value(&mut view.log_scale, false, "linear");
@@ -249,6 +271,7 @@ impl ProprioscopeApp {
             ),
             (HeatLayer::Posterior, false) => format!("{high}: the densest; {low} fading into grey: zero"),
         });
+        fit_slider(ui, "hide below");
         ui.add(egui::Slider::new(&mut view.threshold, 0.0..=0.99).text("hide below"));
         ui.checkbox(
             &mut view.show_points,

@@ -38,6 +38,9 @@ pub(super) struct SessionKey {
     surface_seed: u64,
     over_time: Temporal,
     bias_auto: bool,
+    /// Whether the bias taken off is known (it is estimated on a thread:
+    /// the frames are estimated once it is there).
+    bias_known: bool,
 }
 
 impl ProprioscopeApp {
@@ -172,6 +175,11 @@ impl ProprioscopeApp {
             self.session_estimates = vec![None; replay.session.frames.len()];
             self.session_done = 0;
             self.session_failures.clear();
+            if self.bias_pending() {
+                // Estimated once the bias is known (the key changes then).
+                self.session_key = Some(key);
+                return;
+            }
             self.session_worker.start(EstimateJob {
                 generation: self.session_generation,
                 robot: m.robot.clone(),
@@ -185,7 +193,7 @@ impl ProprioscopeApp {
                 phase_sizes: m.estimator.phases.then_some(m.estimator.phase_sizes),
                 first: replay.frame,
                 over_time: replay.over_time,
-                bias: self.session_bias.as_ref().and_then(|(_, b)| b.as_ref().ok().cloned()),
+                bias: self.session_bias().cloned(),
             });
             self.session_key = Some(key);
         }
@@ -232,6 +240,7 @@ impl ProprioscopeApp {
             surface_seed: m.surface_seed,
             over_time: replay.over_time,
             bias_auto: replay.bias_auto,
+            bias_known: self.session_bias().is_some(),
         })
     }
 
@@ -330,7 +339,7 @@ impl ProprioscopeApp {
             if ui.checkbox(&mut looping, "loop").changed() {
                 commands.push(Command::SetLoop(looping));
             }
-            commands.extend(Self::over_time_ui(ui, replay));
+            commands.extend(Self::over_time_ui(ui, replay, self.bias_pending()));
             if let Some(frame) = frames.get(replay.frame) {
                 let file_frame = replay.session.file_frames.get(replay.frame).copied().unwrap_or(0);
                 ui.label(format!(
@@ -373,7 +382,7 @@ impl ProprioscopeApp {
     /// Four plots over session time, sharing the x axis, with the current
     /// frame marked; returns the time clicked.
     /// How the frames are estimated over time, and the bias.
-    fn over_time_ui(ui: &mut egui::Ui, replay: &Replay) -> Vec<Command> {
+    fn over_time_ui(ui: &mut egui::Ui, replay: &Replay, bias_pending: bool) -> Vec<Command> {
         let mut commands = Vec::new();
         let name = |t: Temporal| match t {
             Temporal::None => "each frame alone",
@@ -402,6 +411,10 @@ impl ProprioscopeApp {
             .changed()
         {
             commands.push(Command::SetBias(bias_auto));
+        }
+        if bias_pending {
+            ui.spinner();
+            ui.label("estimating the bias");
         }
         commands
     }
