@@ -208,21 +208,22 @@ fn session_medians(name: &str, seeds: &[u64]) -> (Vec<f64>, f64) {
     (medians, poor as f64 / frames as f64)
 }
 
-/// Issue 10's targets, robust versions (`proprioscope bench --session …`
-/// prints the figures): the median position error at 5000 points hardly
-/// changes with the surface seed, and on the `MuJoCo` presses it is no
-/// worse than a grid of 35,000 points gave (link 4: 62–82 mm, link 6:
-/// 6.6–7.8 mm over seeds 0–4); few frames are called poorly explained.
+/// Issue 10's targets (`proprioscope bench --session …` prints the
+/// figures): the median position error at 5000 points varies by at most
+/// 10 % (or 2 mm) over surface seeds 0–4, and is no worse than a grid of
+/// 35,000 points gave (link 4: 62–82 mm, link 6: 6.6–7.8 mm, the static
+/// example's median over the seeds 40.5 mm); few frames are called poorly
+/// explained.
 #[test]
 #[ignore = "needs ../shared"]
 fn example_sessions_are_estimated_alike_at_every_surface_seed() {
     let seeds = [0, 1, 2, 3, 4];
-    for (name, worst_median_m, spread_m) in [
-        ("lwr4plus_dyn_example_link6.session.json", 0.0066, 0.002),
-        ("lwr4plus_dyn_example_link4.session.json", 0.062, 0.006),
+    for (name, worst_median_m) in [
+        ("lwr4plus_dyn_example_link6.session.json", 0.0066),
+        ("lwr4plus_dyn_example_link4.session.json", 0.062),
         // Pushes along the facet normals of the URDF's meshes, which our
         // smooth surface does not reproduce exactly (see the README).
-        ("lwr4plus_static_example.session.json", 0.033, 0.007),
+        ("lwr4plus_static_example.session.json", 0.037),
     ] {
         let (medians, poor) = session_medians(name, &seeds);
         let (lo, hi) = medians.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), m| {
@@ -230,7 +231,7 @@ fn example_sessions_are_estimated_alike_at_every_surface_seed() {
         });
         println!("{name}: medians {medians:?} m, poorly explained {:.1} %", 100.0 * poor);
         assert!(hi <= worst_median_m, "{name}: medians {medians:?}");
-        assert!(hi - lo <= spread_m, "{name}: medians {medians:?}");
+        assert!(hi - lo <= (0.1 * lo).max(0.002), "{name}: medians {medians:?}");
         assert!(poor <= 0.05, "{name}: {:.1} % poorly explained", 100.0 * poor);
     }
 }
