@@ -7,14 +7,28 @@
 
 use proprioscope::core::builtin;
 use proprioscope::core::estimator::{EstimatorSettings, Mode};
-use proprioscope::core::friction::{FrictionMeasurement, frictional_force};
+use proprioscope::core::friction::frictional_force;
 use proprioscope::core::kinematics::RobotPose;
 use proprioscope::core::metrics::percentile;
 use proprioscope::core::pipeline::Estimator;
+use proprioscope::core::refine::Measurement;
 use proprioscope::core::rng::Rng;
 use proprioscope::core::surface::{Surface, SurfaceRequest};
 use proprioscope::core::synth::{SynthSettings, synthesize};
 use proprioscope::core::torque::TorqueModel;
+
+/// The estimator's settings of these tests: σ 0.05 N·m, 1–30 N.
+fn settings(friction: f64) -> EstimatorSettings {
+    EstimatorSettings {
+        sigma: vec![0.05; 7],
+        force_min_newtons: 1.0,
+        force_max_newtons: 30.0,
+        mode: Mode::Exact,
+        phase_alpha: None,
+        patches: true,
+        friction,
+    }
+}
 
 /// At the place of the press (random poses, 300 presses of 5–25 N, a
 /// tangential part uniform in 0–30 % of the normal one, σ = 0.05 N·m),
@@ -56,14 +70,13 @@ fn at_the_place_friction_cuts_the_force_error() {
             .iter()
             .map(|t| t + 0.05 * rng.normal())
             .collect();
+        let m = Measurement {
+            tau: &tau,
+            weights: &weights,
+            force_range_newtons: (1.0, 30.0),
+        };
         for (friction, errors) in [(0.0, &mut without), (0.1, &mut with)] {
-            let m = FrictionMeasurement {
-                tau: &tau,
-                weights: &weights,
-                force_range_newtons: (1.0, 30.0),
-                friction,
-            };
-            let got = frictional_force(&model, link, point, normal, &m).unwrap();
+            let got = frictional_force(&model, link, (point, normal), &m, friction).unwrap();
             errors.push((normal * got.normal_newtons + got.tangential_in_link).distance(force));
         }
     }
@@ -88,21 +101,12 @@ fn friction_keeps_the_place_and_changes_the_force() {
     };
     let frames = synthesize(&robot, &pressed, &synth, 4).unwrap();
     let estimator = |friction: f64| {
-        let settings = EstimatorSettings {
-            sigma: vec![0.05; 7],
-            force_min_newtons: 1.0,
-            force_max_newtons: 30.0,
-            mode: Mode::Exact,
-            phase_alpha: None,
-            patches: true,
-            friction,
-        };
         let request = SurfaceRequest {
             links: links.clone(),
             total_points: 1000,
             seed: 0,
         };
-        Estimator::new(&robot, &request, settings, None).unwrap()
+        Estimator::new(&robot, &request, settings(friction), None).unwrap()
     };
     let (plain, frictional) = (estimator(0.0), estimator(0.15));
     let mut tangential_seen = 0;
@@ -128,21 +132,12 @@ fn friction_keeps_the_place_and_changes_the_force() {
 fn a_bad_friction_is_refused() {
     let robot = builtin::lwr4plus_generated().unwrap();
     for friction in [-0.1, f64::NAN, f64::INFINITY] {
-        let settings = EstimatorSettings {
-            sigma: vec![0.05; 7],
-            force_min_newtons: 1.0,
-            force_max_newtons: 30.0,
-            mode: Mode::Exact,
-            phase_alpha: None,
-            patches: true,
-            friction,
-        };
         let request = SurfaceRequest {
             links: robot.default_candidate_links(),
             total_points: 200,
             seed: 0,
         };
-        let estimator = Estimator::new(&robot, &request, settings, None).unwrap();
+        let estimator = Estimator::new(&robot, &request, settings(friction), None).unwrap();
         let positions = robot.joint_positions(&[0.0; 7], &[]).unwrap();
         let err = estimator.update(&robot, &positions, &[0.1; 7]).unwrap_err();
         assert!(err.to_string().contains("friction"), "{err}");

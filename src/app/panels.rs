@@ -7,16 +7,20 @@ use super::{Command, HeatLayer, ModeChoice, ProprioscopeApp, Verdict, egui, phas
 /// fit the panel's width (a narrow window keeps every row readable
 /// instead of pushing the panel under the view).
 fn fit_slider(ui: &mut egui::Ui, label: &str) {
-    let text = ui
-        .painter()
+    let text = label_width(ui, label);
+    ui.spacing_mut().slider_width = (ui.available_width() - text - 80.0).clamp(40.0, 220.0);
+}
+
+/// How wide `text` is laid out on one line in the body font, points.
+pub(super) fn label_width(ui: &egui::Ui, text: &str) -> f32 {
+    ui.painter()
         .layout_no_wrap(
-            label.to_owned(),
+            text.to_owned(),
             egui::TextStyle::Body.resolve(ui.style()),
             egui::Color32::WHITE,
         )
         .size()
-        .x;
-    ui.spacing_mut().slider_width = (ui.available_width() - text - 80.0).clamp(40.0, 220.0);
+        .x
 }
 
 impl ProprioscopeApp {

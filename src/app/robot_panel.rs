@@ -85,15 +85,7 @@ pub(super) fn fine_slider(
 ) -> bool {
     let before = *value;
     // What the name and the number take; the slider gets the rest.
-    let name = ui
-        .painter()
-        .layout_no_wrap(
-            text.to_owned(),
-            egui::TextStyle::Body.resolve(ui.style()),
-            egui::Color32::WHITE,
-        )
-        .size()
-        .x;
+    let name = super::panels::label_width(ui, text);
     let width = (ui.available_width() - name - 90.0).max(60.0);
     ui.spacing_mut().slider_width = width;
     let response = ui.add(

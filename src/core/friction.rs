@@ -23,6 +23,7 @@
 
 use glam::DVec3;
 
+use crate::core::refine::Measurement;
 use crate::core::robot::LinkId;
 use crate::core::torque::{TorqueModel, weighted_dot as inner};
 
@@ -50,20 +51,6 @@ pub struct FrictionalForce {
     /// the frictionless fit: the tangential force is not free, it has a
     /// prior).
     pub residual_chi2: f64,
-}
-
-/// What the frictional fit needs of a measurement.
-#[derive(Debug, Clone, Copy)]
-pub struct FrictionMeasurement<'a> {
-    /// Measured torques, sensed order, N·m.
-    pub tau: &'a [f64],
-    /// `1/σ²` per sensed joint.
-    pub weights: &'a [f64],
-    /// Push magnitudes considered, N.
-    pub force_range_newtons: (f64, f64),
-    /// μ: the tangential force's standard deviation per newton of push, per
-    /// tangent direction.
-    pub friction: f64,
 }
 
 /// The inner products of one place.
@@ -102,16 +89,17 @@ fn at_magnitude(p: &Place, f: f64, friction: f64) -> (f64, f64, [f64; 2]) {
 }
 
 /// The force at `point_in_link` (inward normal `inward_normal_in_link`) of
-/// `link` that best explains the measurement with friction (module
-/// docs). `None` for a zero normal or a contact that moves no sensed
-/// joint.
+/// `link` that best explains the measurement with friction μ = `friction`
+/// (the tangential force's spread per newton of push, per tangent
+/// direction; module docs). `None` for a zero normal or a contact that
+/// moves no sensed joint.
 #[must_use]
 pub fn frictional_force(
     model: &TorqueModel,
     link: LinkId,
-    point_in_link: DVec3,
-    inward_normal_in_link: DVec3,
-    m: &FrictionMeasurement,
+    (point_in_link, inward_normal_in_link): (DVec3, DVec3),
+    m: &Measurement,
+    friction: f64,
 ) -> Option<FrictionalForce> {
     let normal = inward_normal_in_link.try_normalize()?;
     let (t1, t2) = normal.any_orthonormal_pair();
@@ -133,11 +121,7 @@ pub fn frictional_force(
         return None;
     }
     let (lo, hi) = m.force_range_newtons;
-    let friction = if m.friction.is_finite() {
-        m.friction.max(0.0)
-    } else {
-        0.0
-    };
+    let friction = if friction.is_finite() { friction.max(0.0) } else { 0.0 };
     let cost = |f: f64| at_magnitude(&place, f, friction).0;
     let f = if hi > lo {
         let magnitude = |i: usize| lo + (hi - lo) * i as f64 / (GRID - 1) as f64;
@@ -224,12 +208,11 @@ mod tests {
         s.model.torques(s.link, s.point, force_in_link)
     }
 
-    fn measurement<'a>(tau: &'a [f64], weights: &'a [f64], friction: f64) -> FrictionMeasurement<'a> {
-        FrictionMeasurement {
+    fn measurement<'a>(tau: &'a [f64], weights: &'a [f64]) -> Measurement<'a> {
+        Measurement {
             tau,
             weights,
             force_range_newtons: (1.0, 30.0),
-            friction,
         }
     }
 
@@ -238,7 +221,7 @@ mod tests {
         let s = setup();
         let tau: Vec<f64> = torques(&s, s.normal * 12.0).iter().map(|t| t + 0.01).collect();
         let weights = vec![400.0; tau.len()];
-        let got = frictional_force(&s.model, s.link, s.point, s.normal, &measurement(&tau, &weights, 0.0)).unwrap();
+        let got = frictional_force(&s.model, s.link, (s.point, s.normal), &measurement(&tau, &weights), 0.0).unwrap();
         let u = torques(&s, s.normal);
         let (a, b) = (inner(&weights, &u, &u), inner(&weights, &u, &tau));
         // A minimum found from values alone is known to about √ε of its scale.
@@ -263,7 +246,7 @@ mod tests {
         // Seven joints sense the link: five equations beyond the three
         // unknowns; a wide prior leaves the data to decide.
         let weights = vec![1e8; tau.len()];
-        let got = frictional_force(&s.model, s.link, s.point, s.normal, &measurement(&tau, &weights, 1.0));
+        let got = frictional_force(&s.model, s.link, (s.point, s.normal), &measurement(&tau, &weights), 1.0);
         let Some(got) = got else {
             panic!("no force");
         };
@@ -284,8 +267,8 @@ mod tests {
         let tau: Vec<f64> = torques(&s, force).iter().map(|t| t + 0.05 * rng.normal()).collect();
         let weights = vec![400.0; tau.len()];
         let mu = 0.1;
-        let m = measurement(&tau, &weights, mu);
-        let Some(got) = frictional_force(&s.model, s.link, s.point, s.normal, &m) else {
+        let m = measurement(&tau, &weights);
+        let Some(got) = frictional_force(&s.model, s.link, (s.point, s.normal), &m, mu) else {
             panic!("no force");
         };
         let f = got.normal_newtons;
@@ -336,10 +319,9 @@ mod tests {
         let s = setup();
         let tau = vec![0.1; s.model.sensed_count()];
         let weights = vec![400.0; tau.len()];
-        let m = measurement(&tau, &weights, 0.2);
-        assert!(frictional_force(&s.model, s.link, s.point, DVec3::ZERO, &m).is_none());
-        let m = measurement(&tau, &weights, f64::NAN);
-        let got = frictional_force(&s.model, s.link, s.point, s.normal, &m);
+        let m = measurement(&tau, &weights);
+        assert!(frictional_force(&s.model, s.link, (s.point, DVec3::ZERO), &m, 0.2).is_none());
+        let got = frictional_force(&s.model, s.link, (s.point, s.normal), &m, f64::NAN);
         assert!(got.is_some_and(|g| g.normal_newtons.is_finite() && g.tangential_in_link == DVec3::ZERO));
     }
 }

@@ -4,7 +4,7 @@
 
 use crate::core::contact::{PatchForms, PosedSurface};
 use crate::core::estimator::{EstimateError, EstimatorSettings, Mode, Posterior, estimate_keeping_forms};
-use crate::core::friction::{FrictionMeasurement, frictional_force};
+use crate::core::friction::frictional_force;
 use crate::core::kinematics::RobotPose;
 use crate::core::phases::PhaseHierarchy;
 use crate::core::refine::{Measurement, RefinedContact, contact_at_offsets, refine};
@@ -284,18 +284,12 @@ fn with_friction(
     if friction.is_nan() || friction <= 0.0 {
         return contact;
     }
-    let m = FrictionMeasurement {
-        tau: measurement.tau,
-        weights: measurement.weights,
-        force_range_newtons: measurement.force_range_newtons,
-        friction,
-    };
     match frictional_force(
         torque_model,
         contact.link,
-        contact.point_in_link,
-        contact.inward_normal_in_link,
-        &m,
+        (contact.point_in_link, contact.inward_normal_in_link),
+        measurement,
+        friction,
     ) {
         Some(force) => RefinedContact {
             force_newtons: force.normal_newtons,
