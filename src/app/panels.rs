@@ -3,12 +3,13 @@
 
 use super::{Command, HeatLayer, ModeChoice, ProprioscopeApp, Verdict, egui, phase_report};
 
-/// Sets the width of the next slider so that it, its value and `label`
-/// fit the panel's width (a narrow window keeps every row readable
-/// instead of pushing the panel under the view).
-fn fit_slider(ui: &mut egui::Ui, label: &str) {
+/// Adds `slider` labelled `label`, its width chosen so that the slider,
+/// its value and the label fit the panel (a narrow window keeps every row
+/// readable instead of pushing the panel under the view).
+fn fitted_slider(ui: &mut egui::Ui, slider: egui::Slider<'_>, label: &str) -> egui::Response {
     let text = label_width(ui, label);
     ui.spacing_mut().slider_width = (ui.available_width() - text - 80.0).clamp(40.0, 220.0);
+    ui.add(slider.text(label))
 }
 
 /// How wide `text` is laid out on one line in the body font, points.
@@ -28,15 +29,14 @@ impl ProprioscopeApp {
         let mut commands = Vec::new();
         ui.heading("Estimator");
         let mut sigma = self.model.sigma.iter().copied().fold(0.0, f64::max);
-        fit_slider(ui, "σ [N·m]");
-        if ui
-            .add(
-                egui::Slider::new(&mut sigma, 0.005..=1.0)
-                    .update_while_editing(false)
-                    .logarithmic(true)
-                    .text("σ [N·m]"),
-            )
-            .changed()
+        if fitted_slider(
+            ui,
+            egui::Slider::new(&mut sigma, 0.005..=1.0)
+                .update_while_editing(false)
+                .logarithmic(true),
+            "σ [N·m]",
+        )
+        .changed()
         {
             commands.push(Command::SetSigma(sigma));
         }
@@ -59,15 +59,14 @@ impl ProprioscopeApp {
             }
         });
         let mut points = self.model.surface_points;
-        fit_slider(ui, "N (surface points)");
-        if ui
-            .add(
-                egui::Slider::new(&mut points, 200..=50_000)
-                    .update_while_editing(false)
-                    .logarithmic(true)
-                    .text("N (surface points)"),
-            )
-            .changed()
+        if fitted_slider(
+            ui,
+            egui::Slider::new(&mut points, 200..=50_000)
+                .update_while_editing(false)
+                .logarithmic(true),
+            "N (surface points)",
+        )
+        .changed()
         {
             commands.push(Command::SetSurfacePoints(points));
         }
@@ -168,25 +167,27 @@ impl ProprioscopeApp {
         match choice.mode {
             ModeChoice::Exact => {}
             ModeChoice::ParticlesDeterministic => {
-                fit_slider(ui, "m (magnitudes per point)");
-                ui.add(egui::Slider::new(&mut choice.magnitudes_per_point, 1..=20).text("m (magnitudes per point)"));
+                fitted_slider(
+                    ui,
+                    egui::Slider::new(&mut choice.magnitudes_per_point, 1..=20),
+                    "m (magnitudes per point)",
+                );
             }
             ModeChoice::ParticlesRandom => {
-                fit_slider(ui, "N (particles)");
-                ui.add(
+                fitted_slider(
+                    ui,
                     egui::Slider::new(&mut choice.particles, 1000..=200_000)
                         .update_while_editing(false)
-                        .logarithmic(true)
-                        .text("N (particles)"),
+                        .logarithmic(true),
+                    "N (particles)",
                 );
             }
         }
         if choice.mode == ModeChoice::Exact {
-            fit_slider(ui, "friction μ");
-            ui.add(
-                egui::Slider::new(&mut choice.friction, 0.0..=1.0)
-                    .update_while_editing(false)
-                    .text("friction μ"),
+            fitted_slider(
+                ui,
+                egui::Slider::new(&mut choice.friction, 0.0..=1.0).update_while_editing(false),
+                "friction μ",
             )
             .on_hover_text(
                 "The estimated force gets a tangential part, Gaussian with a spread of μ times the push \
@@ -195,8 +196,7 @@ impl ProprioscopeApp {
         }
         ui.checkbox(&mut choice.phases, "phases A/B/C");
         if choice.phases {
-            fit_slider(ui, "α");
-            ui.add(egui::Slider::new(&mut choice.alpha, 0.0..=0.99).text("α"));
+            fitted_slider(ui, egui::Slider::new(&mut choice.alpha, 0.0..=0.99), "α");
             ui.horizontal(|ui| {
                 ui.add(
                     egui::DragValue::new(&mut choice.phase_sizes[0])
@@ -275,8 +275,7 @@ impl ProprioscopeApp {
             ),
             (HeatLayer::Posterior, false) => format!("{high}: the densest; {low} fading into grey: zero"),
         });
-        fit_slider(ui, "hide below");
-        ui.add(egui::Slider::new(&mut view.threshold, 0.0..=0.99).text("hide below"));
+        fitted_slider(ui, egui::Slider::new(&mut view.threshold, 0.0..=0.99), "hide below");
         ui.checkbox(
             &mut view.show_points,
             "candidate points (A red, B orange, 90 % set white)",

@@ -454,11 +454,8 @@ impl EstimatorSettings {
                 },
             }),
         };
-        if !(self.friction.is_finite() && (0.0..=MAX_FRICTION).contains(&self.friction)) {
-            return Err(format!(
-                "estimator.friction is {}; it must lie in [0, {MAX_FRICTION}] (0: frictionless)",
-                self.friction
-            ));
+        if let Some(problem) = self.friction_problem() {
+            return Err(format!("estimator.friction: {problem}"));
         }
         Ok(est::EstimatorSettings {
             sigma,
@@ -676,6 +673,13 @@ impl Push {
 }
 
 impl EstimatorSettings {
+    /// What is wrong with the friction μ, if anything (NaN and infinities
+    /// fall outside the range too).
+    fn friction_problem(&self) -> Option<String> {
+        (!(0.0..=MAX_FRICTION).contains(&self.friction))
+            .then(|| format!("{} is not in [0, {MAX_FRICTION}] (0: frictionless)", self.friction))
+    }
+
     fn validate(&self, path: &Path) -> Result<(), SceneError> {
         let sigmas: Vec<f64> = match &self.sigma_newton_metres {
             Sigma::All(s) => vec![*s],
@@ -703,12 +707,8 @@ impl EstimatorSettings {
                 format!("{lo} is above force_max_newtons {hi}"),
             ));
         }
-        if !(self.friction.is_finite() && (0.0..=MAX_FRICTION).contains(&self.friction)) {
-            return Err(invalid(
-                path,
-                "estimator.friction",
-                format!("{} is not in [0, {MAX_FRICTION}] (0: frictionless)", self.friction),
-            ));
+        if let Some(problem) = self.friction_problem() {
+            return Err(invalid(path, "estimator.friction", problem));
         }
         if !(0.0..1.0).contains(&self.phases.alpha) {
             return Err(invalid(
