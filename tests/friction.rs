@@ -143,3 +143,78 @@ fn a_bad_friction_is_refused() {
         assert!(err.to_string().contains("friction"), "{err}");
     }
 }
+
+/// The `../shared` `MuJoCo` presses (probe friction 0.5) against our
+/// surface: at the true contact (reached over the link's continuous
+/// surface from its nearest sample; the same to 1e-12 at 5000, 20,000 and
+/// 50,000 samples) the true force's tangential part is small beside the
+/// normal one at the median (measured 2.1 % on link 4 and 4.7 % on link
+/// 6, 0.19 N and 0.52 N; 15 % and 19 % at the 90th percentile), less than
+/// the presses `synth` draws (up to 30 %). The frictionless estimate
+/// takes up what there is by placing the push where the surface's normal
+/// lies along the force (link 6 smoothed: 0.14 N force error, below the
+/// median tangential part), which is why `--friction` cannot cut these
+/// sessions' force errors by much (README, *Friction*).
+#[test]
+#[ignore = "needs ../shared"]
+fn the_shared_presses_push_nearly_along_the_surface_normal() {
+    use proprioscope::io::session::{Session, Truth};
+    let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/sessions");
+    for (name, median_below, median_above) in [
+        ("lwr4plus_dyn_example_link4.session.json", 0.04, 0.01),
+        ("lwr4plus_dyn_example_link6.session.json", 0.08, 0.03),
+    ] {
+        let session = Session::read(&root.join(name)).unwrap();
+        let robot = proprioscope::batch::session_robot(&session, None, &[], &[]).unwrap();
+        let request = SurfaceRequest {
+            links: robot.default_candidate_links(),
+            total_points: 5_000,
+            seed: 0,
+        };
+        let surface = Surface::sample(&robot, &request).unwrap();
+        let (mut shares, mut tangential) = (Vec::new(), Vec::new());
+        for frame in &session.frames {
+            let Truth::Contact { link, point, force } = &frame.truth else {
+                continue;
+            };
+            let (point, force) = (glam::DVec3::from_array(*point), glam::DVec3::from_array(*force));
+            let pose = RobotPose::new(&robot, &robot.joint_positions(&frame.q, &[]).unwrap());
+            let link = robot.link_id(link).unwrap();
+            let nearest = (0..surface.len())
+                .filter(|&k| surface.link[k] == link)
+                .min_by(|&x, &y| {
+                    let distance = |k: usize| pose.point_to_world(link, surface.point_in_link[k]).distance(point);
+                    distance(x).total_cmp(&distance(y))
+                })
+                .unwrap();
+            // From the nearest sample, walk over the link's continuous
+            // surface to the true point (its projection): the normal there.
+            let shape = surface.shape(link).unwrap();
+            let point_in_link = pose.world_from_link[link].inverse().transform_point3(point);
+            let mut at = surface.location[nearest];
+            for _ in 0..4 {
+                let here = shape.frame(at).unwrap();
+                let offset = point_in_link - here.point;
+                at = shape.walk(at, offset - offset.dot(here.inward_normal) * here.inward_normal);
+            }
+            let normal = pose.world_from_link[link]
+                .transform_vector3(shape.frame(at).unwrap().inward_normal)
+                .normalize();
+            let along = force.dot(normal);
+            assert!(along > 0.0, "{name}: a pull, not a push");
+            shares.push((force - along * normal).length() / along);
+            tangential.push((force - along * normal).length());
+        }
+        let median = percentile(&shares, 0.5);
+        assert!(shares.len() > 100, "{name}: {} contact frames", shares.len());
+        eprintln!(
+            "{name}: tangential share median {median}, p90 {}; tangential force median {} N",
+            percentile(&shares, 0.9),
+            percentile(&tangential, 0.5)
+        );
+        assert!(
+            median < median_below && median >= median_above,
+            "{name}: median tangential share {median}"
+        );
+    }
+}

@@ -406,7 +406,7 @@ fn session_text(
         .file_name()
         .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
     let mut out = format!(
-        "`{name}`: {} frames ({} with a contact), σ = {} N·m, one thread, surface seeds {:?}.\n\n",
+        "`{name}`: {} frames ({} with a contact), σ = {} N·m, one thread ({}), surface seeds {:?}.\n\n",
         session.frames.len(),
         session
             .frames
@@ -414,6 +414,7 @@ fn session_text(
             .filter(|f| matches!(f.truth, Truth::Contact { .. }))
             .count(),
         args.noise,
+        proprioscope::core::simd::vector_unit(),
         args.seeds
     );
     out.push_str("| estimator | points | p50 [µs] | p99 [µs] | max [µs] | median pos. error per seed [mm] | spread [mm] | poorly explained | contact frames called | false alarms |\n");
@@ -534,8 +535,11 @@ fn particles_of(config: &Config) -> usize {
 
 fn table(rows: &[Row], args: &BenchArgs) -> String {
     let mut out = format!(
-        "{} seeded contacts per row (seed {}): a pose uniform within the joint limits, a point uniform over the exposed surface, a push of 3–30 N along the inward normal, sensor noise σ = {} N·m; force range 1–30 N.\n\n",
-        args.contacts, args.seed, args.noise
+        "{} seeded contacts per row (seed {}): a pose uniform within the joint limits, a point uniform over the exposed surface, a push of 3–30 N along the inward normal, sensor noise σ = {} N·m; force range 1–30 N; vector loops on {}.\n\n",
+        args.contacts,
+        args.seed,
+        args.noise,
+        proprioscope::core::simd::vector_unit()
     );
     out.push_str("| robot | mode | N | surface points | σ [N·m] | threads | median update [µs] | updates/s | median pos. error [mm] | p90 [mm] | median force error [N] | p90 [N] | link right |\n");
     out.push_str("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");

@@ -4,6 +4,7 @@
 use rayon::prelude::*;
 
 use crate::core::phases::link_ranges;
+use crate::core::simd::{Kernel, widest};
 use crate::core::surface::Surface;
 use crate::core::torque::TorqueModel;
 
@@ -179,12 +180,12 @@ impl UnitTorqueSource for PosedSurface<'_> {
                     a.fill(0.0);
                     b.fill(0.0);
                 }
-                1 => forms_with::<1>(r, beta, lines, a, b),
-                2 => forms_with::<2>(r, beta, lines, a, b),
-                3 => forms_with::<3>(r, beta, lines, a, b),
-                4 => forms_with::<4>(r, beta, lines, a, b),
-                5 => forms_with::<5>(r, beta, lines, a, b),
-                _ => forms_with::<6>(r, beta, lines, a, b),
+                1 => widest(FormsKernel::<1>(r, beta, lines, a, b)),
+                2 => widest(FormsKernel::<2>(r, beta, lines, a, b)),
+                3 => widest(FormsKernel::<3>(r, beta, lines, a, b)),
+                4 => widest(FormsKernel::<4>(r, beta, lines, a, b)),
+                5 => widest(FormsKernel::<5>(r, beta, lines, a, b)),
+                _ => widest(FormsKernel::<6>(r, beta, lines, a, b)),
             }
         };
         if n >= PARALLEL_MIN_POINTS {
@@ -387,9 +388,21 @@ fn r_factor(rows: &[[f64; 6]]) -> Vec<[f64; 6]> {
     m
 }
 
+/// [`forms_with`] as a [`Kernel`].
+struct FormsKernel<'a, const N: usize>(&'a [[f64; 6]], [f64; 6], [&'a [f64]; 6], &'a mut [f64], &'a mut [f64]);
+
+impl<const N: usize> Kernel for FormsKernel<'_, N> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        forms_with::<N>(self.0, self.1, self.2, self.3, self.4);
+    }
+}
+
 /// Writes each point's `a = |R l|²` and `b = β·l` for the push lines `l`
 /// given as six arrays; `R` has `N` rows. Constant `N` unrolls the rows,
 /// and the loop over points vectorises.
+#[inline(always)]
 fn forms_with<const N: usize>(r: &[[f64; 6]], beta: [f64; 6], lines: [&[f64]; 6], a: &mut [f64], b: &mut [f64]) {
     let mut rows = [[0.0; 6]; N];
     for (dst, src) in rows.iter_mut().zip(r) {

@@ -8,6 +8,7 @@ use crate::core::contact::{PARALLEL_MIN_POINTS, PatchForms, UnitTorqueSource};
 use crate::core::fastmath::{self, ErfTable};
 use crate::core::phases::PhaseHierarchy;
 use crate::core::rng::Rng;
+use crate::core::simd::{Kernel, widest};
 use crate::core::special::ln_erf_difference;
 
 /// How the magnitude of the push is handled.
@@ -297,7 +298,14 @@ impl Quadratic<'_> {
                 None => Shared::Value(self.c),
                 Some((c, norm)) => Shared::PerPoint(&c[range.clone()], &norm[range.clone()]),
             };
-            profile_chunk(&a[range.clone()], &b[range], c, self.f_min, self.f_max, force, mass)
+            widest(ProfileKernel(
+                &a[range.clone()],
+                &b[range],
+                c,
+                (self.f_min, self.f_max),
+                force,
+                mass,
+            ))
         };
         let best = if len >= PARALLEL_MIN_POINTS {
             force
@@ -386,6 +394,12 @@ impl Quadratic<'_> {
     /// vectorises; the rare points that would cancel there (a range narrow
     /// against the likelihood's width in f) take the careful path after.
     fn log_evidence_many(&self, points: &[usize], slots: &[usize], profile: &[f64]) -> Vec<f64> {
+        widest(EvidenceKernel(self, points, slots, profile))
+    }
+
+    /// [`Self::log_evidence_many`]'s work, inlined into [`widest`].
+    #[inline(always)]
+    fn log_evidence_many_inner(&self, points: &[usize], slots: &[usize], profile: &[f64]) -> Vec<f64> {
         let table = ErfTable::get();
         let m = slots.len();
         let (mut a, mut b, mut c, mut norm, mut volume) = (
@@ -656,7 +670,7 @@ pub fn estimate_keeping_forms(
         .collect();
     // Relative masses with the branch-free `exp` (one vectorised loop).
     let relative: Vec<f64> = near.iter().map(|&i| scored.mass[i] - best_mass).collect();
-    let weights: Vec<f64> = relative.iter().map(|&x| fastmath::exp(x)).collect();
+    let weights: Vec<f64> = widest(ExpKernel(&relative));
     let total = best_mass + weights.iter().sum::<f64>().ln();
     // The smallest residual is among the likeliest points.
     let best_residual_chi2 = near
@@ -836,7 +850,13 @@ fn search_phases(
 /// windows of evenly spread points add up to one, so the masses are those
 /// of the continuous surface whatever the sampling (as N grows they tend
 /// to the plain values at the points).
-pub fn patch_terms(forms: &PatchForms, c: f64, (f_min, f_max): (f64, f64), out: &mut PatchTerms) {
+pub fn patch_terms(forms: &PatchForms, c: f64, range: (f64, f64), out: &mut PatchTerms) {
+    widest(PatchTermsKernel(forms, c, range, out));
+}
+
+/// [`patch_terms`]' work, inlined into [`widest`].
+#[inline(always)]
+fn patch_terms_inner(forms: &PatchForms, c: f64, (f_min, f_max): (f64, f64), out: &mut PatchTerms) {
     let n = forms.a.len();
     for v in [&mut out.a, &mut out.b, &mut out.c, &mut out.volume] {
         v.clear();
@@ -1045,6 +1065,58 @@ const PARALLEL_MIN_EVIDENCE_FAST: usize = 1 << 20;
 /// threads.
 const PARALLEL_MIN_EVIDENCE: usize = 512;
 
+/// [`Quadratic::log_evidence_many_inner`] as a [`Kernel`].
+struct EvidenceKernel<'a>(&'a Quadratic<'a>, &'a [usize], &'a [usize], &'a [f64]);
+
+impl Kernel for EvidenceKernel<'_> {
+    type Output = Vec<f64>;
+    #[inline(always)]
+    fn run(self) -> Vec<f64> {
+        self.0.log_evidence_many_inner(self.1, self.2, self.3)
+    }
+}
+
+/// [`profile_chunk`] as a [`Kernel`].
+struct ProfileKernel<'a>(
+    &'a [f64],
+    &'a [f64],
+    Shared<'a>,
+    (f64, f64),
+    &'a mut [f64],
+    &'a mut [f64],
+);
+
+impl Kernel for ProfileKernel<'_> {
+    type Output = f64;
+    #[inline(always)]
+    fn run(self) -> f64 {
+        let Self(a, b, c, (f_min, f_max), force, mass) = self;
+        profile_chunk(a, b, c, f_min, f_max, force, mass)
+    }
+}
+
+/// [`patch_terms_inner`] as a [`Kernel`].
+struct PatchTermsKernel<'a>(&'a PatchForms, f64, (f64, f64), &'a mut PatchTerms);
+
+impl Kernel for PatchTermsKernel<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        patch_terms_inner(self.0, self.1, self.2, self.3);
+    }
+}
+
+/// `exp` of every value, as a [`Kernel`].
+struct ExpKernel<'a>(&'a [f64]);
+
+impl Kernel for ExpKernel<'_> {
+    type Output = Vec<f64>;
+    #[inline(always)]
+    fn run(self) -> Vec<f64> {
+        self.0.iter().map(|&x| fastmath::exp(x)).collect()
+    }
+}
+
 /// The `c` and normaliser of a chunk of points.
 #[derive(Clone, Copy)]
 enum Shared<'a> {
@@ -1056,6 +1128,7 @@ enum Shared<'a> {
 
 /// Writes each point's best magnitude in `[f_min, f_max]` and its
 /// log-likelihood, and returns the largest log-likelihood.
+#[inline(always)]
 fn profile_chunk(a: &[f64], b: &[f64], c: Shared, f_min: f64, f_max: f64, force: &mut [f64], mass: &mut [f64]) -> f64 {
     // `a = 0` implies `b = 0`, so the guarded quotient is then 0 and
     // clamps to `F_min`, without a branch that would stop the loop from
@@ -1278,6 +1351,10 @@ mod tests {
             let points: Vec<usize> = (0..n).collect();
             let profile: Vec<f64> = points.iter().map(|&k| q.log_likelihood(k, q.best_force(k))).collect();
             let batched = q.log_evidence_many(&points, &points, &profile);
+            // The copy for the CPU's widest vector unit computes what the
+            // baseline code does, bit for bit.
+            let baseline = EvidenceKernel(&q, &points, &points, &profile).run();
+            assert!(batched.iter().zip(&baseline).all(|(x, y)| x.to_bits() == y.to_bits()));
             for k in 0..n {
                 let careful = q.log_evidence(k, profile[k]);
                 assert!(
@@ -1289,6 +1366,57 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The patch terms and profiles run in the copy for the widest vector
+    /// unit: bit for bit what the baseline code computes.
+    #[test]
+    fn the_wide_loops_match_the_baseline_bit_for_bit() {
+        let mut rng = Rng::new(5);
+        let n = 1001;
+        let mut column = |lo: f64, hi: f64| -> Vec<f64> { (0..n).map(|_| rng.uniform_in(lo, hi)).collect() };
+        let forms = PatchForms {
+            a: column(0.0, 1e4),
+            b: column(-1e3, 1e3),
+            h1: column(-1e3, 1e3),
+            h2: column(-1e3, 1e3),
+            e1: column(-1e4, 1e4),
+            e2: column(-1e4, 1e4),
+            g11: column(0.0, 1e6),
+            g12: column(-1e5, 1e5),
+            g22: column(0.0, 1e6),
+            window_m: column(1e-3, 1e-2),
+            ln_area: column(-12.0, -8.0),
+        };
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let (mut wide, mut baseline) = (PatchTerms::default(), PatchTerms::default());
+        patch_terms(&forms, 50.0, (1.0, 30.0), &mut wide);
+        PatchTermsKernel(&forms, 50.0, (1.0, 30.0), &mut baseline).run();
+        for (x, y) in [
+            (&wide.a, &baseline.a),
+            (&wide.b, &baseline.b),
+            (&wide.c, &baseline.c),
+            (&wide.volume, &baseline.volume),
+        ] {
+            assert_eq!(bits(x), bits(y));
+        }
+        let (mut force, mut mass) = (vec![0.0; n], vec![0.0; n]);
+        let (mut force_base, mut mass_base) = (vec![0.0; n], vec![0.0; n]);
+        let shared = Shared::PerPoint(&wide.c, &wide.norm);
+        let best = widest(ProfileKernel(
+            &wide.a,
+            &wide.b,
+            shared,
+            (1.0, 30.0),
+            &mut force,
+            &mut mass,
+        ));
+        let best_base = ProfileKernel(&wide.a, &wide.b, shared, (1.0, 30.0), &mut force_base, &mut mass_base).run();
+        assert_eq!(best.to_bits(), best_base.to_bits());
+        assert_eq!(bits(&force), bits(&force_base));
+        assert_eq!(bits(&mass), bits(&mass_base));
+        let relative: Vec<f64> = mass.iter().map(|m| m - best).collect();
+        assert_eq!(bits(&widest(ExpKernel(&relative))), bits(&ExpKernel(&relative).run()));
     }
 
     /// The patch formula against brute-force integration: the window

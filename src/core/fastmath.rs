@@ -18,7 +18,7 @@ const LN2_LO: f64 = LN_2 - LN2_HI;
 
 /// `e^x` for `x ≤ 709`; below -708 it returns `e^-708` (negligible beside
 /// anything it is added to here). Relative error below 5e-14 (tested).
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn exp(x: f64) -> f64 {
     let x = if x > -708.0 { x } else { -708.0 };
@@ -52,7 +52,7 @@ pub fn exp(x: f64) -> f64 {
 
 /// `ln y` for a positive normal `y`. Absolute error below 1e-15 · max(1,
 /// |ln y|) (tested).
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn ln(y: f64) -> f64 {
     let bits = y.to_bits();
@@ -108,7 +108,7 @@ fn erfcx_coefficients() -> &'static [f64; ERFCX_DEGREE] {
 /// `(t, P)` with `erfcx(x) = t e^P` for `x ≥ 0`: `t = K/(K + x)`, `P` from
 /// the Chebyshev fit. `ln erfc(x) = -x² + ln t + P`. Absolute error of `P`
 /// below 1e-12 (tested).
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn ln_erfcx_parts(x: f64, coefficients: &[f64; ERFCX_DEGREE]) -> (f64, f64) {
     let t = ERFCX_K / (ERFCX_K + x);
@@ -139,7 +139,7 @@ impl ErfTable {
     }
 
     /// `ln(erfcx(x) · t⁻¹) = P` and `t` for `x ≥ 0` (see [`ln_erfcx_parts`]).
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn parts(&self, x: f64) -> (f64, f64) {
         ln_erfcx_parts(x, self.coefficients)
@@ -149,7 +149,7 @@ impl ErfTable {
     /// free: absolute error below 1e-10 (tested against
     /// [`crate::core::special::ln_erf_difference`]). Narrower intervals
     /// cancel; callers take the careful path for them.
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn ln_erf_difference(&self, lo: f64, hi: f64) -> f64 {
         let (y_lo, y_hi) = (lo.abs(), hi.abs());

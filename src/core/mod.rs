@@ -21,6 +21,7 @@ pub mod refine;
 pub mod regions;
 pub mod rng;
 pub mod robot;
+pub mod simd;
 pub mod smooth;
 pub mod special;
 pub mod summary;

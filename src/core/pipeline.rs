@@ -13,8 +13,8 @@ use crate::core::special::chi_square_survival;
 use crate::core::summary::{NO_CONTACT_P, Refinement, Summary, summarize_refined};
 use crate::core::surface::{Surface, SurfaceError, SurfaceRequest};
 use crate::core::temporal::{
-    Belief, Filter, FrameLikelihood, MAX_SMOOTHER_BYTES, PatchInformation, Smoother, TemporalError, TemporalModel,
-    TemporalSettings, is_continuous_recording, smoother_bytes,
+    Belief, Filter, FrameLikelihood, MAX_SMOOTHER_BYTES, Offset, PatchInformation, Smoother, TemporalError,
+    TemporalModel, TemporalSettings, is_continuous_recording, smoother_bytes,
 };
 use crate::core::torque::TorqueModel;
 
@@ -159,8 +159,8 @@ impl Estimator {
         refine_contact: bool,
         belief: Option<BeliefAtFrame>,
     ) -> Summary {
-        let (contact_probability, offsets_m) = match belief {
-            Some(b) => (Some(b.contact_probability), b.offsets_m),
+        let (contact_probability, offsets) = match belief {
+            Some(b) => (Some(b.contact_probability), b.offsets),
             None => (None, None),
         };
         let refined = (self.settings.patches && self.settings.mode == Mode::Exact && refine_contact)
@@ -171,8 +171,16 @@ impl Estimator {
                     weights: &weights,
                     force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
                 };
-                let contact = match offsets_m {
-                    Some(offsets) => contact_at_offsets(torque_model, &self.surface, posterior, &measurement, offsets),
+                let contact = match offsets {
+                    Some((offsets, windows_m)) => {
+                        // Confined to its patch (beyond it the linear
+                        // model does not hold): the mean there.
+                        let offset_m = |k: usize| {
+                            let (offset, &rho) = (offsets.get(k)?, windows_m.get(k)?);
+                            Some(offset.confined(rho).1.mean_m())
+                        };
+                        contact_at_offsets(torque_model, &self.surface, posterior, &measurement, offset_m)
+                    }
                     None => refine(torque_model, &self.surface, posterior, &measurement),
                 };
                 contact.map(|c| with_friction(c, torque_model, &measurement, self.settings.friction))
@@ -246,14 +254,8 @@ impl Estimator {
         posterior.probability = probability;
         // With offsets the place is the whole recording's: each frame's
         // own refinement would wander along that frame's valley.
-        let offsets_m: Option<Vec<[f64; 2]>> = (belief.offsets.len() == probability_len).then(|| {
-            belief
-                .offsets
-                .iter()
-                .zip(&self.surface.window_m)
-                .map(|(offset, &rho)| offset.confined(rho).1.mean_m())
-                .collect()
-        });
+        let offsets = (belief.offsets.len() == probability_len && self.surface.window_m.len() == probability_len)
+            .then_some((belief.offsets.as_slice(), self.surface.window_m.as_slice()));
         let summary = self.conclude(
             &torque_model,
             &update.pose,
@@ -262,7 +264,7 @@ impl Estimator {
             contact_probability >= 0.5,
             Some(BeliefAtFrame {
                 contact_probability,
-                offsets_m: offsets_m.as_deref(),
+                offsets,
             }),
         );
         Update {
@@ -306,9 +308,9 @@ fn with_friction(
 struct BeliefAtFrame<'a> {
     /// Probability of a contact.
     contact_probability: f64,
-    /// Each sample's believed offset along its tangents, m (the samples
-    /// are points when `None`).
-    offsets_m: Option<&'a [[f64; 2]]>,
+    /// Each sample's believed offset within its patch (the samples are
+    /// points when `None`), with the samples' patch widths, m.
+    offsets: Option<(&'a [Offset], &'a [f64])>,
 }
 
 /// How a sequence of frames is estimated.

@@ -374,8 +374,9 @@ fn posterior_regions(surface: &Surface, posterior: &Posterior) -> Vec<Region> {
 /// The contact that a temporal model places: in the region of the
 /// posterior with the most mass, its most probable sample
 /// moved by that sample's believed offset along its tangents
-/// (`offsets_m[k]`, m: what every frame of the contact says, not only
-/// this one), with this frame's best magnitude there. No search: the
+/// (`offset_m(k)`, m: what every frame of the contact says, not only
+/// this one; asked for that one sample only), with this frame's best
+/// magnitude there. No search: the
 /// place is the whole recording's, the magnitude this frame's.
 #[must_use]
 pub fn contact_at_offsets(
@@ -383,7 +384,7 @@ pub fn contact_at_offsets(
     surface: &Surface,
     posterior: &Posterior,
     measurement: &Measurement,
-    offsets_m: &[[f64; 2]],
+    offset_m: impl Fn(usize) -> Option<[f64; 2]>,
 ) -> Option<RefinedContact> {
     let best = best_region(surface, posterior)?;
     let start = best.top;
@@ -391,7 +392,7 @@ pub fn contact_at_offsets(
     let shape = surface.shape(link)?;
     let at = *surface.location.get(start)?;
     let frame = shape.frame(at)?;
-    let [s1, s2] = offsets_m.get(start).copied().unwrap_or([0.0, 0.0]);
+    let [s1, s2] = offset_m(start).unwrap_or([0.0, 0.0]);
     let moved = shape.walk(at, frame.tangents[0] * s1 + frame.tangents[1] * s2);
     let state = State::at(model, shape, link, measurement, moved)?;
     let window = surface.window_m.get(start).copied().unwrap_or(0.01).max(1e-4);

@@ -611,16 +611,26 @@ impl FrameLikelihood {
     /// the temporal model applies itself), which is taken out here.
     #[must_use]
     pub fn from_posterior(posterior: &Posterior, surface: &Surface, patches: bool) -> Self {
+        // A link's samples share one area: one `ln` per run of equal
+        // areas, not per sample.
+        let mut last: Option<(u64, f64)> = None;
         let points = posterior
             .log_likelihood
             .iter()
             .zip(&surface.area_m2)
             .map(|(&l, &area)| {
-                if patches {
-                    l - fastmath::ln(area.max(f64::MIN_POSITIVE))
-                } else {
-                    l
+                if !patches {
+                    return l;
                 }
+                let ln_area = match last {
+                    Some((bits, value)) if bits == area.to_bits() => value,
+                    _ => {
+                        let value = fastmath::ln(area.max(f64::MIN_POSITIVE));
+                        last = Some((area.to_bits(), value));
+                        value
+                    }
+                };
+                l - ln_area
             })
             .collect();
         Self {
