@@ -607,7 +607,15 @@ fn plot(rows: &[Row], path: &Path, font: &Path) -> Result<()> {
         .label_style(("sans-serif", 16))
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
-    for (i, r) in rows.iter().enumerate() {
+    let font = ("sans-serif", 13).into_font();
+    let area = chart.plotting_area().get_pixel_range();
+    let points: Vec<(i32, i32)> = rows
+        .iter()
+        .map(|r| chart.backend_coord(&(r.median_us, r.metrics.position_median_m * 1e3)))
+        .collect();
+    // Boxes (left, top, right, bottom) of the labels placed so far.
+    let mut placed: Vec<(i32, i32, i32, i32)> = Vec::new();
+    for (r, &(px, py)) in rows.iter().zip(&points) {
         let colour = match r.config.mode {
             Mode::Exact => BLUE,
             Mode::Particles(ParticleSettings {
@@ -629,16 +637,90 @@ fn plot(rows: &[Row], path: &Path, font: &Path) -> Result<()> {
                 String::new()
             }
         );
-        // Alternate labels above and below their points so neighbours do not overlap.
-        let dy = if i % 2 == 0 { 6 } else { -18 };
+        let (w, h) = root
+            .estimate_text_size(&label, &TextStyle::from(font.clone()))
+            .map_or((7 * 40, 14), |(w, h)| {
+                (i32::try_from(w).unwrap_or(280), i32::try_from(h).unwrap_or(14))
+            });
+        let (dx, dy) = label_offset((px, py), (w, h), (&area.0, &area.1), &placed, &points);
+        placed.push((px + dx, py + dy, px + dx + w, py + dy + h));
         chart
             .draw_series(std::iter::once(
                 EmptyElement::at(at)
                     + Circle::new((0, 0), 6, colour.filled())
-                    + Text::new(label, (9, dy), ("sans-serif", 13).into_font()),
+                    + Text::new(label, (dx, dy), font.clone()),
             ))
             .map_err(|e| anyhow!("{e}"))?;
     }
     root.present().map_err(|e| anyhow!("{e}"))?;
     Ok(())
+}
+
+/// A box in pixels: left, top, right, bottom.
+type PixelBox = (i32, i32, i32, i32);
+
+/// Where a `w`×`h` label goes beside the point at `(px, py)`: the first of
+/// eight places (right or left of the point, below or above, then one
+/// line farther) that stays inside the plot `area` and clear of the
+/// labels `placed` so far and of every point's dot; else the first that
+/// stays inside; else right of the point. The picture must be readable
+/// whatever the figures are.
+fn label_offset(
+    (px, py): (i32, i32),
+    (w, h): (i32, i32),
+    area: (&std::ops::Range<i32>, &std::ops::Range<i32>),
+    placed: &[PixelBox],
+    points: &[(i32, i32)],
+) -> (i32, i32) {
+    let candidates = [
+        (9, 4),
+        (9, -4 - h),
+        (-9 - w, 4),
+        (-9 - w, -4 - h),
+        (9, 8 + h),
+        (9, -8 - 2 * h),
+        (-9 - w, 8 + h),
+        (-9 - w, -8 - 2 * h),
+    ];
+    let inside = |(dx, dy): (i32, i32)| {
+        let (left, top) = (px + dx, py + dy);
+        left >= area.0.start && left + w <= area.0.end && top >= area.1.start && top + h <= area.1.end
+    };
+    let clear = |(dx, dy): (i32, i32)| {
+        let (left, top) = (px + dx, py + dy);
+        let (right, bottom) = (left + w, top + h);
+        placed
+            .iter()
+            .all(|&(l, t, r, b)| right <= l || left >= r || bottom <= t || top >= b)
+            && points
+                .iter()
+                .all(|&(x, y)| x + 6 <= left || x - 6 >= right || y + 6 <= top || y - 6 >= bottom)
+    };
+    candidates
+        .iter()
+        .copied()
+        .find(|&c| inside(c) && clear(c))
+        .or_else(|| candidates.iter().copied().find(|&c| inside(c)))
+        .unwrap_or((9, 4))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::label_offset;
+
+    /// Near the right edge a label goes left of its point (it was cut off
+    /// there), and one that would cover a label placed before moves.
+    #[test]
+    fn labels_stay_inside_the_plot_and_clear_of_each_other() {
+        let area = (&(100..1000), &(50..600));
+        let (w, h) = (200, 14);
+        assert_eq!(label_offset((300, 300), (w, h), area, &[], &[(300, 300)]), (9, 4));
+        let (dx, _) = label_offset((950, 300), (w, h), area, &[], &[(950, 300)]);
+        assert!(950 + dx + w <= 1000, "{dx}");
+        let taken = [(309, 304, 509, 318)];
+        let moved = label_offset((300, 300), (w, h), area, &taken, &[(300, 300)]);
+        assert_ne!(moved, (9, 4));
+        let (left, top) = (300 + moved.0, 300 + moved.1);
+        assert!(left + w <= 309 || left >= 509 || top + h <= 304 || top >= 318);
+    }
 }
