@@ -33,6 +33,7 @@
 use crate::core::contact::PatchForms;
 use crate::core::estimator::Posterior;
 use crate::core::fastmath;
+use crate::core::simd::{Kernel, widest};
 use crate::core::surface::{Surface, WINDOW_FRACTION};
 
 /// Neighbours are the samples of the same link within this many sample
@@ -369,50 +370,12 @@ impl PatchInformation {
             *sensitive.select_nth_unstable_by(mid, f64::total_cmp).1
         };
         let occam = 0.5 * (std::f64::consts::TAU / a_typical).ln() - (f_max - f_min).max(f64::MIN_POSITIVE).ln();
-        let n = [
-            f.a.len(),
-            f.b.len(),
-            f.h1.len(),
-            f.h2.len(),
-            f.e1.len(),
-            f.e2.len(),
-            f.g11.len(),
-            f.g12.len(),
-            f.g22.len(),
-        ]
-        .into_iter()
-        .min()
-        .unwrap_or(0);
-        let (a_all, b_all, h1_all, h2_all) = (&f.a[..n], &f.b[..n], &f.h1[..n], &f.h2[..n]);
-        let (e1_all, e2_all) = (&f.e1[..n], &f.e2[..n]);
-        let (g11_all, g12_all, g22_all) = (&f.g11[..n], &f.g12[..n], &f.g22[..n]);
-        let mut out = Vec::with_capacity(f.a.len());
-        for k in 0..n {
-            let (a, b) = (a_all[k], b_all[k]);
-            if !(a > 0.0 && a.is_finite()) {
-                // Torques that do not see the push: no contact's fit.
-                out.push(Self {
-                    point: -0.5 * c + occam,
-                    ..Self::default()
-                });
-                continue;
-            }
-            let inv_a = 1.0 / a;
-            let f0 = (b * inv_a).clamp(f_min, f_max);
-            let chi2 = (c - 2.0 * b * f0 + a * f0 * f0).max(0.0);
-            let (h1, h2) = (h1_all[k], h2_all[k]);
-            let m11 = (g11_all[k] - h1 * h1 * inv_a).max(0.0);
-            let m22 = (g22_all[k] - h2 * h2 * inv_a).max(0.0);
-            // Rounding must not make the Schur complement indefinite.
-            let limit = (m11 * m22).sqrt();
-            let m12 = (g12_all[k] - h1 * h2 * inv_a).clamp(-limit, limit);
-            let f2 = f0 * f0;
-            out.push(Self {
-                point: -0.5 * chi2 + occam,
-                information: [f2 * m11, f2 * m12, f2 * m22],
-                shift: [f0 * (e1_all[k] - h1 * b * inv_a), f0 * (e2_all[k] - h2 * b * inv_a)],
-            });
-        }
+        let mut out = widest(InformationKernel {
+            forms: f,
+            c,
+            occam,
+            force_range: (f_min, f_max),
+        });
         out.resize(
             f.a.len(),
             Self {
@@ -420,6 +383,75 @@ impl PatchInformation {
                 ..Self::default()
             },
         );
+        out
+    }
+}
+
+/// The per-sample loop of [`PatchInformation::from_forms`] over the
+/// samples that every form has, branch free so that it vectorises.
+struct InformationKernel<'a> {
+    forms: &'a PatchForms,
+    c: f64,
+    occam: f64,
+    force_range: (f64, f64),
+}
+
+impl Kernel for InformationKernel<'_> {
+    type Output = Vec<PatchInformation>;
+    #[inline(always)]
+    fn run(self) -> Vec<PatchInformation> {
+        let (f, c, occam) = (self.forms, self.c, self.occam);
+        let (f_min, f_max) = self.force_range;
+        let n = [f.a.len(), f.b.len(), f.h1.len(), f.h2.len(), f.e1.len()]
+            .into_iter()
+            .chain([f.e2.len(), f.g11.len(), f.g12.len(), f.g22.len()])
+            .min()
+            .unwrap_or(0);
+        let (a_all, b_all, h1_all, h2_all) = (&f.a[..n], &f.b[..n], &f.h1[..n], &f.h2[..n]);
+        let (e1_all, e2_all) = (&f.e1[..n], &f.e2[..n]);
+        let (g11_all, g12_all, g22_all) = (&f.g11[..n], &f.g12[..n], &f.g22[..n]);
+        // Torques that do not see the push: no contact's fit.
+        let unseen = PatchInformation {
+            point: -0.5 * c + occam,
+            ..PatchInformation::default()
+        };
+        let mut out = vec![unseen; n];
+        for k in 0..n {
+            let (a, b) = (a_all[k], b_all[k]);
+            let seen = a > 0.0 && a.is_finite();
+            let inv_a = 1.0 / a;
+            // `clamp` without its check (which stops the loop from
+            // vectorising): the same value, `f_min ≤ f_max` holding.
+            let q = b * inv_a;
+            let f0 = if q < f_min {
+                f_min
+            } else if q > f_max {
+                f_max
+            } else {
+                q
+            };
+            let chi2 = (c - 2.0 * b * f0 + a * f0 * f0).max(0.0);
+            let (h1, h2) = (h1_all[k], h2_all[k]);
+            let m11 = (g11_all[k] - h1 * h1 * inv_a).max(0.0);
+            let m22 = (g22_all[k] - h2 * h2 * inv_a).max(0.0);
+            // Rounding must not make the Schur complement indefinite.
+            let limit = (m11 * m22).sqrt();
+            let m12 = g12_all[k] - h1 * h2 * inv_a;
+            let m12 = if m12 < -limit {
+                -limit
+            } else if m12 > limit {
+                limit
+            } else {
+                m12
+            };
+            let f2 = f0 * f0;
+            let fitted = PatchInformation {
+                point: -0.5 * chi2 + occam,
+                information: [f2 * m11, f2 * m12, f2 * m22],
+                shift: [f0 * (e1_all[k] - h1 * b * inv_a), f0 * (e2_all[k] - h2 * b * inv_a)],
+            };
+            out[k] = if seen { fitted } else { unseen };
+        }
         out
     }
 }
@@ -1362,6 +1394,84 @@ impl<'a> Smoother<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The branch-free loop of `PatchInformation::from_forms`, in the copy
+    /// for the widest vector unit, against the plain formulas (with
+    /// `f64::clamp`) sample by sample, bit for bit but for the shared
+    /// Occam charge; samples whose torques do not see the push (a ≤ 0,
+    /// NaN, ∞) get no contact's fit.
+    #[test]
+    fn patch_information_matches_the_plain_formulas_bit_for_bit() {
+        let mut rng = crate::core::rng::Rng::new(9);
+        let n = 503;
+        let mut column = |lo: f64, hi: f64| -> Vec<f64> { (0..n).map(|_| rng.uniform_in(lo, hi)).collect() };
+        let mut forms = PatchForms {
+            a: column(-10.0, 1e4),
+            b: column(-1e3, 1e4),
+            h1: column(-1e3, 1e3),
+            h2: column(-1e3, 1e3),
+            e1: column(-1e4, 1e4),
+            e2: column(-1e4, 1e4),
+            g11: column(0.0, 1e6),
+            g12: column(-1e5, 1e5),
+            g22: column(0.0, 1e6),
+            window_m: column(1e-3, 1e-2),
+            ln_area: column(-12.0, -8.0),
+        };
+        forms.a[7] = f64::NAN;
+        forms.a[8] = 0.0;
+        forms.a[9] = f64::INFINITY;
+        let (c, range) = (300.0, (1.0, 30.0));
+        let got = PatchInformation::from_forms(&forms, c, range);
+        let occam = got
+            .iter()
+            .zip(&forms.a)
+            .find(|(_, a)| !(**a > 0.0 && a.is_finite()))
+            .map(|(p, _)| p.point + 0.5 * c)
+            .unwrap();
+        // The Occam charge is read back from an unseen sample (to rounding).
+        let bits = |p: &PatchInformation| {
+            [
+                p.information[0],
+                p.information[1],
+                p.information[2],
+                p.shift[0],
+                p.shift[1],
+            ]
+            .map(f64::to_bits)
+        };
+        for (k, found) in got.iter().enumerate() {
+            let (a, b) = (forms.a[k], forms.b[k]);
+            let want = if a > 0.0 && a.is_finite() {
+                let inv_a = 1.0 / a;
+                let f0 = (b * inv_a).clamp(range.0, range.1);
+                let chi2 = (c - 2.0 * b * f0 + a * f0 * f0).max(0.0);
+                let (h1, h2) = (forms.h1[k], forms.h2[k]);
+                let m11 = (forms.g11[k] - h1 * h1 * inv_a).max(0.0);
+                let m22 = (forms.g22[k] - h2 * h2 * inv_a).max(0.0);
+                let limit = (m11 * m22).sqrt();
+                let m12 = (forms.g12[k] - h1 * h2 * inv_a).clamp(-limit, limit);
+                let f2 = f0 * f0;
+                PatchInformation {
+                    point: -0.5 * chi2 + occam,
+                    information: [f2 * m11, f2 * m12, f2 * m22],
+                    shift: [f0 * (forms.e1[k] - h1 * b * inv_a), f0 * (forms.e2[k] - h2 * b * inv_a)],
+                }
+            } else {
+                PatchInformation {
+                    point: -0.5 * c + occam,
+                    ..PatchInformation::default()
+                }
+            };
+            assert_eq!(bits(found), bits(&want), "sample {k}");
+            assert!(
+                (found.point - want.point).abs() <= 1e-9 * want.point.abs().max(1.0),
+                "sample {k}: {} against {}",
+                found.point,
+                want.point
+            );
+        }
+    }
 
     /// A chain of `n` samples 1 cm apart, each hop weight `(1/m_k + 1/m_j)/d²`.
     fn chain(n: usize) -> SurfaceGraph {
