@@ -66,6 +66,28 @@ pub struct PatchForms {
 }
 
 impl PatchForms {
+    /// Seeded random forms of `n` samples, for tests of the loops over
+    /// them: `a` in `[a_min, 1e4)`, `b` in `[-1e3, b_max)`, the rest in
+    /// ranges like a frame's.
+    #[cfg(test)]
+    pub(crate) fn random(seed: u64, n: usize, a_min: f64, b_max: f64) -> Self {
+        let mut rng = crate::core::rng::Rng::new(seed);
+        let mut column = |lo: f64, hi: f64| -> Vec<f64> { (0..n).map(|_| rng.uniform_in(lo, hi)).collect() };
+        Self {
+            a: column(a_min, 1e4),
+            b: column(-1e3, b_max),
+            h1: column(-1e3, 1e3),
+            h2: column(-1e3, 1e3),
+            e1: column(-1e4, 1e4),
+            e2: column(-1e4, 1e4),
+            g11: column(0.0, 1e6),
+            g12: column(-1e5, 1e5),
+            g22: column(0.0, 1e6),
+            window_m: column(1e-3, 1e-2),
+            ln_area: column(-12.0, -8.0),
+        }
+    }
+
     fn resize(&mut self, n: usize) {
         for v in [
             &mut self.a,

@@ -1372,22 +1372,8 @@ mod tests {
     /// unit: bit for bit what the baseline code computes.
     #[test]
     fn the_wide_loops_match_the_baseline_bit_for_bit() {
-        let mut rng = Rng::new(5);
         let n = 1001;
-        let mut column = |lo: f64, hi: f64| -> Vec<f64> { (0..n).map(|_| rng.uniform_in(lo, hi)).collect() };
-        let forms = PatchForms {
-            a: column(0.0, 1e4),
-            b: column(-1e3, 1e3),
-            h1: column(-1e3, 1e3),
-            h2: column(-1e3, 1e3),
-            e1: column(-1e4, 1e4),
-            e2: column(-1e4, 1e4),
-            g11: column(0.0, 1e6),
-            g12: column(-1e5, 1e5),
-            g22: column(0.0, 1e6),
-            window_m: column(1e-3, 1e-2),
-            ln_area: column(-12.0, -8.0),
-        };
+        let forms = PatchForms::random(5, n, 0.0, 1e3);
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         let (mut wide, mut baseline) = (PatchTerms::default(), PatchTerms::default());
         patch_terms(&forms, 50.0, (1.0, 30.0), &mut wide);

@@ -1402,22 +1402,8 @@ mod tests {
     /// NaN, ∞) get no contact's fit.
     #[test]
     fn patch_information_matches_the_plain_formulas_bit_for_bit() {
-        let mut rng = crate::core::rng::Rng::new(9);
         let n = 503;
-        let mut column = |lo: f64, hi: f64| -> Vec<f64> { (0..n).map(|_| rng.uniform_in(lo, hi)).collect() };
-        let mut forms = PatchForms {
-            a: column(-10.0, 1e4),
-            b: column(-1e3, 1e4),
-            h1: column(-1e3, 1e3),
-            h2: column(-1e3, 1e3),
-            e1: column(-1e4, 1e4),
-            e2: column(-1e4, 1e4),
-            g11: column(0.0, 1e6),
-            g12: column(-1e5, 1e5),
-            g22: column(0.0, 1e6),
-            window_m: column(1e-3, 1e-2),
-            ln_area: column(-12.0, -8.0),
-        };
+        let mut forms = PatchForms::random(9, n, -10.0, 1e4);
         forms.a[7] = f64::NAN;
         forms.a[8] = 0.0;
         forms.a[9] = f64::INFINITY;
