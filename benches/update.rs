@@ -8,7 +8,7 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use proprioscope::core::builtin;
 use proprioscope::core::contact::{ContactModel, PosedSurface};
-use proprioscope::core::estimator::{EstimatorSettings, Mode, estimate};
+use proprioscope::core::estimator::{EstimatorSettings, estimate};
 use proprioscope::core::kinematics::RobotPose;
 use proprioscope::core::pipeline::Estimator;
 use proprioscope::core::surface::SurfaceRequest;
@@ -17,15 +17,7 @@ use proprioscope::core::torque::{TorqueModel, joint_torques};
 fn update(c: &mut Criterion) {
     let robot = builtin::lwr4plus_generated().unwrap();
     let links = robot.default_candidate_links();
-    let settings = EstimatorSettings {
-        sigma: vec![0.05; 7],
-        force_min_newtons: 1.0,
-        force_max_newtons: 30.0,
-        mode: Mode::Exact,
-        phase_alpha: None,
-        patches: true,
-        friction: 0.0,
-    };
+    let settings = EstimatorSettings::exact(vec![0.05; 7]);
     let request = SurfaceRequest {
         links: links.clone(),
         total_points: 5000,

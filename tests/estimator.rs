@@ -178,15 +178,7 @@ fn session_medians(name: &str, seeds: &[u64]) -> (Vec<f64>, f64) {
     let mut medians = Vec::new();
     let (mut poor, mut frames) = (0usize, 0usize);
     for &seed in seeds {
-        let settings = proprioscope::core::estimator::EstimatorSettings {
-            sigma: vec![0.05; 7],
-            force_min_newtons: 1.0,
-            force_max_newtons: 30.0,
-            mode: Mode::Exact,
-            phase_alpha: None,
-            patches: true,
-            friction: 0.0,
-        };
+        let settings = proprioscope::core::estimator::EstimatorSettings::exact(vec![0.05; 7]);
         let request = SurfaceRequest {
             links: robot.default_candidate_links(),
             total_points: 5000,

@@ -6,7 +6,7 @@
 #![allow(clippy::unwrap_used)]
 
 use proprioscope::core::builtin;
-use proprioscope::core::estimator::{EstimatorSettings, Mode};
+use proprioscope::core::estimator::EstimatorSettings;
 use proprioscope::core::friction::frictional_force;
 use proprioscope::core::kinematics::RobotPose;
 use proprioscope::core::metrics::percentile;
@@ -20,13 +20,8 @@ use proprioscope::core::torque::TorqueModel;
 /// The estimator's settings of these tests: σ 0.05 N·m, 1–30 N.
 fn settings(friction: f64) -> EstimatorSettings {
     EstimatorSettings {
-        sigma: vec![0.05; 7],
-        force_min_newtons: 1.0,
-        force_max_newtons: 30.0,
-        mode: Mode::Exact,
-        phase_alpha: None,
-        patches: true,
         friction,
+        ..EstimatorSettings::exact(vec![0.05; 7])
     }
 }
 

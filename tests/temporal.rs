@@ -9,7 +9,7 @@
 
 use proprioscope::core::bias::{estimate_bias, without_bias};
 use proprioscope::core::builtin;
-use proprioscope::core::estimator::{EstimatorSettings, Mode};
+use proprioscope::core::estimator::EstimatorSettings;
 use proprioscope::core::metrics::{Detection, detection, percentile};
 use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, estimate_sequence};
 use proprioscope::core::summary::Verdict;
@@ -54,15 +54,7 @@ fn run_with(seed: u64, surface_seed: u64, points: usize, offset: f64, debias: bo
             f.tau = t;
         }
     }
-    let settings = EstimatorSettings {
-        sigma: vec![synth.noise_newton_metres; 7],
-        force_min_newtons: 1.0,
-        force_max_newtons: 30.0,
-        mode: Mode::Exact,
-        phase_alpha: None,
-        patches: true,
-        friction: 0.0,
-    };
+    let settings = EstimatorSettings::exact(vec![synth.noise_newton_metres; 7]);
     let request = SurfaceRequest {
         links,
         total_points: points,

@@ -197,7 +197,7 @@ fn serve(cache: &mut Option<Cached>, request: &Request) -> Outcome {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::estimator::{EstimatorSettings, Mode};
+    use crate::core::estimator::EstimatorSettings;
 
     fn request(generation: u64) -> Request {
         Request {
@@ -211,13 +211,8 @@ mod tests {
                 seed: 0,
             },
             settings: EstimatorSettings {
-                sigma: vec![0.1; 6],
-                force_min_newtons: 1.0,
                 force_max_newtons: 2.0,
-                mode: Mode::Exact,
-                phase_alpha: None,
-                patches: true,
-                friction: 0.0,
+                ..EstimatorSettings::exact(vec![0.1; 6])
             },
             phase_sizes: None,
         }

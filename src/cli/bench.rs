@@ -205,13 +205,9 @@ fn contacts(robot: &Robot, count: usize, noise: f64, seed: u64) -> Result<Vec<Co
 
 fn run_config(robot: &Robot, config: &Config, contacts: &[Contact], seed: u64) -> Result<(f64, Metrics)> {
     let settings = EstimatorSettings {
-        sigma: vec![config.sigma; robot.sensed().len()],
-        force_min_newtons: 1.0,
-        force_max_newtons: 30.0,
         mode: config.mode,
         phase_alpha: config.phases.then_some(0.5),
-        patches: true,
-        friction: 0.0,
+        ..EstimatorSettings::exact(vec![config.sigma; robot.sensed().len()])
     };
     let request = SurfaceRequest {
         links: robot.default_candidate_links(),
@@ -468,13 +464,8 @@ fn seed_run(
     use proprioscope::io::session::Truth;
     let robot = how.robot;
     let settings = EstimatorSettings {
-        sigma: vec![how.sigma; robot.sensed().len()],
-        force_min_newtons: 1.0,
-        force_max_newtons: 30.0,
-        mode: Mode::Exact,
-        phase_alpha: None,
         patches: how.patches,
-        friction: 0.0,
+        ..EstimatorSettings::exact(vec![how.sigma; robot.sensed().len()])
     };
     let request = SurfaceRequest {
         links: robot.default_candidate_links(),

@@ -9,7 +9,7 @@ pub mod topics;
 use std::path::Path;
 
 use anyhow::{Result, bail};
-use proprioscope::core::estimator::EstimatorSettings;
+use proprioscope::core::estimator::{DEFAULT_FORCE_RANGE_NEWTONS, EstimatorSettings};
 use proprioscope::core::pipeline::Temporal;
 use proprioscope::core::robot::{LinkId, Robot};
 use proprioscope::core::temporal::TemporalSettings;
@@ -185,10 +185,10 @@ pub struct EstimatorArgs {
     #[arg(long, value_delimiter = ',', default_value = "0.05", value_parser = finite)]
     pub sigma: Vec<f64>,
     /// Smallest push magnitude considered, N.
-    #[arg(long, default_value_t = 1.0, value_parser = finite)]
+    #[arg(long, default_value_t = DEFAULT_FORCE_RANGE_NEWTONS.0, value_parser = finite)]
     pub fmin: f64,
     /// Largest push magnitude considered, N.
-    #[arg(long, default_value_t = 30.0, value_parser = finite)]
+    #[arg(long, default_value_t = DEFAULT_FORCE_RANGE_NEWTONS.1, value_parser = finite)]
     pub fmax: f64,
     /// Search coarse-to-fine in phases A/B/C.
     #[arg(long)]

@@ -74,6 +74,30 @@ pub struct EstimatorSettings {
     pub friction: f64,
 }
 
+/// The push magnitudes considered unless asked otherwise, N: the command
+/// line's `--fmin`/`--fmax` defaults.
+pub const DEFAULT_FORCE_RANGE_NEWTONS: (f64, f64) = (1.0, 30.0);
+
+impl EstimatorSettings {
+    /// Exact mode with patches over every sample, the default force range,
+    /// frictionless, with torque noise `sigma` per sensed joint: what the
+    /// command line estimates with unless told otherwise. Vary a field
+    /// with `EstimatorSettings { friction, ..EstimatorSettings::exact(σ) }`.
+    #[must_use]
+    pub fn exact(sigma: Vec<f64>) -> Self {
+        let (force_min_newtons, force_max_newtons) = DEFAULT_FORCE_RANGE_NEWTONS;
+        Self {
+            sigma,
+            force_min_newtons,
+            force_max_newtons,
+            mode: Mode::Exact,
+            phase_alpha: None,
+            patches: true,
+            friction: 0.0,
+        }
+    }
+}
+
 /// Why an estimate cannot be made.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum EstimateError {
@@ -1530,15 +1554,7 @@ mod tests {
     }
 
     fn settings(sigma: f64) -> EstimatorSettings {
-        EstimatorSettings {
-            sigma: vec![sigma; 7],
-            force_min_newtons: 1.0,
-            force_max_newtons: 30.0,
-            mode: Mode::Exact,
-            phase_alpha: None,
-            patches: true,
-            friction: 0.0,
-        }
+        EstimatorSettings::exact(vec![sigma; 7])
     }
 
     /// A push at surface point k with `force` newtons: its torques.
