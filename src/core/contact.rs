@@ -175,12 +175,12 @@ impl UnitTorqueSource for PosedSurface<'_> {
             let mut outs = PatchOut::of(out, range.clone());
             match r.len() {
                 0 => {}
-                1 => patch_forms_with::<1>(&r, beta, &block, &mut outs),
-                2 => patch_forms_with::<2>(&r, beta, &block, &mut outs),
-                3 => patch_forms_with::<3>(&r, beta, &block, &mut outs),
-                4 => patch_forms_with::<4>(&r, beta, &block, &mut outs),
-                5 => patch_forms_with::<5>(&r, beta, &block, &mut outs),
-                _ => patch_forms_with::<6>(&r, beta, &block, &mut outs),
+                1 => widest(PatchFormsKernel::<1>(&r, beta, &block, &mut outs)),
+                2 => widest(PatchFormsKernel::<2>(&r, beta, &block, &mut outs)),
+                3 => widest(PatchFormsKernel::<3>(&r, beta, &block, &mut outs)),
+                4 => widest(PatchFormsKernel::<4>(&r, beta, &block, &mut outs)),
+                5 => widest(PatchFormsKernel::<5>(&r, beta, &block, &mut outs)),
+                _ => widest(PatchFormsKernel::<6>(&r, beta, &block, &mut outs)),
             }
         }
         true
@@ -288,6 +288,30 @@ struct PatchOut<'a> {
     g22: &'a mut [f64],
 }
 
+impl PatchOut<'_> {
+    /// Writes the forms of `L` points from `k` (in [`patch_forms_of`]'s
+    /// order).
+    #[inline(always)]
+    fn store<const L: usize>(&mut self, k: usize, forms: &[[f64; L]; 9]) {
+        let [a, b, h1, h2, e1, e2, g11, g12, g22] = forms;
+        for (column, values) in [
+            (&mut *self.a, a),
+            (&mut *self.b, b),
+            (&mut *self.h1, h1),
+            (&mut *self.h2, h2),
+            (&mut *self.e1, e1),
+            (&mut *self.e2, e2),
+            (&mut *self.g11, g11),
+            (&mut *self.g12, g12),
+            (&mut *self.g22, g22),
+        ] {
+            if let Some(slots) = column.get_mut(k..k + L) {
+                slots.copy_from_slice(values);
+            }
+        }
+    }
+}
+
 impl<'a> PatchOut<'a> {
     fn of(forms: &'a mut PatchForms, range: std::ops::Range<usize>) -> Self {
         let take = |v: &'a mut Vec<f64>| -> &'a mut [f64] { v.get_mut(range.clone()).unwrap_or(&mut []) };
@@ -305,70 +329,165 @@ impl<'a> PatchOut<'a> {
     }
 }
 
+/// Samples computed together in [`patch_forms_with`]: four `f64` lanes
+/// fill an AVX2 register.
+const LANES: usize = 4;
+
+/// [`patch_forms_with`] as a [`Kernel`].
+struct PatchFormsKernel<'a, 'b, const N: usize>(&'a [[f64; 6]], [f64; 6], &'a PatchBlock<'b>, &'a mut PatchOut<'b>);
+
+impl<const N: usize> Kernel for PatchFormsKernel<'_, '_, N> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        patch_forms_with::<N>(self.0, self.1, self.2, self.3);
+    }
+}
+
 /// [`PatchForms`] of a link's points with `R` of `N` rows: three products
-/// `R l` per point, then their inner products.
+/// `R l` per point, then their inner products. The points go [`LANES`] at
+/// a time through [`patch_forms_of`], written lane by lane so that each
+/// operation becomes one vector instruction (as one loop over points the
+/// compiler left it scalar: a point's 18 inputs and 9 outputs do not fit
+/// the registers); the last few go one at a time through the same code.
+#[inline(always)]
 fn patch_forms_with<const N: usize>(r: &[[f64; 6]], beta: [f64; 6], block: &PatchBlock, out: &mut PatchOut) {
     let mut rows = [[0.0; 6]; N];
     for (dst, src) in rows.iter_mut().zip(r) {
         *dst = *src;
     }
-    let len = [out.a.len(), out.b.len(), out.g22.len()]
-        .into_iter()
-        .chain(block.l0.iter().chain(&block.l1).chain(&block.l2).map(|c| c.len()))
-        .min()
-        .unwrap_or(0);
-    // Every column cut to one length: the loop below then has no bounds
-    // checks and the compiler vectorises it across points.
-    let l0: [&[f64]; 6] = std::array::from_fn(|i| &block.l0[i][..len]);
-    let l1: [&[f64]; 6] = std::array::from_fn(|i| &block.l1[i][..len]);
-    let l2: [&[f64]; 6] = std::array::from_fn(|i| &block.l2[i][..len]);
-    let (a, b, h1, h2) = (
-        &mut out.a[..len],
-        &mut out.b[..len],
-        &mut out.h1[..len],
-        &mut out.h2[..len],
-    );
-    let (e1, e2) = (&mut out.e1[..len], &mut out.e2[..len]);
-    let (g11, g12, g22) = (&mut out.g11[..len], &mut out.g12[..len], &mut out.g22[..len]);
-    let [m0, m1, m2, n0, n1, n2] = l0;
-    let [p0, p1, p2, q0, q1, q2] = l1;
-    let [r0, r1, r2, s0, s1, s2] = l2;
-    let apply = |l: [f64; 6]| -> [f64; N] {
-        let mut y = [0.0; N];
-        for (i, row) in rows.iter().enumerate() {
-            let mut u = 0.0;
-            for c in i..6 {
-                u += row[c] * l[c];
-            }
-            y[i] = u;
-        }
-        y
-    };
-    let dot = |x: &[f64; N], z: &[f64; N]| {
-        let mut v = 0.0;
-        for i in 0..N {
-            v += x[i] * z[i];
-        }
-        v
-    };
-    let project = |l: &[f64; 6]| {
-        beta[0] * l[0] + beta[1] * l[1] + beta[2] * l[2] + beta[3] * l[3] + beta[4] * l[4] + beta[5] * l[5]
-    };
-    for k in 0..len {
-        let x0 = [m0[k], m1[k], m2[k], n0[k], n1[k], n2[k]];
-        let x1 = [p0[k], p1[k], p2[k], q0[k], q1[k], q2[k]];
-        let x2 = [r0[k], r1[k], r2[k], s0[k], s1[k], s2[k]];
-        let (y0, y1, y2) = (apply(x0), apply(x1), apply(x2));
-        a[k] = dot(&y0, &y0);
-        h1[k] = dot(&y0, &y1);
-        h2[k] = dot(&y0, &y2);
-        g11[k] = dot(&y1, &y1);
-        g12[k] = dot(&y1, &y2);
-        g22[k] = dot(&y2, &y2);
-        b[k] = project(&x0);
-        e1[k] = project(&x1);
-        e2[k] = project(&x2);
+    let len = [
+        out.a.len(),
+        out.b.len(),
+        out.h1.len(),
+        out.h2.len(),
+        out.e1.len(),
+        out.e2.len(),
+        out.g11.len(),
+        out.g12.len(),
+        out.g22.len(),
+    ]
+    .into_iter()
+    .chain(block.l0.iter().chain(&block.l1).chain(&block.l2).map(|c| c.len()))
+    .min()
+    .unwrap_or(0);
+    let mut k = 0;
+    while k + LANES <= len {
+        let x = [
+            gather_line(&block.l0, k),
+            gather_line(&block.l1, k),
+            gather_line(&block.l2, k),
+        ];
+        let y = patch_forms_of::<N, LANES>(&rows, &beta, &x);
+        out.store::<LANES>(k, &y);
+        k += LANES;
     }
+    while k < len {
+        let x = [
+            gather_line(&block.l0, k),
+            gather_line(&block.l1, k),
+            gather_line(&block.l2, k),
+        ];
+        let y = patch_forms_of::<N, 1>(&rows, &beta, &x);
+        out.store::<1>(k, &y);
+        k += 1;
+    }
+}
+
+/// The six coordinates of `L` points from `k`, written out (an array
+/// `map` here was left as a call that copies the arrays).
+#[inline(always)]
+fn gather_line<const L: usize>(columns: &[&[f64]; 6], k: usize) -> [[f64; L]; 6] {
+    let [c0, c1, c2, c3, c4, c5] = columns;
+    [
+        lanes_at(c0, k),
+        lanes_at(c1, k),
+        lanes_at(c2, k),
+        lanes_at(c3, k),
+        lanes_at(c4, k),
+        lanes_at(c5, k),
+    ]
+}
+
+/// `L` consecutive values of `column` from `k` (zeros past its end, which
+/// the callers never reach).
+#[inline(always)]
+fn lanes_at<const L: usize>(column: &[f64], k: usize) -> [f64; L] {
+    let mut values = [0.0; L];
+    if let Some(src) = column.get(k..k + L) {
+        values.copy_from_slice(src);
+    }
+    values
+}
+
+/// One point per lane: from its push line `x[0]` and tangent derivatives
+/// `x[1]`, `x[2]` (six coordinates each), the forms `a`, `b`, `h1`, `h2`,
+/// `e1`, `e2`, `g11`, `g12`, `g22` in that order. Every lane computes the
+/// same sums in the same order as a point alone would. (Functions, not
+/// closures: closures are not inlined into the wide copy.)
+#[inline(always)]
+fn patch_forms_of<const N: usize, const L: usize>(
+    rows: &[[f64; 6]; N],
+    beta: &[f64; 6],
+    x: &[[[f64; L]; 6]; 3],
+) -> [[f64; L]; 9] {
+    let [x0, x1, x2] = x;
+    let y0 = apply_rows(rows, x0);
+    let y1 = apply_rows(rows, x1);
+    let y2 = apply_rows(rows, x2);
+    [
+        dot_lanes(&y0, &y0),
+        project_lanes(beta, x0),
+        dot_lanes(&y0, &y1),
+        dot_lanes(&y0, &y2),
+        project_lanes(beta, x1),
+        project_lanes(beta, x2),
+        dot_lanes(&y1, &y1),
+        dot_lanes(&y1, &y2),
+        dot_lanes(&y2, &y2),
+    ]
+}
+
+/// `R l` per lane (row `i` of `R` is zero before column `i`).
+#[inline(always)]
+fn apply_rows<const N: usize, const L: usize>(rows: &[[f64; 6]; N], line: &[[f64; L]; 6]) -> [[f64; L]; N] {
+    let mut y = [[0.0; L]; N];
+    for i in 0..N {
+        for c in i..6 {
+            let weight = rows[i][c];
+            for l in 0..L {
+                y[i][l] += weight * line[c][l];
+            }
+        }
+    }
+    y
+}
+
+/// `Σ_i p_i q_i` per lane.
+#[inline(always)]
+fn dot_lanes<const N: usize, const L: usize>(p: &[[f64; L]; N], q: &[[f64; L]; N]) -> [f64; L] {
+    let mut sum = [0.0; L];
+    for i in 0..N {
+        for l in 0..L {
+            sum[l] += p[i][l] * q[i][l];
+        }
+    }
+    sum
+}
+
+/// `β·l` per lane, summed left to right.
+#[inline(always)]
+fn project_lanes<const L: usize>(beta: &[f64; 6], line: &[[f64; L]; 6]) -> [f64; L] {
+    let mut sum = [0.0; L];
+    for l in 0..L {
+        sum[l] = beta[0] * line[0][l]
+            + beta[1] * line[1][l]
+            + beta[2] * line[2][l]
+            + beta[3] * line[3][l]
+            + beta[4] * line[4][l]
+            + beta[5] * line[5][l];
+    }
+    sum
 }
 
 /// The triangular factor `R` of a link's weighted twists: `rows` are the
@@ -646,6 +765,134 @@ mod tests {
             assert!((a1[k] - a2[k]).abs() <= 1e-12 * a1[k].abs().max(1.0));
             assert!((b1[k] - b2[k]).abs() <= 1e-12 * b1[k].abs().max(1.0));
         }
+    }
+
+    const FORMS_WEIGHTS: [f64; 7] = [400.0, 100.0, 400.0, 25.0, 400.0, 100.0, 400.0];
+    const FORMS_TAU: [f64; 7] = [0.5, -1.2, 0.3, 0.8, -0.2, 0.1, 0.05];
+
+    /// A posed surface of 803 points of every candidate link and its
+    /// patch forms for [`FORMS_TAU`].
+    fn forms_setup() -> (Surface, TorqueModel, PatchForms) {
+        let robot = builtin::lwr4plus_generated().unwrap();
+        let links = robot.default_candidate_links();
+        let surface = Surface::sample(
+            &robot,
+            &SurfaceRequest {
+                links: links.clone(),
+                total_points: 803,
+                seed: 9,
+            },
+        )
+        .unwrap();
+        let q = [0.4, -0.9, 0.2, 1.3, -0.6, 0.9, -2.0];
+        let pose = RobotPose::new(&robot, &robot.joint_positions(&q, &[]).unwrap());
+        let torque_model = TorqueModel::new(&robot, &pose, &links);
+        let mut forms = PatchForms::default();
+        let posed = PosedSurface {
+            torque_model: &torque_model,
+            surface: &surface,
+        };
+        assert!(posed.patch_forms(&FORMS_WEIGHTS, &FORMS_TAU, &mut forms));
+        (surface, torque_model, forms)
+    }
+
+    fn column(c: &[Vec<f64>], k: usize) -> [f64; 6] {
+        std::array::from_fn(|i| c[i][k])
+    }
+
+    fn forms_of(forms: &PatchForms, k: usize) -> [f64; 9] {
+        [
+            forms.a[k],
+            forms.b[k],
+            forms.h1[k],
+            forms.h2[k],
+            forms.e1[k],
+            forms.e2[k],
+            forms.g11[k],
+            forms.g12[k],
+            forms.g22[k],
+        ]
+    }
+
+    /// Each point's patch forms against the sums over the joints written
+    /// out (an independent path: no triangular factor).
+    #[test]
+    fn patch_forms_match_the_sums_over_the_joints() {
+        let (surface, torque_model, forms) = forms_setup();
+        let (weights, tau) = (FORMS_WEIGHTS, FORMS_TAU);
+        for k in 0..surface.len() {
+            let lines = [
+                column(&surface.push_lines, k),
+                column(&surface.tangent_lines[..6], k),
+                column(&surface.tangent_lines[6..], k),
+            ];
+            let mut sums = [0.0; 9];
+            for t in torque_model.twists(surface.link[k]) {
+                let j = t.sensed_index;
+                let twist = [t.w.x, t.w.y, t.w.z, t.v.x, t.v.y, t.v.z];
+                let [u, d1, d2] = lines.map(|l| twist.iter().zip(&l).map(|(x, y)| x * y).sum::<f64>());
+                let w = weights[j];
+                let terms = [
+                    u * u,
+                    u * tau[j],
+                    u * d1,
+                    u * d2,
+                    d1 * tau[j],
+                    d2 * tau[j],
+                    d1 * d1,
+                    d1 * d2,
+                    d2 * d2,
+                ];
+                for (s, x) in sums.iter_mut().zip(terms) {
+                    *s += w * x;
+                }
+            }
+            let got = forms_of(&forms, k);
+            for (name, (g, s)) in ["a", "b", "h1", "h2", "e1", "e2", "g11", "g12", "g22"]
+                .iter()
+                .zip(got.iter().zip(sums))
+            {
+                assert!((g - s).abs() <= 1e-9 * s.abs().max(1.0), "point {k} {name}: {g} vs {s}");
+            }
+        }
+    }
+
+    /// The points computed four at a time against the same code one at a
+    /// time, bit for bit (the lanes must not mix).
+    #[test]
+    fn patch_forms_in_lanes_are_those_of_each_point_alone() {
+        fn alone<const N: usize>(r: &[[f64; 6]], beta: &[f64; 6], x: &[[[f64; 1]; 6]; 3]) -> [u64; 9] {
+            let rows: [[f64; 6]; N] = std::array::from_fn(|i| r[i]);
+            patch_forms_of::<N, 1>(&rows, beta, x).map(|[v]| v.to_bits())
+        }
+        let (surface, torque_model, forms) = forms_setup();
+        let posed = PosedSurface {
+            torque_model: &torque_model,
+            surface: &surface,
+        };
+        let mut ranks = Vec::new();
+        for (range, r, beta) in posed.link_factors(&FORMS_WEIGHTS, &FORMS_TAU) {
+            ranks.push(r.len());
+            for k in range {
+                let x = [
+                    column(&surface.push_lines, k).map(|v| [v]),
+                    column(&surface.tangent_lines[..6], k).map(|v| [v]),
+                    column(&surface.tangent_lines[6..], k).map(|v| [v]),
+                ];
+                let bits = match r.len() {
+                    1 => alone::<1>(&r, &beta, &x),
+                    2 => alone::<2>(&r, &beta, &x),
+                    3 => alone::<3>(&r, &beta, &x),
+                    4 => alone::<4>(&r, &beta, &x),
+                    5 => alone::<5>(&r, &beta, &x),
+                    _ => alone::<6>(&r, &beta, &x),
+                };
+                let together = forms_of(&forms, k).map(f64::to_bits);
+                assert_eq!(bits, together, "point {k}");
+            }
+        }
+        // Links of several ranks, each with more points than one group of lanes.
+        assert!(ranks.iter().any(|&n| n < 6) && ranks.contains(&6), "{ranks:?}");
     }
 
     #[test]
