@@ -388,6 +388,28 @@ impl PatchInformation {
 }
 
 /// The per-sample loop of [`PatchInformation::from_forms`] over the
+/// Each `predicted · e^(gain - top)` (0 where `gain - top` is NaN or below
+/// -700): the correct step's weights in one vectorised loop (one at a
+/// time, the library's `exp` was a tenth of a filtered frame).
+struct WeighKernel<'a>(&'a [f64], &'a [f64], f64);
+
+impl Kernel for WeighKernel<'_> {
+    type Output = Vec<f64>;
+    #[inline(always)]
+    fn run(self) -> Vec<f64> {
+        let (predicted, gains, top) = (self.0, self.1, self.2);
+        let n = predicted.len().min(gains.len());
+        let (predicted, gains) = (&predicted[..n], &gains[..n]);
+        let mut out = vec![0.0; n];
+        for k in 0..n {
+            let d = gains[k] - top;
+            let e = fastmath::exp(d);
+            out[k] = if d > -700.0 { predicted[k] * e } else { 0.0 };
+        }
+        out
+    }
+}
+
 /// samples that every form has, branch free so that it vectorises.
 struct InformationKernel<'a> {
     forms: &'a PatchForms,
@@ -529,7 +551,10 @@ impl Offset {
         // Means, and nᵀΛ⁻¹n = n·μ.
         let (u1, u2) = ((l22 * n1 - l12 * n2) * i0, (l11 * n2 - l12 * n1) * i0);
         let (v1, v2) = ((a22 * p1 - a12 * p2) * i1, (a11 * p2 - a12 * p1) * i1);
-        let gain = 0.5 * (p1 * v1 + p2 * v2 - n1 * u1 - n2 * u2) - 0.5 * fastmath::ln(d1 * i0);
+        // The library's `ln`, not `fastmath::ln`: this loop does not
+        // vectorise, and one at a time the series' chain of dependent
+        // steps waits longer than the library's table (filter 5% faster).
+        let gain = 0.5 * (p1 * v1 + p2 * v2 - n1 * u1 - n2 * u2) - 0.5 * (d1 * i0).ln();
         let charge = |(x1, x2): (f64, f64), (c11, c12, c22): (f64, f64, f64)| {
             let r2 = x1 * x1 + x2 * x2;
             if r2 > reach_m * reach_m {
@@ -855,7 +880,8 @@ impl TemporalModel {
                     ) else {
                         return Offset::window(1.0);
                     };
-                    let kept = stay * before * fastmath::exp(-rate * slide);
+                    // The library's `exp`, as in `Offset::absorb_within`.
+                    let kept = stay * before * (-rate * slide).exp();
                     let own = if predicted > 0.0 { kept / predicted } else { 0.0 };
                     // Nearly all its own or nearly all arrived: no mixing.
                     if own > 1.0 - 1e-9 {
@@ -947,14 +973,11 @@ impl TemporalModel {
                 // NaN, -inf and anything below e^-700 of the best: 0.
                 if d > -700.0 { d.exp() } else { 0.0 }
             };
+            let mut points = widest(WeighKernel(&predicted.points, &gains, top));
+            points.resize(predicted.points.len(), 0.0);
             let mut out = Belief {
                 no_contact: predicted.no_contact * scale(likelihood.no_contact),
-                points: predicted
-                    .points
-                    .iter()
-                    .zip(&gains)
-                    .map(|(p, &l)| p * scale(l))
-                    .collect(),
+                points,
                 offsets,
             };
             let ok = out.normalize();
