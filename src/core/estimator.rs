@@ -424,33 +424,31 @@ impl Quadratic<'_> {
     /// [`Self::log_evidence_many`]'s work, inlined into [`widest`].
     #[inline(always)]
     fn log_evidence_many_inner(&self, points: &[usize], slots: &[usize], profile: &[f64]) -> Vec<f64> {
+        // No closures here: they are not inlined into the wide copy (a
+        // call per point each), hence the plain loops and `gather`.
         let table = ErfTable::get();
         let m = slots.len();
-        let (mut a, mut b, mut c, mut norm, mut volume) = (
-            Vec::with_capacity(m),
-            Vec::with_capacity(m),
-            Vec::with_capacity(m),
-            Vec::with_capacity(m),
-            Vec::with_capacity(m),
-        );
-        for &i in slots {
-            let k = points[i];
-            a.push(self.a[k]);
-            b.push(self.b[k]);
-            let (ck, nk) = self.c_norm(k);
-            c.push(ck);
-            norm.push(nk);
-            volume.push(self.volume.and_then(|v| v.get(k)).copied().unwrap_or(1.0));
-        }
+        let index = gather_indices(points, slots);
+        let (a, b) = (gather(self.a, &index, 0.0), gather(self.b, &index, 0.0));
+        let (c, norm) = match self.per_point {
+            None => (vec![self.c; m], vec![0.0; m]),
+            Some((c, norm)) => (gather(c, &index, 0.0), gather(norm, &index, 0.0)),
+        };
+        let volume = match self.volume {
+            None => vec![1.0; m],
+            Some(v) => gather(v, &index, 1.0),
+        };
         let (f_min, f_max) = (self.f_min, self.f_max);
         let ln_range = (f_max - f_min).ln();
-        // Everything but the erf difference, and the ends x₁ < x₂ of its
-        // interval: one vectorised pass.
+        // Everything but the erf difference, the ends x₁ < x₂ of its
+        // interval, and whether the interval is too narrow for the
+        // branch-free difference: one vectorised pass.
         let mut out = vec![0.0; m];
         let (mut x1, mut x2) = (vec![0.0; m], vec![0.0; m]);
+        let mut narrow = vec![false; m];
         {
             let (a, b, c, norm, volume) = (&a[..m], &b[..m], &c[..m], &norm[..m], &volume[..m]);
-            let (x1, x2) = (&mut x1[..m], &mut x2[..m]);
+            let (x1, x2, narrow) = (&mut x1[..m], &mut x2[..m], &mut narrow[..m]);
             for j in 0..m {
                 let aj = if a[j] > f64::MIN_POSITIVE {
                     a[j]
@@ -465,6 +463,7 @@ impl Quadratic<'_> {
                     - ln_range;
                 x1[j] = s * (f_min - mu);
                 x2[j] = s * (f_max - mu);
+                narrow[j] = (0.5 * a[j]).sqrt() * (f_max - f_min) < 0.05;
             }
         }
         // The erf difference by kind of interval, each kind in a loop of
@@ -474,60 +473,35 @@ impl Quadratic<'_> {
         // side, erfc(Y) below e⁻²¹ of erfc(y): y alone; (2) the rest,
         // branch-free in full; (3) both sides, Y beyond 4.6:
         // ln(2 - erfc(y)).
-        let mut kinds: [Vec<usize>; 4] = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
-        let mut near_end = vec![0.0; m];
-        for j in 0..m {
-            let (lo, hi) = (x1[j], x2[j]);
-            let (yl, yh) = (lo.abs(), hi.abs());
-            let (yn, yf) = if yl < yh { (yl, yh) } else { (yh, yl) };
-            near_end[j] = yn;
-            let opposite = lo < 0.0 && hi > 0.0;
-            let kind = if opposite && yn > ERFC_NEGLIGIBLE_BEYOND {
-                0
-            } else if opposite && yf > ERFC_NEGLIGIBLE_BEYOND {
-                3
-            } else if !opposite && (yf - yn) * (yf + yn) > FAR_END_NEGLIGIBLE_BELOW {
-                1
-            } else {
-                2
-            };
-            if let Some(list) = kinds.get_mut(kind) {
-                list.push(j);
+        let (kinds, near_end) = interval_kinds(&x1, &x2);
+        for &j in &kinds[0] {
+            if let Some(o) = out.get_mut(j) {
+                *o += std::f64::consts::LN_2;
             }
         }
-        for &j in &kinds[0] {
-            out[j] += std::f64::consts::LN_2;
-        }
-        let near: Vec<f64> = kinds[1].iter().map(|&j| near_end[j]).collect();
+        let near = gather(&near_end, &kinds[1], 0.0);
         let mut term = vec![0.0; near.len()];
         for (t, &y) in term.iter_mut().zip(&near) {
             let (tn, pn) = table.parts(y);
             *t = -y * y + pn + fastmath::ln(tn);
         }
-        for (&j, t) in kinds[1].iter().zip(&term) {
-            out[j] += t;
-        }
-        let near: Vec<f64> = kinds[3].iter().map(|&j| near_end[j]).collect();
+        add_at(&mut out, &kinds[1], &term);
+        let near = gather(&near_end, &kinds[3], 0.0);
         let mut term = vec![0.0; near.len()];
         for (t, &y) in term.iter_mut().zip(&near) {
             let (tn, pn) = table.parts(y);
             *t = fastmath::ln(2.0 - tn * fastmath::exp(-y * y + pn));
         }
-        for (&j, t) in kinds[3].iter().zip(&term) {
-            out[j] += t;
-        }
-        let (lo, hi): (Vec<f64>, Vec<f64>) = kinds[2].iter().map(|&j| (x1[j], x2[j])).unzip();
+        add_at(&mut out, &kinds[3], &term);
+        let (lo, hi) = (gather(&x1, &kinds[2], 0.0), gather(&x2, &kinds[2], 0.0));
         let mut term = vec![0.0; lo.len()];
         for ((t, &l), &h) in term.iter_mut().zip(&lo).zip(&hi) {
             *t = table.ln_erf_difference(l, h);
         }
-        for (&j, t) in kinds[2].iter().zip(&term) {
-            out[j] += t;
-        }
-        for (j, &i) in slots.iter().enumerate() {
-            let k = points[i];
-            if (0.5 * self.a[k]).sqrt() * (f_max - f_min) < 0.05 {
-                out[j] = self.log_evidence(k, profile[i]);
+        add_at(&mut out, &kinds[2], &term);
+        for (j, (&i, &narrow)) in slots.iter().zip(&narrow).enumerate() {
+            if narrow && let (Some(&k), Some(&p), Some(o)) = (points.get(i), profile.get(i), out.get_mut(j)) {
+                *o = self.log_evidence(k, p);
             }
         }
         out
@@ -555,6 +529,84 @@ impl Quadratic<'_> {
             + 0.5 * (std::f64::consts::PI / (2.0 * a)).ln()
             + ln_erf_difference(s * (self.f_min - mu), s * (self.f_max - mu))
             - range.ln()
+    }
+}
+
+/// Each interval's kind (see `log_evidence_many_inner`) as lists of
+/// positions, and each interval's end nearer 0 in absolute value.
+#[inline(always)]
+fn interval_kinds(x1: &[f64], x2: &[f64]) -> ([Vec<usize>; 4], Vec<f64>) {
+    let m = x1.len().min(x2.len());
+    let mut kind = vec![0_u8; m];
+    let mut near_end = vec![0.0; m];
+    {
+        let (x1, x2, kind, near_end) = (&x1[..m], &x2[..m], &mut kind[..m], &mut near_end[..m]);
+        for j in 0..m {
+            let (lo, hi) = (x1[j], x2[j]);
+            let (yl, yh) = (lo.abs(), hi.abs());
+            let (yn, yf) = if yl < yh { (yl, yh) } else { (yh, yl) };
+            near_end[j] = yn;
+            let opposite = lo < 0.0 && hi > 0.0;
+            let both_far = opposite && yn > ERFC_NEGLIGIBLE_BEYOND;
+            let far_end_far = opposite && yf > ERFC_NEGLIGIBLE_BEYOND;
+            let one_sided_far = !opposite && (yf - yn) * (yf + yn) > FAR_END_NEGLIGIBLE_BELOW;
+            kind[j] = if both_far {
+                0
+            } else if far_end_far {
+                3
+            } else if one_sided_far {
+                1
+            } else {
+                2
+            };
+        }
+    }
+    let mut kinds: [Vec<usize>; 4] = [
+        Vec::with_capacity(m),
+        Vec::with_capacity(m),
+        Vec::with_capacity(m),
+        Vec::with_capacity(m),
+    ];
+    for (j, &k) in kind.iter().enumerate() {
+        if let Some(list) = kinds.get_mut(usize::from(k)) {
+            list.push(j);
+        }
+    }
+    (kinds, near_end)
+}
+
+/// `points[slots[j]]` for each j (0 where out of range, which callers
+/// never give).
+#[inline(always)]
+fn gather_indices(points: &[usize], slots: &[usize]) -> Vec<usize> {
+    let mut out = vec![0; slots.len()];
+    for (o, &i) in out.iter_mut().zip(slots) {
+        if let Some(&k) = points.get(i) {
+            *o = k;
+        }
+    }
+    out
+}
+
+/// `values[index[j]]` for each j (`fallback` where out of range).
+#[inline(always)]
+fn gather(values: &[f64], index: &[usize], fallback: f64) -> Vec<f64> {
+    let mut out = vec![fallback; index.len()];
+    for (o, &k) in out.iter_mut().zip(index) {
+        if let Some(&v) = values.get(k) {
+            *o = v;
+        }
+    }
+    out
+}
+
+/// `out[index[j]] += terms[j]`.
+#[inline(always)]
+fn add_at(out: &mut [f64], index: &[usize], terms: &[f64]) {
+    for (&j, &t) in index.iter().zip(terms) {
+        if let Some(o) = out.get_mut(j) {
+            *o += t;
+        }
     }
 }
 
@@ -1137,7 +1189,11 @@ impl Kernel for ExpKernel<'_> {
     type Output = Vec<f64>;
     #[inline(always)]
     fn run(self) -> Vec<f64> {
-        self.0.iter().map(|&x| fastmath::exp(x)).collect()
+        let mut out = vec![0.0; self.0.len()];
+        for (o, &x) in out.iter_mut().zip(self.0) {
+            *o = fastmath::exp(x);
+        }
+        out
     }
 }
 
@@ -1162,10 +1218,6 @@ fn profile_chunk(a: &[f64], b: &[f64], c: Shared, f_min: f64, f_max: f64, force:
         let q = if q > f_min { q } else { f_min };
         *f = if q < f_max { q } else { f_max };
     }
-    let residual = |a: f64, b: f64, c: f64, f: f64| {
-        let r = c - 2.0 * b * f + a * f * f;
-        if r > 0.0 { r } else { 0.0 }
-    };
     match c {
         Shared::Value(c) => {
             for (((m, &a), &b), &f) in mass.iter_mut().zip(a).zip(b).zip(&*force) {
@@ -1180,8 +1232,19 @@ fn profile_chunk(a: &[f64], b: &[f64], c: Shared, f_min: f64, f_max: f64, force:
             }
         }
     }
-    mass.iter()
-        .fold(f64::NEG_INFINITY, |best, &m| if m > best { m } else { best })
+    let mut best = f64::NEG_INFINITY;
+    for &m in &*mass {
+        best = if m > best { m } else { best };
+    }
+    best
+}
+
+/// `c - 2 b f + a f²`, not below 0 (a function, not a closure, so that it
+/// is inlined into the wide copy).
+#[inline(always)]
+fn residual(a: f64, b: f64, c: f64, f: f64) -> f64 {
+    let r = c - 2.0 * b * f + a * f * f;
+    if r > 0.0 { r } else { 0.0 }
 }
 
 /// Scores the points of one phase.
