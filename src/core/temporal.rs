@@ -387,7 +387,6 @@ impl PatchInformation {
     }
 }
 
-/// The per-sample loop of [`PatchInformation::from_forms`] over the
 /// Each `predicted · e^(gain - top)` (0 where `gain - top` is NaN or below
 /// -700): the correct step's weights in one vectorised loop (one at a
 /// time, the library's `exp` was a tenth of a filtered frame).
@@ -410,6 +409,7 @@ impl Kernel for WeighKernel<'_> {
     }
 }
 
+/// The per-sample loop of [`PatchInformation::from_forms`] over the
 /// samples that every form has, branch free so that it vectorises.
 struct InformationKernel<'a> {
     forms: &'a PatchForms,
