@@ -288,18 +288,16 @@ pub fn summarize_refined(
 pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level: f64) -> CredibleSet {
     // Points below 1e-18 of the largest hold less than 1e-12 together for
     // any surface we sample: they never enter a 90 % set, so skip sorting them.
-    let top = posterior
-        .support
-        .iter()
-        .map(|&k| posterior.probability[k])
-        .fold(0.0, f64::max);
-    let order: Vec<(f64, usize)> = posterior
-        .support
-        .iter()
-        .map(|&k| (posterior.probability[k], k))
-        .filter(|&(p, _)| p > top * 1e-18)
-        .collect();
-    let (mut points, mass) = most_probable_holding(order, level);
+    let mut order: Vec<(f64, usize)> = Vec::with_capacity(posterior.support.len());
+    let mut top: f64 = 0.0;
+    for &k in &posterior.support {
+        if let Some(&p) = posterior.probability.get(k) {
+            top = top.max(p);
+            order.push((p, k));
+        }
+    }
+    order.retain(|&(p, _)| p > top * 1e-18);
+    let (mut points, mass) = most_probable_holding(&order, level);
     points.sort_unstable();
     let positions: Vec<DVec3> = points.iter().map(|&k| world(k)).collect();
     let mean = points
@@ -314,41 +312,78 @@ pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level
 
 /// The fewest of `items` (probability, index) whose probabilities add up
 /// to at least `level` (all of them if they hold less), and that sum: the
-/// most probable ones, ties broken by the lower index. Found by repeated
-/// partitioning in time linear in the items, where sorting them all would
-/// cost most of a broad posterior's update.
-fn most_probable_holding(mut items: Vec<(f64, usize)>, level: f64) -> (Vec<usize>, f64) {
+/// most probable ones, ties broken by the lower index. Items with
+/// probability ≤ 0 or NaN are never taken.
+///
+/// In time linear in the items: they are bucketed by the top 16 bits of
+/// their probability (sign, exponent and four bits of mantissa: for
+/// positive numbers the bits order as the values do, so every item of a
+/// bucket is more probable than every item of a lower one); whole buckets
+/// are taken from the top while they hold less than `level`, and only the
+/// bucket that crosses it is sorted. (Sorting them all would cost most of
+/// a broad posterior's update; repeated partitioning, used before, a
+/// twelfth of it.)
+fn most_probable_holding(items: &[(f64, usize)], level: f64) -> (Vec<usize>, f64) {
     let before = |x: &(f64, usize), y: &(f64, usize)| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1));
+    let key = |p: f64| (p.to_bits() >> 48) as usize;
+    let positive = |p: f64| p > 0.0;
+    let (mut low, mut high) = (usize::MAX, 0);
+    for &(p, _) in items {
+        if positive(p) {
+            low = low.min(key(p));
+            high = high.max(key(p));
+        }
+    }
     let mut taken = Vec::new();
     let mut mass = 0.0;
-    let mut rest: &mut [(f64, usize)] = &mut items;
-    loop {
-        if rest.len() <= 32 {
-            rest.sort_unstable_by(before);
-            for &(p, k) in rest.iter() {
-                if mass >= level {
-                    break;
-                }
-                taken.push(k);
-                mass += p;
-            }
-            return (taken, mass);
+    if low > high {
+        return (taken, mass);
+    }
+    // Bucket b holds the items of key `high - b`: bucket 0 the most probable.
+    let buckets = high - low + 1;
+    let mut count = vec![0_usize; buckets + 1];
+    for &(p, _) in items {
+        if positive(p)
+            && let Some(c) = count.get_mut(high - key(p) + 1)
+        {
+            *c += 1;
         }
-        let mid = rest.len() / 2;
-        let (left, pivot, right) = rest.select_nth_unstable_by(mid, before);
-        let left_mass: f64 = left.iter().map(|(p, _)| p).sum();
-        if mass + left_mass >= level {
-            rest = left;
-        } else {
-            taken.extend(left.iter().map(|(_, k)| *k));
-            taken.push(pivot.1);
-            mass += left_mass + pivot.0;
+    }
+    for b in 1..=buckets {
+        count[b] += count[b - 1];
+    }
+    // count[b]..count[b + 1]: bucket b's place in `grouped`.
+    let mut grouped = vec![(0.0, 0_usize); count[buckets]];
+    let mut next = count.clone();
+    for &(p, k) in items {
+        if positive(p)
+            && let Some(at) = next.get_mut(high - key(p))
+            && let Some(slot) = grouped.get_mut(*at)
+        {
+            *slot = (p, k);
+            *at += 1;
+        }
+    }
+    for b in 0..buckets {
+        let Some(bucket) = grouped.get_mut(count[b]..count[b + 1]) else {
+            continue;
+        };
+        let bucket_mass: f64 = bucket.iter().map(|(p, _)| p).sum();
+        if mass + bucket_mass < level {
+            taken.extend(bucket.iter().map(|(_, k)| *k));
+            mass += bucket_mass;
+            continue;
+        }
+        bucket.sort_unstable_by(before);
+        for &(p, k) in bucket.iter() {
             if mass >= level {
                 return (taken, mass);
             }
-            rest = right;
+            taken.push(k);
+            mass += p;
         }
     }
+    (taken, mass)
 }
 
 /// Probable points grouped into connected regions of the surface's cells
@@ -432,6 +467,18 @@ mod tests {
 
     #[test]
     fn the_fewest_points_holding_a_level_match_sorting_them_all() {
+        // Zero and NaN are never taken; a level above the total takes
+        // every positive item; nothing positive, nothing taken.
+        let items = vec![(0.25, 4), (0.0, 1), (f64::NAN, 2), (0.5, 3), (0.25, 0)];
+        let (mut got, mass) = most_probable_holding(&items, 2.0);
+        got.sort_unstable();
+        assert_eq!((got, mass), (vec![0, 3, 4], 1.0));
+        let (got, mass) = most_probable_holding(&items, 0.6);
+        assert_eq!((got, mass), (vec![3, 0], 0.75), "ties: the lower index first");
+        assert_eq!(
+            most_probable_holding(&[(0.0, 0), (f64::NAN, 1)], 0.9),
+            (Vec::new(), 0.0)
+        );
         let mut rng = Rng::new(5);
         for n in [1, 7, 33, 200, 5000] {
             for sharp in [false, true] {
@@ -460,7 +507,7 @@ mod tests {
                     expected.push(*k);
                     mass += p;
                 }
-                let (mut got, got_mass) = most_probable_holding(items, 0.9);
+                let (mut got, got_mass) = most_probable_holding(&items, 0.9);
                 got.sort_unstable();
                 expected.sort_unstable();
                 assert_eq!(got, expected, "n {n}, sharp {sharp}");
