@@ -707,24 +707,32 @@ mod tests {
     use super::*;
     use crate::core::builtin;
     use crate::core::kinematics::RobotPose;
+    use crate::core::robot::Robot;
     use crate::core::surface::SurfaceRequest;
     use crate::core::torque::joint_torques;
 
-    #[test]
-    fn unit_torques_match_the_direct_formula() {
+    /// The generated LWR, its candidate links, `points` samples of them
+    /// (surface seed `seed`) and one pose.
+    fn posed_lwr(points: usize, seed: u64) -> (Robot, Vec<usize>, Surface, RobotPose) {
         let robot = builtin::lwr4plus_generated().unwrap();
         let links = robot.default_candidate_links();
         let surface = Surface::sample(
             &robot,
             &SurfaceRequest {
                 links: links.clone(),
-                total_points: 300,
-                seed: 4,
+                total_points: points,
+                seed,
             },
         )
         .unwrap();
         let q = [0.4, -0.9, 0.2, 1.3, -0.6, 0.9, -2.0];
         let pose = RobotPose::new(&robot, &robot.joint_positions(&q, &[]).unwrap());
+        (robot, links, surface, pose)
+    }
+
+    #[test]
+    fn unit_torques_match_the_direct_formula() {
+        let (robot, links, surface, pose) = posed_lwr(300, 4);
         let model = ContactModel::new(&TorqueModel::new(&robot, &pose, &links), &surface);
         for k in (0..surface.len()).step_by(7) {
             let link = surface.link[k];
@@ -773,19 +781,7 @@ mod tests {
     /// A posed surface of 803 points of every candidate link and its
     /// patch forms for [`FORMS_TAU`].
     fn forms_setup() -> (Surface, TorqueModel, PatchForms) {
-        let robot = builtin::lwr4plus_generated().unwrap();
-        let links = robot.default_candidate_links();
-        let surface = Surface::sample(
-            &robot,
-            &SurfaceRequest {
-                links: links.clone(),
-                total_points: 803,
-                seed: 9,
-            },
-        )
-        .unwrap();
-        let q = [0.4, -0.9, 0.2, 1.3, -0.6, 0.9, -2.0];
-        let pose = RobotPose::new(&robot, &robot.joint_positions(&q, &[]).unwrap());
+        let (robot, links, surface, pose) = posed_lwr(803, 9);
         let torque_model = TorqueModel::new(&robot, &pose, &links);
         let mut forms = PatchForms::default();
         let posed = PosedSurface {
