@@ -152,17 +152,8 @@ impl UnitTorqueSource for PosedSurface<'_> {
         }
         out.resize(n);
         out.window_m.copy_from_slice(&surface.window_m);
-        // A link's points share one area: one `ln` per run, not per point.
-        let mut last: Option<(f64, f64)> = None;
-        for (ln_area, &area) in out.ln_area.iter_mut().zip(&surface.area_m2) {
-            *ln_area = match last {
-                Some((seen, value)) if seen.to_bits() == area.to_bits() => value,
-                _ => {
-                    let value = area.max(f64::MIN_POSITIVE).ln();
-                    last = Some((area, value));
-                    value
-                }
-            };
+        for (ln_area, &value) in out.ln_area.iter_mut().zip(&surface.ln_area) {
+            *ln_area = value;
         }
         let lines = surface.push_lines.each_ref().map(Vec::as_slice);
         let tangents = surface.tangent_lines.each_ref().map(Vec::as_slice);
@@ -373,25 +364,30 @@ fn patch_forms_with<const N: usize>(r: &[[f64; 6]], beta: [f64; 6], block: &Patc
     .unwrap_or(0);
     let mut k = 0;
     while k + LANES <= len {
-        let x = [
-            gather_line(&block.l0, k),
-            gather_line(&block.l1, k),
-            gather_line(&block.l2, k),
-        ];
-        let y = patch_forms_of::<N, LANES>(&rows, &beta, &x);
-        out.store::<LANES>(k, &y);
+        patch_forms_at::<N, LANES>(&rows, &beta, block, out, k);
         k += LANES;
     }
     while k < len {
-        let x = [
-            gather_line(&block.l0, k),
-            gather_line(&block.l1, k),
-            gather_line(&block.l2, k),
-        ];
-        let y = patch_forms_of::<N, 1>(&rows, &beta, &x);
-        out.store::<1>(k, &y);
+        patch_forms_at::<N, 1>(&rows, &beta, block, out, k);
         k += 1;
     }
+}
+
+/// The forms of the `L` points from `k`: gathered, computed, stored.
+#[inline(always)]
+fn patch_forms_at<const N: usize, const L: usize>(
+    rows: &[[f64; 6]; N],
+    beta: &[f64; 6],
+    block: &PatchBlock,
+    out: &mut PatchOut,
+    k: usize,
+) {
+    let x = [
+        gather_line(&block.l0, k),
+        gather_line(&block.l1, k),
+        gather_line(&block.l2, k),
+    ];
+    out.store::<L>(k, &patch_forms_of::<N, L>(rows, beta, &x));
 }
 
 /// The six coordinates of `L` points from `k`, written out (an array
@@ -759,8 +755,7 @@ mod tests {
             }
         }
         // The fused likelihood terms equal the stored model's.
-        let weights = [400.0, 100.0, 400.0, 25.0, 400.0, 100.0, 400.0];
-        let tau = [0.5, -1.2, 0.3, 0.8, -0.2, 0.1, 0.05];
+        let (weights, tau) = (FORMS_WEIGHTS, FORMS_TAU);
         let (mut a1, mut b1, mut a2, mut b2) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         model.quadratic_forms(&weights, &tau, &mut a1, &mut b1);
         let tm = TorqueModel::new(&robot, &pose, &links);
@@ -775,6 +770,7 @@ mod tests {
         }
     }
 
+    /// Weights `1/σ²` per joint and torques the forms tests use.
     const FORMS_WEIGHTS: [f64; 7] = [400.0, 100.0, 400.0, 25.0, 400.0, 100.0, 400.0];
     const FORMS_TAU: [f64; 7] = [0.5, -1.2, 0.3, 0.8, -0.2, 0.1, 0.05];
 

@@ -288,7 +288,7 @@ impl Quadratic<'_> {
     /// `Σ w (τ - f u)²` at point k.
     fn residual(&self, k: usize, f: f64) -> f64 {
         let (c, _) = self.c_norm(k);
-        (c - 2.0 * self.b[k] * f + self.a[k] * f * f).max(0.0)
+        residual(self.a[k], self.b[k], c, f)
     }
 
     /// Each listed point's best magnitude and its log-likelihood there

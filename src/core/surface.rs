@@ -151,6 +151,9 @@ pub struct Surface {
     pub push_lines: [Vec<f64>; 6],
     /// Area represented by the sample, m² (m of length on a segment link).
     pub area_m2: Vec<f64>,
+    /// `ln` of each sample's area (its prior weight with patches), taken
+    /// once here rather than in every update.
+    pub ln_area: Vec<f64>,
     /// Where each sample lies on its link's [`LinkShape`].
     pub location: Vec<MeshPoint>,
     /// How each push line changes per metre along the sample's two
@@ -440,6 +443,7 @@ impl Surface {
             column.push(*value);
         }
         self.area_m2.push(area_m2);
+        self.ln_area.push(area_m2.max(f64::MIN_POSITIVE).ln());
         self.location.push(at);
         self.window_m.push(window_m);
     }

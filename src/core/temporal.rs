@@ -517,17 +517,22 @@ fn gains_at<const L: usize>(kernel: &GainsKernel, k: usize, gains: &mut [f64], a
         charge_beyond(v1[i], v2[i], a11[i], a12[i], a22[i], reach[i])
             - charge_beyond(u1[i], u2[i], l11[i], l12[i], l22[i], reach[i])
     );
-    // Where a precision is not positive definite or the frame did not
-    // score the sample, the `ln` gets 1 and its result is not kept.
+    // Scored: the frame and the sample have finite likelihoods. Defined:
+    // scored, and both precisions positive definite; elsewhere the `ln`
+    // gets 1 and its result is not kept.
+    let scored = lanes!(
+        i,
+        L,
+        if points[i].abs() < f64::INFINITY && point[i].abs() < f64::INFINITY {
+            1.0
+        } else {
+            0.0
+        }
+    );
     let defined = lanes!(
         i,
         L,
-        if d0[i] > 0.0
-            && d1[i] > 0.0
-            && d1[i] < f64::INFINITY
-            && points[i].abs() < f64::INFINITY
-            && point[i].abs() < f64::INFINITY
-        {
+        if scored[i] > 0.0 && d0[i] > 0.0 && d1[i] > 0.0 && d1[i] < f64::INFINITY {
             1.0
         } else {
             0.0
@@ -539,15 +544,6 @@ fn gains_at<const L: usize>(kernel: &GainsKernel, k: usize, gains: &mut [f64], a
         i,
         L,
         0.5 * (p1[i] * v1[i] + p2[i] * v2[i] - n1[i] * u1[i] - n2[i] * u2[i]) - 0.5 * ln_ratio[i] - charged[i]
-    );
-    let scored = lanes!(
-        i,
-        L,
-        if points[i].abs() < f64::INFINITY && point[i].abs() < f64::INFINITY {
-            1.0
-        } else {
-            0.0
-        }
     );
     for i in 0..L {
         gains[i] = if scored[i] > 0.0 {
@@ -837,27 +833,11 @@ impl FrameLikelihood {
     /// the temporal model applies itself), which is taken out here.
     #[must_use]
     pub fn from_posterior(posterior: &Posterior, surface: &Surface, patches: bool) -> Self {
-        // A link's samples share one area: one `ln` per run of equal
-        // areas, not per sample.
-        let mut last: Option<(u64, f64)> = None;
         let points = posterior
             .log_likelihood
             .iter()
-            .zip(&surface.area_m2)
-            .map(|(&l, &area)| {
-                if !patches {
-                    return l;
-                }
-                let ln_area = match last {
-                    Some((bits, value)) if bits == area.to_bits() => value,
-                    _ => {
-                        let value = fastmath::ln(area.max(f64::MIN_POSITIVE));
-                        last = Some((area.to_bits(), value));
-                        value
-                    }
-                };
-                l - ln_area
-            })
+            .zip(&surface.ln_area)
+            .map(|(&l, &ln_area)| if patches { l - ln_area } else { l })
             .collect();
         Self {
             no_contact: -0.5 * posterior.no_contact_chi2,
