@@ -246,17 +246,21 @@ pub fn summarize_refined(
         .collect();
     per_link.sort_by_key(|s| s.link);
     per_link.dedup_by_key(|s| s.link);
+    // The surface is grouped by link and the support is in index order:
+    // the share found for one point almost always serves the next.
+    let mut at: Option<usize> = None;
     for &k in &posterior.support {
-        let (Some(link), Some(&p), Some(&d)) = (
+        let (Some(&link), Some(&p), Some(&d)) = (
             surface.link.get(k),
             posterior.probability.get(k),
             posterior.display.get(k),
         ) else {
             continue;
         };
-        if let Ok(i) = per_link.binary_search_by_key(link, |s| s.link)
-            && let Some(share) = per_link.get_mut(i)
-        {
+        if at.and_then(|i| per_link.get(i)).is_none_or(|s| s.link != link) {
+            at = per_link.binary_search_by_key(&link, |s| s.link).ok();
+        }
+        if let Some(share) = at.and_then(|i| per_link.get_mut(i)) {
             share.summed += p;
             share.max = share.max.max(d);
         }
@@ -286,19 +290,14 @@ pub fn summarize_refined(
 /// a point's position.
 #[must_use]
 pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level: f64) -> CredibleSet {
+    let top = posterior
+        .support
+        .iter()
+        .filter_map(|&k| posterior.probability.get(k))
+        .fold(0.0, |top: f64, &p| top.max(p));
     // Points below 1e-18 of the largest hold less than 1e-12 together for
-    // any surface we sample: they never enter a 90 % set, so skip sorting them.
-    let mut order: Vec<(f64, usize)> = Vec::with_capacity(posterior.support.len());
-    let mut top: f64 = 0.0;
-    for &k in &posterior.support {
-        if let Some(&p) = posterior.probability.get(k) {
-            top = top.max(p);
-            order.push((p, k));
-        }
-    }
-    order.retain(|&(p, _)| p > top * 1e-18);
-    let (mut points, mass) = most_probable_holding(&order, level);
-    points.sort_unstable();
+    // any surface we sample: they never enter a 90 % set.
+    let (points, mass) = most_probable_holding(&posterior.support, &posterior.probability, top * 1e-18, level);
     let positions: Vec<DVec3> = points.iter().map(|&k| world(k)).collect();
     let mean = points
         .iter()
@@ -310,26 +309,28 @@ pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level
     CredibleSet { points, mass, radius_m }
 }
 
-/// The fewest of `items` (probability, index) whose probabilities add up
-/// to at least `level` (all of them if they hold less), and that sum: the
-/// most probable ones, ties broken by the lower index. Items with
-/// probability ≤ 0 or NaN are never taken.
+/// The fewest of the points `indices` (probabilities `probability[k]`)
+/// whose probabilities add up to at least `level` (all of them if they
+/// hold less), in index order, and that sum: the most probable ones, ties
+/// broken by the lower index. Points with probability ≤ `floor`, ≤ 0 or
+/// NaN are never taken.
 ///
-/// In time linear in the items: they are bucketed by the top 16 bits of
-/// their probability (sign, exponent and four bits of mantissa: for
-/// positive numbers the bits order as the values do, so every item of a
-/// bucket is more probable than every item of a lower one); whole buckets
-/// are taken from the top while they hold less than `level`, and only the
-/// bucket that crosses it is sorted. (Sorting them all would cost most of
-/// a broad posterior's update; repeated partitioning, used before, took
-/// ~29 µs for the ~4000 candidates of a frame without contact, this ~22.)
-fn most_probable_holding(items: &[(f64, usize)], level: f64) -> (Vec<usize>, f64) {
-    let before = |x: &(f64, usize), y: &(f64, usize)| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1));
+/// In time linear in the points, without sorting them: they are bucketed
+/// by the top 16 bits of their probability (sign, exponent and four bits
+/// of mantissa: for positive numbers the bits order as the values do, so
+/// every point of a bucket is more probable than every point of a lower
+/// one). One pass counts each bucket's mass; whole buckets are taken from
+/// the top while they hold less than `level`; a second pass collects
+/// them, and only the points of the bucket that crosses the level are
+/// sorted. (Sorting them all would cost most of a broad posterior's
+/// update.) The sum adds whole buckets, each summed in the order given,
+/// then the crossing bucket's points one by one.
+fn most_probable_holding(indices: &[usize], probability: &[f64], floor: f64, level: f64) -> (Vec<usize>, f64) {
     let key = |p: f64| (p.to_bits() >> 48) as usize;
-    let positive = |p: f64| p > 0.0;
+    let taken_at = |k: usize| probability.get(k).copied().filter(|&p| p > 0.0 && p > floor);
     let (mut low, mut high) = (usize::MAX, 0);
-    for &(p, _) in items {
-        if positive(p) {
+    for &k in indices {
+        if let Some(p) = taken_at(k) {
             low = low.min(key(p));
             high = high.max(key(p));
         }
@@ -339,50 +340,43 @@ fn most_probable_holding(items: &[(f64, usize)], level: f64) -> (Vec<usize>, f64
     if low > high {
         return (taken, mass);
     }
-    // Bucket b holds the items of key `high - b`: bucket 0 the most probable.
-    let buckets = high - low + 1;
-    let mut count = vec![0_usize; buckets + 1];
-    for &(p, _) in items {
-        if positive(p)
-            && let Some(c) = count.get_mut(high - key(p) + 1)
+    // Bucket b holds the points of key `high - b`: bucket 0 the most probable.
+    let mut bucket_mass = vec![0.0; high - low + 1];
+    for &k in indices {
+        if let Some(p) = taken_at(k)
+            && let Some(m) = bucket_mass.get_mut(high - key(p))
         {
-            *c += 1;
+            *m += p;
         }
     }
-    for b in 1..=buckets {
-        count[b] += count[b - 1];
-    }
-    // count[b]..count[b + 1]: bucket b's place in `grouped`.
-    let mut grouped = vec![(0.0, 0_usize); count[buckets]];
-    let mut next = count.clone();
-    for &(p, k) in items {
-        if positive(p)
-            && let Some(at) = next.get_mut(high - key(p))
-            && let Some(slot) = grouped.get_mut(*at)
-        {
-            *slot = (p, k);
-            *at += 1;
+    // Buckets before `crossing` are taken whole.
+    let mut crossing = bucket_mass.len();
+    for (b, &m) in bucket_mass.iter().enumerate() {
+        if mass + m >= level {
+            crossing = b;
+            break;
         }
+        mass += m;
     }
-    for b in 0..buckets {
-        let Some(bucket) = grouped.get_mut(count[b]..count[b + 1]) else {
-            continue;
-        };
-        let bucket_mass: f64 = bucket.iter().map(|(p, _)| p).sum();
-        if mass + bucket_mass < level {
-            taken.extend(bucket.iter().map(|(_, k)| *k));
-            mass += bucket_mass;
-            continue;
-        }
-        bucket.sort_unstable_by(before);
-        for &(p, k) in bucket.iter() {
-            if mass >= level {
-                return (taken, mass);
+    let mut last: Vec<(f64, usize)> = Vec::new();
+    for &k in indices {
+        if let Some(p) = taken_at(k) {
+            match (high - key(p)).cmp(&crossing) {
+                std::cmp::Ordering::Less => taken.push(k),
+                std::cmp::Ordering::Equal => last.push((p, k)),
+                std::cmp::Ordering::Greater => {}
             }
-            taken.push(k);
-            mass += p;
         }
     }
+    last.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+    for (p, k) in last {
+        if mass >= level {
+            break;
+        }
+        taken.push(k);
+        mass += p;
+    }
+    taken.sort_unstable();
     (taken, mass)
 }
 
@@ -465,19 +459,32 @@ mod tests {
     use super::*;
     use crate::core::rng::Rng;
 
+    /// [`most_probable_holding`] of `(probability, index)` items with
+    /// distinct indices.
+    fn holding(items: &[(f64, usize)], level: f64) -> (Vec<usize>, f64) {
+        let len = items.iter().map(|x| x.1 + 1).max().unwrap_or(0);
+        let mut probability = vec![0.0; len];
+        for &(p, k) in items {
+            probability[k] = p;
+        }
+        let indices: Vec<usize> = items.iter().map(|x| x.1).collect();
+        most_probable_holding(&indices, &probability, 0.0, level)
+    }
+
     #[test]
     fn the_fewest_points_holding_a_level_match_sorting_them_all() {
         // Zero and NaN are never taken; a level above the total takes
         // every positive item; nothing positive, nothing taken.
         let items = vec![(0.25, 4), (0.0, 1), (f64::NAN, 2), (0.5, 3), (0.25, 0)];
-        let (mut got, mass) = most_probable_holding(&items, 2.0);
-        got.sort_unstable();
-        assert_eq!((got, mass), (vec![0, 3, 4], 1.0));
-        let (got, mass) = most_probable_holding(&items, 0.6);
-        assert_eq!((got, mass), (vec![3, 0], 0.75), "ties: the lower index first");
+        assert_eq!(holding(&items, 2.0), (vec![0, 3, 4], 1.0));
+        assert_eq!(holding(&items, 0.6), (vec![0, 3], 0.75), "ties: the lower index first");
+        assert_eq!(holding(&[(0.0, 0), (f64::NAN, 1)], 0.9), (Vec::new(), 0.0));
+        assert_eq!(holding(&items, 0.0), (Vec::new(), 0.0));
+        // The floor leaves out what is at or below it.
+        let probability = [0.25, 0.0, f64::NAN, 0.5, 0.25];
         assert_eq!(
-            most_probable_holding(&[(0.0, 0), (f64::NAN, 1)], 0.9),
-            (Vec::new(), 0.0)
+            most_probable_holding(&[0, 1, 2, 3, 4], &probability, 0.25, 2.0),
+            (vec![3], 0.5)
         );
         let mut rng = Rng::new(5);
         for n in [1, 7, 33, 200, 5000] {
@@ -507,8 +514,7 @@ mod tests {
                     expected.push(*k);
                     mass += p;
                 }
-                let (mut got, got_mass) = most_probable_holding(&items, 0.9);
-                got.sort_unstable();
+                let (got, got_mass) = holding(&items, 0.9);
                 expected.sort_unstable();
                 assert_eq!(got, expected, "n {n}, sharp {sharp}");
                 assert!((got_mass - mass).abs() < 1e-12);
