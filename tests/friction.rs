@@ -69,6 +69,7 @@ fn at_the_place_friction_cuts_the_force_error() {
             tau: &tau,
             weights: &weights,
             force_range_newtons: (1.0, 30.0),
+            friction: 0.0,
         };
         for (friction, errors) in [(0.0, &mut without), (0.1, &mut with)] {
             let got = frictional_force(&model, link, (point, normal), &m, friction).unwrap();
@@ -80,21 +81,25 @@ fn at_the_place_friction_cuts_the_force_error() {
     assert!(frictional < 0.4 * plain, "{frictional} vs {plain}");
 }
 
-/// In the pipeline friction changes the force and the fit, never the
-/// place (the posterior over places is the frictionless one); μ = 0 is
-/// the frictionless estimate exactly, a force along the normal.
+/// Per frame, friction moves the place as well as the force (the search
+/// minimises the friction model's marginal likelihood): over synthetic
+/// presses with tangential parts (seeds 1–4, 10 s at 20 Hz each, 394
+/// contact frames, 1000 surface points) the median force error falls from
+/// 2.40 to 2.12 N and the median position error from 28.4 to 24.0 mm.
+/// Most of the force error left is that of frames placed on the wrong
+/// part of the arm, which friction cannot mend. μ = 0 is the frictionless
+/// estimate exactly, a force along the normal.
 #[test]
-fn friction_keeps_the_place_and_changes_the_force() {
+fn per_frame_friction_lowers_the_force_error_and_keeps_the_place() {
     let robot = builtin::lwr4plus_generated().unwrap();
     let links = robot.default_candidate_links();
     let pressed: Vec<usize> = links.iter().copied().filter(|&l| l >= 4).collect();
     let synth = SynthSettings {
-        duration_secs: 2.0,
+        duration_secs: 10.0,
         rate_hz: 20.0,
         friction: 0.3,
         ..SynthSettings::default()
     };
-    let frames = synthesize(&robot, &pressed, &synth, 4).unwrap();
     let estimator = |friction: f64| {
         let request = SurfaceRequest {
             links: links.clone(),
@@ -103,23 +108,47 @@ fn friction_keeps_the_place_and_changes_the_force() {
         };
         Estimator::new(&robot, &request, settings(friction), None).unwrap()
     };
-    let (plain, frictional) = (estimator(0.0), estimator(0.15));
+    let (plain, frictional) = (estimator(0.0), estimator(0.1));
+    let (mut position, mut force) = ([Vec::new(), Vec::new()], [Vec::new(), Vec::new()]);
     let mut tangential_seen = 0;
-    for f in frames.iter().filter(|f| f.contact.is_some()) {
-        let positions = robot.joint_positions(&f.q, &[]).unwrap();
-        let a = plain.update(&robot, &positions, &f.tau).unwrap().summary;
-        let b = frictional.update(&robot, &positions, &f.tau).unwrap().summary;
-        assert_eq!(a.map.point_world, b.map.point_world, "t = {}", f.t_secs);
-        assert_eq!(a.map.link, b.map.link);
-        let normal_part = a.map.force_world.dot(a.map.inward_normal_world);
-        assert!(a.map.force_world.distance(a.map.inward_normal_world * normal_part) < 1e-9);
-        let tangential =
-            b.map.force_world - b.map.inward_normal_world * b.map.force_world.dot(b.map.inward_normal_world);
-        if tangential.length() > 0.05 {
-            tangential_seen += 1;
+    for seed in 1..=4 {
+        let frames = synthesize(&robot, &pressed, &synth, seed).unwrap();
+        for f in &frames {
+            let Some(truth) = &f.contact else {
+                continue;
+            };
+            let positions = robot.joint_positions(&f.q, &[]).unwrap();
+            let a = plain.update(&robot, &positions, &f.tau).unwrap().summary;
+            let b = frictional.update(&robot, &positions, &f.tau).unwrap().summary;
+            let normal_part = a.map.force_world.dot(a.map.inward_normal_world);
+            assert!(a.map.force_world.distance(a.map.inward_normal_world * normal_part) < 1e-9);
+            let tangential =
+                b.map.force_world - b.map.inward_normal_world * b.map.force_world.dot(b.map.inward_normal_world);
+            if tangential.length() > 0.05 {
+                tangential_seen += 1;
+            }
+            for (i, s) in [&a, &b].into_iter().enumerate() {
+                position[i].push(s.map.point_world.distance(truth.point_world));
+                force[i].push(s.map.force_world.distance(truth.force_world));
+            }
         }
     }
-    assert!(tangential_seen > 5, "{tangential_seen} frames with a tangential force");
+    let median = |v: &[f64]| percentile(v, 0.5);
+    let (p0, p1, f0, f1) = (
+        median(&position[0]),
+        median(&position[1]),
+        median(&force[0]),
+        median(&force[1]),
+    );
+    eprintln!(
+        "{} frames: position {:.1} / {:.1} mm, force {f0:.2} / {f1:.2} N (frictionless / μ 0.1)",
+        position[0].len(),
+        p0 * 1e3,
+        p1 * 1e3
+    );
+    assert!(f1 < 0.95 * f0, "force {f1} vs {f0}");
+    assert!(p1 < 1.1 * p0 + 1e-3, "position {p1} vs {p0}");
+    assert!(tangential_seen > 20, "{tangential_seen} frames with a tangential force");
 }
 
 /// A negative or non-finite μ is refused by name.
@@ -211,5 +240,64 @@ fn the_shared_presses_push_nearly_along_the_surface_normal() {
             median < median_below && median >= median_above,
             "{name}: median tangential share {median}"
         );
+    }
+}
+
+/// The measure on the `../shared` presses, per frame (`estimate
+/// --temporal none`, 5000 points, σ 0.05): with μ 0.1 the median force
+/// error over the contact frames of surface seeds 0–2 falls by at least a
+/// quarter on each session, and the median position error does not grow.
+/// Measured (`estimate --seed S --temporal none --friction μ`, medians
+/// over seeds 0–4): link 4 13.2 → 9.0 N, link 6 0.31 → 0.21 N, the static
+/// example 2.56 → 1.36 N; positions 56 → 56 mm, 5.4 → 4.0 mm, 34 → 26 mm.
+#[test]
+#[ignore = "needs ../shared"]
+fn on_the_shared_presses_per_frame_friction_cuts_the_force_error() {
+    use proprioscope::io::session::{Session, Truth};
+    let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/sessions");
+    for name in [
+        "lwr4plus_dyn_example_link4.session.json",
+        "lwr4plus_dyn_example_link6.session.json",
+        "lwr4plus_static_example.session.json",
+    ] {
+        let session = Session::read(&root.join(name)).unwrap();
+        let robot = proprioscope::batch::session_robot(&session, None, &[], &[]).unwrap();
+        let (mut position, mut force) = ([Vec::new(), Vec::new()], [Vec::new(), Vec::new()]);
+        for seed in 0..3 {
+            let request = SurfaceRequest {
+                links: robot.default_candidate_links(),
+                total_points: 5_000,
+                seed,
+            };
+            for (i, friction) in [0.0, 0.1].into_iter().enumerate() {
+                let estimator = Estimator::new(&robot, &request, settings(friction), None).unwrap();
+                for frame in &session.frames {
+                    let Truth::Contact {
+                        point, force: truth, ..
+                    } = &frame.truth
+                    else {
+                        continue;
+                    };
+                    let positions = robot.joint_positions(&frame.q, &[]).unwrap();
+                    let map = estimator.update(&robot, &positions, &frame.tau).unwrap().summary.map;
+                    position[i].push(map.point_world.distance(glam::DVec3::from_array(*point)));
+                    force[i].push(map.force_world.distance(glam::DVec3::from_array(*truth)));
+                }
+            }
+        }
+        let median = |v: &[f64]| percentile(v, 0.5);
+        let (p0, p1, f0, f1) = (
+            median(&position[0]),
+            median(&position[1]),
+            median(&force[0]),
+            median(&force[1]),
+        );
+        eprintln!(
+            "{name}: position {:.1} / {:.1} mm, force {f0:.2} / {f1:.2} N (frictionless / μ 0.1)",
+            p0 * 1e3,
+            p1 * 1e3
+        );
+        assert!(f1 < 0.75 * f0, "{name}: force {f1} vs {f0}");
+        assert!(p1 < 1.05 * p0 + 1e-3, "{name}: position {p1} vs {p0}");
     }
 }

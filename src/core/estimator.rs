@@ -69,8 +69,11 @@ pub struct EstimatorSettings {
     pub patches: bool,
     /// μ of the friction model ([`crate::core::friction`]): the spread of
     /// the tangential force per newton of push, per tangent direction.
-    /// 0: frictionless. Only the refined contact's force (and its fit
-    /// test) uses it; the posterior over places is the frictionless one.
+    /// 0: frictionless. The refined contact uses it: a frame's own
+    /// refinement searches the surface for the place that the friction
+    /// model explains best and reports its force and fit; under a temporal
+    /// model (whose place is the whole recording's) the force and fit at
+    /// that place. The posterior over the samples is the frictionless one.
     pub friction: f64,
 }
 

@@ -1,4 +1,4 @@
-//! Friction at a placed contact: besides the push along the inward normal
+//! Friction at a contact: besides the push along the inward normal
 //! (magnitude f), a tangential force g in the surface's plane.
 //!
 //! A uniform friction cone (|g| ≤ μ f) adds two free unknowns to every
@@ -6,11 +6,13 @@
 //! and the position gets worse. Real presses mostly carry a small
 //! tangential force (a few percent of the normal one, rarely near μ). The
 //! model here is a Gaussian tangential force whose spread grows with the
-//! push: g ~ N(0, (μ f)² I₂). The place stays the frictionless estimate's
-//! (it is a property of where the torques' line of action lies, which the
-//! small tangential part barely moves); at that place the normal magnitude
-//! maximises the likelihood with g marginalised, and g is its posterior
-//! mean given that magnitude. With torques `u` per newton of push and `J`
+//! push: g ~ N(0, (μ f)² I₂). At a place the normal magnitude maximises
+//! the likelihood with g marginalised, and g is its posterior mean given
+//! that magnitude; places are compared by that marginal likelihood (the
+//! refinement's search on the surface, [`crate::core::refine`], minimises
+//! [`Fit::cost`]), so a tangential force no longer drags the place to
+//! where the normal lies along the whole force. With torques `u` per
+//! newton of push and `J`
 //! (two columns) per newton along the tangents, `W = 1/σ²`:
 //!
 //! `τ | f ~ N(f u, W⁻¹ + (μ f)² J Jᵀ)`, so
@@ -29,11 +31,14 @@ use crate::core::torque::{TorqueModel, weighted_dot as inner};
 
 /// Magnitudes tried across the force range before the golden-section
 /// polish (the marginal likelihood need not be unimodal over 1–30 N).
-const GRID: usize = 64;
+const GRID: usize = 32;
 
-/// Golden-section steps (the bracket shrinks by 0.618 each: 60 steps take
-/// a grid cell of 0.5 N below 1e-12 N).
-const GOLDEN_STEPS: usize = 60;
+/// Golden-section steps (the bracket shrinks by 0.618 each: 30 steps take
+/// the two grid cells around the best, 1.9 N over 1–30 N, below 1e-6 N,
+/// where the cost is within 1e-9 of its minimum; the search on the
+/// surface that calls this for every place it tries compares costs to
+/// 1e-2).
+const GOLDEN_STEPS: usize = 30;
 
 /// Below this tangential spread, N, the tangential force is taken as 0
 /// (its prior precision would overflow).
@@ -108,14 +113,43 @@ pub fn frictional_force(
     model.unit_torques_into(link, point_in_link, normal, &mut u);
     model.unit_torques_into(link, point_in_link, t1, &mut j1);
     model.unit_torques_into(link, point_in_link, t2, &mut j2);
+    let fit = fit(&u, [&j1, &j2], m, friction)?;
+    Some(FrictionalForce {
+        normal_newtons: fit.normal_newtons,
+        tangential_in_link: t1 * fit.tangential[0] + t2 * fit.tangential[1],
+        residual_chi2: fit.residual_chi2,
+    })
+}
+
+/// The friction model's fit at one place, from its torques per newton.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Fit {
+    /// Push along the inward normal, N.
+    pub normal_newtons: f64,
+    /// `E[g | f]` along the two tangents whose torques were given, N.
+    pub tangential: [f64; 2],
+    /// The marginal model's Mahalanobis residual (see [`FrictionalForce`]).
+    pub residual_chi2: f64,
+    /// `-2 ln` of the marginal likelihood at that magnitude, up to a
+    /// constant shared by every place: the residual plus the volume term
+    /// (module docs). Places are compared by it.
+    pub cost: f64,
+}
+
+/// The magnitude in the measurement's force range that maximises the
+/// marginal likelihood of a place whose unit push makes torques `u` and
+/// whose unit tangential forces make `tangential`, with friction μ =
+/// `friction` (0 or not a number: frictionless). `None` for a place that
+/// moves no sensed joint.
+pub(crate) fn fit(u: &[f64], [j1, j2]: [&[f64]; 2], m: &Measurement, friction: f64) -> Option<Fit> {
     let w = m.weights;
     let place = Place {
-        uu: inner(w, &u, &u),
-        ut: inner(w, &u, m.tau),
+        uu: inner(w, u, u),
+        ut: inner(w, u, m.tau),
         tt: inner(w, m.tau, m.tau),
-        ju: [inner(w, &j1, &u), inner(w, &j2, &u)],
-        jt: [inner(w, &j1, m.tau), inner(w, &j2, m.tau)],
-        jj: [inner(w, &j1, &j1), inner(w, &j1, &j2), inner(w, &j2, &j2)],
+        ju: [inner(w, j1, u), inner(w, j2, u)],
+        jt: [inner(w, j1, m.tau), inner(w, j2, m.tau)],
+        jj: [inner(w, j1, j1), inner(w, j1, j2), inner(w, j2, j2)],
     };
     if place.uu.is_nan() || place.uu <= 0.0 || !place.tt.is_finite() {
         return None;
@@ -137,11 +171,12 @@ pub fn frictional_force(
     } else {
         lo
     };
-    let (_, residual_chi2, g) = at_magnitude(&place, f, friction);
-    Some(FrictionalForce {
+    let (cost, residual_chi2, tangential) = at_magnitude(&place, f, friction);
+    Some(Fit {
         normal_newtons: f,
-        tangential_in_link: t1 * g[0] + t2 * g[1],
+        tangential,
         residual_chi2,
+        cost,
     })
 }
 
@@ -213,6 +248,7 @@ mod tests {
             tau,
             weights,
             force_range_newtons: (1.0, 30.0),
+            friction: 0.0,
         }
     }
 

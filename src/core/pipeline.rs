@@ -4,10 +4,9 @@
 
 use crate::core::contact::{PatchForms, PosedSurface};
 use crate::core::estimator::{EstimateError, EstimatorSettings, Mode, Posterior, estimate_keeping_forms};
-use crate::core::friction::frictional_force;
 use crate::core::kinematics::RobotPose;
 use crate::core::phases::PhaseHierarchy;
-use crate::core::refine::{Measurement, RefinedContact, contact_at_offsets, refine};
+use crate::core::refine::{Measurement, contact_at_offsets, refine};
 use crate::core::robot::{LinkId, Robot};
 use crate::core::special::chi_square_survival;
 use crate::core::summary::{NO_CONTACT_P, Refinement, Summary, summarize_refined};
@@ -170,8 +169,12 @@ impl Estimator {
                     tau,
                     weights: &weights,
                     force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
+                    friction: self.settings.friction,
                 };
-                let contact = match offsets {
+                // With friction (`Measurement::friction`) a frame's own
+                // refinement places the contact by the friction model; both
+                // report that model's force.
+                match offsets {
                     Some((offsets, windows_m)) => {
                         // Confined to its patch (beyond it the linear
                         // model does not hold): the mean there.
@@ -182,8 +185,7 @@ impl Estimator {
                         contact_at_offsets(torque_model, &self.surface, posterior, &measurement, offset_m)
                     }
                     None => refine(torque_model, &self.surface, posterior, &measurement),
-                };
-                contact.map(|c| with_friction(c, torque_model, &measurement, self.settings.friction))
+                }
             })
             .flatten();
         summarize_refined(
@@ -272,34 +274,6 @@ impl Estimator {
             posterior,
             summary,
         }
-    }
-}
-
-/// `contact` with the force of the friction model at its place (the same
-/// contact when `friction` is 0 or the fit fails).
-fn with_friction(
-    contact: RefinedContact,
-    torque_model: &TorqueModel,
-    measurement: &Measurement,
-    friction: f64,
-) -> RefinedContact {
-    if friction.is_nan() || friction <= 0.0 {
-        return contact;
-    }
-    match frictional_force(
-        torque_model,
-        contact.link,
-        (contact.point_in_link, contact.inward_normal_in_link),
-        measurement,
-        friction,
-    ) {
-        Some(force) => RefinedContact {
-            force_newtons: force.normal_newtons,
-            tangential_in_link: force.tangential_in_link,
-            residual_chi2: force.residual_chi2,
-            ..contact
-        },
-        None => contact,
     }
 }
 

@@ -2,11 +2,15 @@
 //! likeliest samples, Gauss–Newton steps move the contact over the link's
 //! continuous surface (across triangle edges, on the posed link) and fit
 //! its magnitude, until the step is below a micrometre. The answer is the
-//! best point of the surface, not of the samples.
+//! best point of the surface, not of the samples. With friction
+//! ([`Measurement::friction`]) "best" is the friction model's: the steps
+//! read the torques through that model's noise ([`Metric`]) and a step is
+//! kept when it raises its marginal likelihood.
 
 use glam::DVec3;
 
 use crate::core::estimator::Posterior;
+use crate::core::friction;
 use crate::core::regions::{Region, regions};
 use crate::core::robot::LinkId;
 use crate::core::smooth::{MeshPoint, SurfaceFrame};
@@ -64,6 +68,52 @@ pub struct Measurement<'a> {
     pub weights: &'a [f64],
     /// Push magnitudes considered, N.
     pub force_range_newtons: (f64, f64),
+    /// μ of the friction model ([`crate::core::friction`]); 0: frictionless.
+    /// With friction the search minimises the marginal model's `-2 ln L`
+    /// (the tangential force integrated out) instead of the residual, so
+    /// that the place, not only the force, is the friction model's.
+    pub friction: f64,
+}
+
+/// Inner products of torque vectors under the noise the search assumes:
+/// `xᵀWy`, or with friction (tangential torques `J` at the place, spread
+/// `s = μ f`) under the marginal model's precision
+/// `W - WJ(JᵀWJ + I/s²)⁻¹JᵀW`.
+struct Metric<'a> {
+    weights: &'a [f64],
+    /// `J`'s two columns and `(JᵀWJ + I/s²)⁻¹` as (11, 12, 22).
+    tangential: Option<([&'a [f64]; 2], [f64; 3])>,
+}
+
+impl<'a> Metric<'a> {
+    /// The metric of noise precisions `weights` with tangential torques
+    /// `tangential` (none: frictionless) whose force has the spread
+    /// `spread`, N (at or below 1 nN: frictionless).
+    fn new(weights: &'a [f64], tangential: Option<[&'a [f64]; 2]>, spread: f64) -> Self {
+        let tangential = tangential.filter(|_| spread > 1e-9).map(|[j1, j2]| {
+            let precision = 1.0 / (spread * spread);
+            let (q11, q12, q22) = (
+                inner(weights, j1, j1) + precision,
+                inner(weights, j1, j2),
+                inner(weights, j2, j2) + precision,
+            );
+            // A positive semi-definite matrix plus a positive multiple of I.
+            let det = (q11 * q22 - q12 * q12).max(precision * precision);
+            ([j1, j2], [q22 / det, -q12 / det, q11 / det])
+        });
+        Self { weights, tangential }
+    }
+
+    fn ip(&self, x: &[f64], y: &[f64]) -> f64 {
+        let w = self.weights;
+        let plain = inner(w, x, y);
+        let Some(([j1, j2], q)) = self.tangential else {
+            return plain;
+        };
+        let (x1, x2) = (inner(w, j1, x), inner(w, j2, x));
+        let (y1, y2) = (inner(w, j1, y), inner(w, j2, y));
+        plain - (x1 * (q[0] * y1 + q[1] * y2) + x2 * (q[1] * y1 + q[2] * y2))
+    }
 }
 
 /// The best magnitude in range for unit torques `u` and its residual.
@@ -77,12 +127,13 @@ fn profile(m: &Measurement, u: &[f64]) -> (f64, f64) {
 
 /// One Gauss–Newton step at `frame`: the offset along the tangents, m,
 /// from the linearised model `f u + g₁ d₁ + g₂ d₂` (`g = f s`), with f in
-/// range. `None` when the tangents do not change the torques.
-fn step(m: &Measurement, u: &[f64], d1: &[f64], d2: &[f64]) -> Option<[f64; 2]> {
-    let w = m.weights;
-    let (a, h1, h2) = (inner(w, u, u), inner(w, u, d1), inner(w, u, d2));
-    let (g11, g12, g22) = (inner(w, d1, d1), inner(w, d1, d2), inner(w, d2, d2));
-    let (b, e1, e2) = (inner(w, u, m.tau), inner(w, d1, m.tau), inner(w, d2, m.tau));
+/// range, residuals measured by `metric`. `None` when the tangents do not
+/// change the torques.
+fn step(metric: &Metric, m: &Measurement, u: &[f64], d1: &[f64], d2: &[f64]) -> Option<[f64; 2]> {
+    let ip = |x: &[f64], y: &[f64]| metric.ip(x, y);
+    let (a, h1, h2) = (ip(u, u), ip(u, d1), ip(u, d2));
+    let (g11, g12, g22) = (ip(d1, d1), ip(d1, d2), ip(d2, d2));
+    let (b, e1, e2) = (ip(u, m.tau), ip(d1, m.tau), ip(d2, m.tau));
     // A tiny ridge keeps directions the torques cannot see from moving.
     let ridge = 1e-12 * (g11 + g22).max(f64::MIN_POSITIVE);
     let (g11, g22) = (g11 + ridge, g22 + ridge);
@@ -125,22 +176,63 @@ struct State {
     at: MeshPoint,
     frame: SurfaceFrame,
     torques: [Vec<f64>; 3],
+    /// With friction: the torques of unit forces along the frame's tangents.
+    tangential_torques: Option<[Vec<f64>; 2]>,
     f: f64,
+    /// The tangential force along the frame's tangents, N (0 without friction).
+    g: [f64; 2],
+    /// The residual (with friction, the marginal model's).
     chi2: f64,
+    /// What the search minimises: the residual, or with friction the
+    /// marginal model's `-2 ln L`.
+    objective: f64,
 }
 
 impl State {
     fn at(model: &TorqueModel, shape: &LinkShape, link: LinkId, m: &Measurement, at: MeshPoint) -> Option<Self> {
         let frame = shape.frame(at)?;
-        let torques = frame_torques(model, link, &frame, model.sensed_count());
-        let (f, chi2) = profile(m, &torques[0]);
+        let joints = model.sensed_count();
+        let torques = frame_torques(model, link, &frame, joints);
+        if m.friction.is_nan() || m.friction <= 0.0 {
+            let (f, chi2) = profile(m, &torques[0]);
+            return Some(Self {
+                at,
+                frame,
+                torques,
+                tangential_torques: None,
+                f,
+                g: [0.0; 2],
+                chi2,
+                objective: chi2,
+            });
+        }
+        let tangential = frame.tangents.map(|t| {
+            let moment = frame.point.cross(t);
+            let mut out = vec![0.0; joints];
+            model.line_array_torques_into(link, &[moment.x, moment.y, moment.z, t.x, t.y, t.z], &mut out);
+            out
+        });
+        let fit = friction::fit(&torques[0], [&tangential[0], &tangential[1]], m, m.friction)?;
         Some(Self {
             at,
             frame,
             torques,
-            f,
-            chi2,
+            tangential_torques: Some(tangential),
+            f: fit.normal_newtons,
+            g: fit.tangential,
+            chi2: fit.residual_chi2,
+            objective: fit.cost,
         })
+    }
+
+    /// The inner products the next step uses: the marginal model's at this
+    /// magnitude with friction.
+    fn metric<'a>(&'a self, m: &'a Measurement) -> Metric<'a> {
+        let tangential = self
+            .tangential_torques
+            .as_ref()
+            .map(|[j1, j2]| [j1.as_slice(), j2.as_slice()]);
+        Metric::new(m.weights, tangential, m.friction * self.f.abs())
     }
 }
 
@@ -156,15 +248,22 @@ impl State {
         steps: usize,
     ) -> RefinedContact {
         let [u, d1, d2] = &self.torques;
+        let metric = self.metric(measurement);
         RefinedContact {
             link,
             location: self.at,
             point_in_link: self.frame.point,
             inward_normal_in_link: self.frame.inward_normal,
             force_newtons: self.f,
-            tangential_in_link: DVec3::ZERO,
+            tangential_in_link: self.frame.tangents[0] * self.g[0] + self.frame.tangents[1] * self.g[1],
             residual_chi2: self.chi2,
-            patch_log_mass: centred_patch_log_mass(measurement, [u, d1, d2], self.chi2, self.f, window_m),
+            patch_log_mass: centred_patch_log_mass(
+                &metric,
+                measurement,
+                [u, d1, d2],
+                (self.objective, self.f),
+                window_m,
+            ),
             start,
             steps,
         }
@@ -192,7 +291,7 @@ impl Search<'_> {
         let mut steps = 0;
         for _ in 0..MAX_STEPS {
             let [u, d1, d2] = &state.torques;
-            let Some(s) = step(self.measurement, u, d1, d2) else {
+            let Some(s) = step(&state.metric(self.measurement), self.measurement, u, d1, d2) else {
                 break;
             };
             let mut offset = state.frame.tangents[0] * s[0] + state.frame.tangents[1] * s[1];
@@ -204,8 +303,8 @@ impl Search<'_> {
                 let Some(next) = self.state(self.shape.walk(state.at, offset)) else {
                     break;
                 };
-                if next.chi2 < state.chi2 {
-                    gain = state.chi2 - next.chi2;
+                if next.objective < state.objective {
+                    gain = state.objective - next.objective;
                     *state = next;
                     break;
                 }
@@ -227,18 +326,19 @@ impl Search<'_> {
     /// started: the answer is then the valley's point nearest the
     /// region's centre of mass, not wherever the search first met it.
     fn slide(&self, state: &mut State, centre: DVec3) -> usize {
-        let best = state.chi2;
+        let best = state.objective;
         let mut steps = 0;
         for _ in 0..MAX_SLIDES {
-            let w = self.measurement.weights;
+            let metric = state.metric(self.measurement);
+            let ip = |x: &[f64], y: &[f64]| metric.ip(x, y);
             let [u, d1, d2] = &state.torques;
-            let a = inner(w, u, u).max(f64::MIN_POSITIVE);
-            let (h1, h2) = (inner(w, u, d1), inner(w, u, d2));
+            let a = ip(u, u).max(f64::MIN_POSITIVE);
+            let (h1, h2) = (ip(u, d1), ip(u, d2));
             let f2 = state.f * state.f;
             // Curvature of χ²/2 in the tangent plane, the magnitude refitted.
-            let s11 = f2 * (inner(w, d1, d1) - h1 * h1 / a);
-            let s12 = f2 * (inner(w, d1, d2) - h1 * h2 / a);
-            let s22 = f2 * (inner(w, d2, d2) - h2 * h2 / a);
+            let s11 = f2 * (ip(d1, d1) - h1 * h1 / a);
+            let s12 = f2 * (ip(d1, d2) - h1 * h2 / a);
+            let s22 = f2 * (ip(d2, d2) - h2 * h2 / a);
             let to = centre - state.frame.point;
             let want = [state.frame.tangents[0].dot(to), state.frame.tangents[1].dot(to)];
             // Eigen-directions of the 2×2 curvature; along each, a move
@@ -273,7 +373,7 @@ impl Search<'_> {
             steps += 1;
             // Stop where the valley rises, turns away from the centre, or
             // the search returns where it was.
-            if next.chi2 > best + VALLEY_CHI2
+            if next.objective > best + VALLEY_CHI2
                 || next.frame.point.distance(centre) >= state.frame.point.distance(centre)
                 || next.frame.point.distance(state.frame.point) < CONVERGED_M
             {
@@ -292,15 +392,16 @@ const VALLEY_CHI2: f64 = 0.5;
 /// Moves along a valley per refinement.
 const MAX_SLIDES: usize = 12;
 
-/// Refines from sample `start` and slides towards `centre` (link frame);
-/// `None` if its link has no continuous surface.
+/// Refines from sample `start` and slides towards `centre` (link frame),
+/// with the objective reached there; `None` if its link has no continuous
+/// surface.
 fn refine_from(
     model: &TorqueModel,
     surface: &Surface,
     measurement: &Measurement,
     start: usize,
     centre: DVec3,
-) -> Option<RefinedContact> {
+) -> Option<(RefinedContact, f64)> {
     let link = *surface.link.get(start)?;
     let search = Search {
         model,
@@ -312,21 +413,32 @@ fn refine_from(
     let mut state = search.state(*surface.location.get(start)?)?;
     let mut steps = search.descend(&mut state);
     steps += search.slide(&mut state, centre);
-    Some(state.contact(link, measurement, search.trust, start, steps))
+    Some((
+        state.contact(link, measurement, search.trust, start, steps),
+        state.objective,
+    ))
 }
 
 /// ln of the posterior mass of a Gaussian patch of width `window_m`
 /// centred on a contact with unit torques `u` (derivatives `d₁`, `d₂`
-/// per metre along the tangents), residual `chi2` and magnitude `f`: the
+/// per metre along the tangents), objective (residual, or with friction
+/// `-2 ln L` of the marginal model, whose inner products `metric` gives)
+/// `chi2` and magnitude `f`: the
 /// Gauss–Newton model of the likelihood around the contact, taken as
 /// peaking there (the search has stopped there), integrated over the
 /// window and the magnitude range. Up to the same constant as the
 /// samples' masses (the area density is uniform).
-fn centred_patch_log_mass(m: &Measurement, [u, d1, d2]: [&[f64]; 3], chi2: f64, f: f64, window_m: f64) -> f64 {
-    let w = m.weights;
-    let a = inner(w, u, u);
-    let (h1, h2) = (inner(w, u, d1), inner(w, u, d2));
-    let (g11, g12, g22) = (inner(w, d1, d1), inner(w, d1, d2), inner(w, d2, d2));
+fn centred_patch_log_mass(
+    metric: &Metric,
+    m: &Measurement,
+    [u, d1, d2]: [&[f64]; 3],
+    (chi2, f): (f64, f64),
+    window_m: f64,
+) -> f64 {
+    let ip = |x: &[f64], y: &[f64]| metric.ip(x, y);
+    let a = ip(u, u);
+    let (h1, h2) = (ip(u, d1), ip(u, d2));
+    let (g11, g12, g22) = (ip(d1, d1), ip(d1, d2), ip(d2, d2));
     // The window in g = f s has width f ρ; g integrated out (as in
     // `estimator::patch_terms`) leaves a' for f and a volume factor.
     let width = (f * window_m).max(1e-12);
@@ -376,8 +488,10 @@ fn posterior_regions(surface: &Surface, posterior: &Posterior) -> Vec<Region> {
 /// moved by that sample's believed offset along its tangents
 /// (`offset_m(k)`, m: what every frame of the contact says, not only
 /// this one; asked for that one sample only), with this frame's best
-/// magnitude there. No search: the
-/// place is the whole recording's, the magnitude this frame's.
+/// magnitude there (with friction, the friction model's force). No
+/// search: the place is the whole recording's, the force this frame's.
+/// (A search from there with friction was tried: each frame's place then
+/// wandered along its own valley again; `README`, *Friction*.)
 #[must_use]
 pub fn contact_at_offsets(
     model: &TorqueModel,
@@ -417,7 +531,8 @@ const MAX_RIVAL_REGIONS: usize = 3;
 /// better (by more than half a nat of patch mass); in a valley of equally
 /// good contacts (a link that few joints sense) that is the valley's point
 /// nearest the region's centre. Of these, the one with the smallest
-/// residual: the continuous optimum is a property of the arm and the
+/// residual (with friction, the smallest `-2 ln L` of the friction model):
+/// the continuous optimum is a property of the arm and the
 /// torques, while the masses of rival regions, summed over samples, still
 /// move by tens of percent with the sampling where a peak is narrower than
 /// the samples' spacing (on one static-example frame a region's share went
@@ -437,7 +552,8 @@ pub fn refine(
         .take(MAX_RIVAL_REGIONS)
         .filter(|r| r.weight >= RIVAL_REGION_FRACTION * heaviest)
         .filter_map(|r| refine_region(model, surface, measurement, r))
-        .min_by(|x, y| x.residual_chi2.total_cmp(&y.residual_chi2))
+        .min_by(|x, y| x.1.total_cmp(&y.1))
+        .map(|(contact, _)| contact)
 }
 
 /// [`refine`] in one region.
@@ -446,14 +562,14 @@ fn refine_region(
     surface: &Surface,
     measurement: &Measurement,
     best: &Region,
-) -> Option<RefinedContact> {
+) -> Option<(RefinedContact, f64)> {
     let central = refine_from(model, surface, measurement, best.central, best.centre_in_link);
     if best.top == best.central {
         return central;
     }
     let top = refine_from(model, surface, measurement, best.top, best.centre_in_link);
     match (central, top) {
-        (Some(c), Some(t)) => Some(if t.patch_log_mass > c.patch_log_mass + 0.5 {
+        (Some(c), Some(t)) => Some(if t.0.patch_log_mass > c.0.patch_log_mass + 0.5 {
             t
         } else {
             c
@@ -522,11 +638,130 @@ mod tests {
             tau: &tau,
             weights: &weights,
             force_range_newtons: (1.0, 30.0),
+            friction: 0.0,
         };
         let found = |posterior: &Posterior| refine(&model, &surface, posterior, &m).unwrap().link;
         let lighter_but_right = two_samples(surface.len(), (rival, 0.6), (truth, 0.4));
         assert_eq!(found(&lighter_but_right), surface.link[truth]);
         let too_light = two_samples(surface.len(), (rival, 0.9), (truth, 0.1));
         assert_eq!(found(&too_light), surface.link[rival]);
+    }
+
+    /// Presses with a tangential part, noise-free, from their own sample:
+    /// without friction the search moves the place until the normal
+    /// explains what the tangential force did (17 mm away at the median);
+    /// with it the place stays within a few millimetres (2 mm: the prior
+    /// on the tangential force prefers a place that needs less of it) and
+    /// the force is recovered, tangential part included (0.05 N).
+    #[test]
+    fn with_friction_the_search_keeps_a_sliding_press_in_place() {
+        let robot = builtin::lwr4plus_generated().unwrap();
+        let links = robot.default_candidate_links();
+        let request = SurfaceRequest {
+            links: links.clone(),
+            total_points: 2000,
+            seed: 1,
+        };
+        let surface = Surface::sample(&robot, &request).unwrap();
+        let q = [0.3, 0.6, -0.4, -1.2, 0.5, 0.9, 0.2];
+        let pose = RobotPose::new(&robot, &robot.joint_positions(&q, &[]).unwrap());
+        let model = TorqueModel::new(&robot, &pose, &links);
+        let forearm = robot.link_id("lwr_4_link").unwrap();
+        let mut rng = crate::core::rng::Rng::new(9);
+        let (mut moved, mut kept, mut force_errors) = (Vec::new(), Vec::new(), Vec::new());
+        while moved.len() < 25 {
+            let k = (rng.uniform() * surface.len() as f64) as usize % surface.len();
+            if surface.link[k] < forearm || surface.shape(surface.link[k]).is_none() {
+                continue;
+            }
+            let (link, point, normal) = (
+                surface.link[k],
+                surface.point_in_link[k],
+                surface.inward_normal_in_link[k],
+            );
+            let (t1, t2) = normal.any_orthonormal_pair();
+            let angle = rng.uniform() * std::f64::consts::TAU;
+            let force = normal * 10.0 + (t1 * angle.cos() + t2 * angle.sin()) * 2.5;
+            let tau = model.torques(link, point, force);
+            let weights = vec![400.0; tau.len()];
+            let posterior = two_samples(surface.len(), (k, 1.0), (k, 0.0));
+            let found = |friction: f64| {
+                let m = Measurement {
+                    tau: &tau,
+                    weights: &weights,
+                    force_range_newtons: (1.0, 30.0),
+                    friction,
+                };
+                refine(&model, &surface, &posterior, &m).unwrap()
+            };
+            let (plain, frictional) = (found(0.0), found(0.3));
+            moved.push(plain.point_in_link.distance(point));
+            kept.push(frictional.point_in_link.distance(point));
+            let got = frictional.inward_normal_in_link * frictional.force_newtons + frictional.tangential_in_link;
+            force_errors.push(got.distance(force));
+        }
+        let median = |v: &mut Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let (moved, kept, force_error) = (median(&mut moved), median(&mut kept), median(&mut force_errors));
+        eprintln!(
+            "median distance from the press: {moved:.4} m frictionless, {kept:.5} m with friction; force error {force_error:.3} N"
+        );
+        assert!(kept < 4e-3, "{kept}");
+        assert!(moved > 4.0 * kept, "{moved} vs {kept}");
+        assert!(force_error < 0.3, "{force_error}");
+    }
+
+    /// The marginal inner product is `xᵀ(W⁻¹ + s²JJᵀ)⁻¹y`, here solved
+    /// directly by elimination on the 7×7 covariance.
+    #[test]
+    fn the_marginal_metric_inverts_the_marginal_covariance() {
+        let mut rng = crate::core::rng::Rng::new(4);
+        let draw = |rng: &mut crate::core::rng::Rng| -> Vec<f64> { (0..7).map(|_| rng.normal()).collect() };
+        for spread in [0.0, 0.3, 2.0, 40.0] {
+            let weights: Vec<f64> = (0..7).map(|_| rng.uniform_in(10.0, 1000.0)).collect();
+            let (j1, j2, x, y) = (draw(&mut rng), draw(&mut rng), draw(&mut rng), draw(&mut rng));
+            let metric = Metric::new(&weights, Some([&j1, &j2]), spread);
+            // [C | y] with C = W⁻¹ + s²JJᵀ, then Gauss–Jordan.
+            let mut rows: Vec<Vec<f64>> = (0..7)
+                .map(|i| {
+                    let mut row: Vec<f64> = (0..7)
+                        .map(|k| {
+                            spread * spread * (j1[i] * j1[k] + j2[i] * j2[k])
+                                + if i == k { 1.0 / weights[i] } else { 0.0 }
+                        })
+                        .collect();
+                    row.push(y[i]);
+                    row
+                })
+                .collect();
+            for col in 0..7 {
+                let pivot = (col..7)
+                    .max_by(|&a, &b| rows[a][col].abs().total_cmp(&rows[b][col].abs()))
+                    .unwrap();
+                rows.swap(col, pivot);
+                let p = rows[col][col];
+                for v in &mut rows[col] {
+                    *v /= p;
+                }
+                for r in 0..7 {
+                    if r != col {
+                        let factor = rows[r][col];
+                        let pivot_row = rows[col].clone();
+                        for (v, pv) in rows[r].iter_mut().zip(&pivot_row) {
+                            *v -= factor * pv;
+                        }
+                    }
+                }
+            }
+            let direct: f64 = (0..7).map(|i| x[i] * rows[i][7]).sum();
+            let got = metric.ip(&x, &y);
+            assert!(
+                (got - direct).abs() < 1e-9 * direct.abs().max(1.0),
+                "spread {spread}: {got} vs {direct}"
+            );
+            assert!((metric.ip(&x, &y) - metric.ip(&y, &x)).abs() < 1e-9 * got.abs().max(1.0));
+        }
     }
 }
