@@ -301,3 +301,53 @@ fn on_the_shared_presses_per_frame_friction_cuts_the_force_error() {
         assert!(p1 < 1.05 * p0 + 1e-3, "{name}: position {p1} vs {p0}");
     }
 }
+
+/// Friction on the hard cases: a σ far below and far above the torques,
+/// torques of zero, a push through a joint's axis, μ up to the scene's
+/// limit of 2. Every estimate is finite (or an error), never a NaN.
+#[test]
+fn friction_keeps_hard_cases_finite() {
+    let robot = builtin::lwr4plus_generated().unwrap();
+    let links = robot.default_candidate_links();
+    let request = SurfaceRequest {
+        links: links.clone(),
+        total_points: 400,
+        seed: 2,
+    };
+    let q = [0.2, 0.5, -0.3, -1.0, 0.4, 0.8, 0.1];
+    let positions = robot.joint_positions(&q, &[]).unwrap();
+    let pose = RobotPose::new(&robot, &positions);
+    let model = TorqueModel::new(&robot, &pose, &links);
+    let forearm = robot.link_id("lwr_5_link").unwrap();
+    let push = model.torques(
+        forearm,
+        glam::DVec3::new(0.05, 0.0, 0.1),
+        glam::DVec3::new(-8.0, 1.5, 0.5),
+    );
+    let through_axis = model.torques(
+        robot.link_id("lwr_2_link").unwrap(),
+        glam::DVec3::ZERO,
+        glam::DVec3::new(0.0, 0.0, 5.0),
+    );
+    for sigma in [1e-6, 0.05, 100.0] {
+        for friction in [0.05, 0.5, 2.0] {
+            let settings = EstimatorSettings {
+                friction,
+                ..EstimatorSettings::exact(vec![sigma; 7])
+            };
+            let estimator = Estimator::new(&robot, &request, settings, None).unwrap();
+            for tau in [vec![0.0; 7], push.clone(), through_axis.clone()] {
+                let Ok(update) = estimator.update(&robot, &positions, &tau) else {
+                    continue;
+                };
+                let map = update.summary.map;
+                assert!(
+                    map.point_world.is_finite() && map.force_world.is_finite() && map.force_newtons.is_finite(),
+                    "σ {sigma}, μ {friction}, τ {tau:?}: {map:?}"
+                );
+                assert!(!update.summary.fit.p_value.is_nan(), "σ {sigma}, μ {friction}");
+                assert!(update.posterior.probability.iter().all(|p| p.is_finite()));
+            }
+        }
+    }
+}

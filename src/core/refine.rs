@@ -193,9 +193,9 @@ impl State {
         let frame = shape.frame(at)?;
         let joints = model.sensed_count();
         let torques = frame_torques(model, link, &frame, joints);
-        if m.friction.is_nan() || m.friction <= 0.0 {
+        let frictionless = |frame: SurfaceFrame, torques: [Vec<f64>; 3]| {
             let (f, chi2) = profile(m, &torques[0]);
-            return Some(Self {
+            Self {
                 at,
                 frame,
                 torques,
@@ -204,7 +204,10 @@ impl State {
                 g: [0.0; 2],
                 chi2,
                 objective: chi2,
-            });
+            }
+        };
+        if m.friction.is_nan() || m.friction <= 0.0 {
+            return Some(frictionless(frame, torques));
         }
         let tangential = frame.tangents.map(|t| {
             let moment = frame.point.cross(t);
@@ -212,7 +215,11 @@ impl State {
             model.line_array_torques_into(link, &[moment.x, moment.y, moment.z, t.x, t.y, t.z], &mut out);
             out
         });
-        let fit = friction::fit(&torques[0], [&tangential[0], &tangential[1]], m, m.friction)?;
+        // A place whose push moves no sensed joint has no friction fit:
+        // the frictionless state (as without friction).
+        let Some(fit) = friction::fit(&torques[0], [&tangential[0], &tangential[1]], m, m.friction) else {
+            return Some(frictionless(frame, torques));
+        };
         Some(Self {
             at,
             frame,
