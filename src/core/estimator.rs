@@ -275,6 +275,7 @@ impl Quadratic<'_> {
     }
 
     /// Point k's `c` and normaliser.
+    #[inline]
     fn c_norm(&self, k: usize) -> (f64, f64) {
         match self.per_point {
             None => (self.c, 0.0),
@@ -289,6 +290,7 @@ impl Quadratic<'_> {
     }
 
     /// `Σ w (τ - f u)²` at point k.
+    #[inline]
     fn residual(&self, k: usize, f: f64) -> f64 {
         let (c, _) = self.c_norm(k);
         residual(self.a[k], self.b[k], c, f)

@@ -246,9 +246,19 @@ pub fn summarize_refined(
         .collect();
     per_link.sort_by_key(|s| s.link);
     per_link.dedup_by_key(|s| s.link);
-    // The surface is grouped by link and the support is in index order:
-    // the share found for one point almost always serves the next.
-    let mut at: Option<usize> = None;
+    // The surface is grouped by link and the support is in index order: a
+    // run of one link's points adds up in registers (through the shares
+    // in memory each addition waited on the last one's store), and its
+    // share is looked up once per run.
+    let add_run = |per_link: &mut [LinkShare], (link, summed, max): (LinkId, f64, f64)| {
+        if let Ok(i) = per_link.binary_search_by_key(&link, |s| s.link)
+            && let Some(share) = per_link.get_mut(i)
+        {
+            share.summed += summed;
+            share.max = share.max.max(max);
+        }
+    };
+    let mut run: Option<(LinkId, f64, f64)> = None;
     for &k in &posterior.support {
         let (Some(&link), Some(&p), Some(&d)) = (
             surface.link.get(k),
@@ -257,13 +267,21 @@ pub fn summarize_refined(
         ) else {
             continue;
         };
-        if at.and_then(|i| per_link.get(i)).is_none_or(|s| s.link != link) {
-            at = per_link.binary_search_by_key(&link, |s| s.link).ok();
+        match &mut run {
+            Some((current, summed, max)) if *current == link => {
+                *summed += p;
+                *max = max.max(d);
+            }
+            _ => {
+                if let Some(done) = run {
+                    add_run(&mut per_link, done);
+                }
+                run = Some((link, 0.0 + p, 0.0_f64.max(d)));
+            }
         }
-        if let Some(share) = at.and_then(|i| per_link.get_mut(i)) {
-            share.summed += p;
-            share.max = share.max.max(d);
-        }
+    }
+    if let Some(done) = run {
+        add_run(&mut per_link, done);
     }
     let world = |k: usize| pose.point_to_world(surface.link[k], surface.point_in_link[k]);
     let grid_map = contact_at(posterior, surface, pose, posterior.map_point);
@@ -290,11 +308,16 @@ pub fn summarize_refined(
 /// a point's position.
 #[must_use]
 pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level: f64) -> CredibleSet {
-    let top = posterior
-        .support
-        .iter()
-        .filter_map(|&k| posterior.probability.get(k))
-        .fold(0.0, |top: f64, &p| top.max(p));
+    // Four running maxima: one chain of `max` waits on each step.
+    let mut tops = [0.0_f64; 4];
+    for chunk in posterior.support.chunks(4) {
+        for (top, &k) in tops.iter_mut().zip(chunk) {
+            if let Some(&p) = posterior.probability.get(k) {
+                *top = top.max(p);
+            }
+        }
+    }
+    let top = tops.into_iter().fold(0.0, f64::max);
     // Points below 1e-18 of the largest hold less than 1e-12 together for
     // any surface we sample: they never enter a 90 % set.
     let (points, mass) = most_probable_holding(&posterior.support, &posterior.probability, top * 1e-18, level);
@@ -520,5 +543,62 @@ mod tests {
                 assert!((got_mass - mass).abs() < 1e-12);
             }
         }
+    }
+
+    /// Each link's share is the sum of its points' probabilities and the
+    /// largest value shown on it, summed here point by point over the
+    /// whole surface (the summary reads the support in runs of one link).
+    #[test]
+    fn per_link_shares_add_up_their_points() {
+        let robot = crate::core::builtin::lwr4plus_generated().unwrap();
+        let request = crate::core::surface::SurfaceRequest {
+            links: robot.default_candidate_links(),
+            total_points: 700,
+            seed: 3,
+        };
+        let surface = Surface::sample(&robot, &request).unwrap();
+        let pose = RobotPose::new(&robot, &robot.joint_positions(&[0.1; 7], &[]).unwrap());
+        let n = surface.len();
+        let mut rng = Rng::new(8);
+        let mut probability: Vec<f64> = (0..n)
+            .map(|_| {
+                if rng.uniform() < 0.6 {
+                    rng.uniform().powi(3)
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let total: f64 = probability.iter().sum();
+        for p in &mut probability {
+            *p /= total;
+        }
+        let display: Vec<f64> = probability.iter().map(|p| p * rng.uniform_in(0.5, 2.0)).collect();
+        let support: Vec<usize> = (0..n).filter(|&k| probability[k] > 0.0).collect();
+        let posterior = Posterior {
+            display: display.clone(),
+            log_likelihood: probability.iter().map(|p| p.ln()).collect(),
+            force_newtons: vec![5.0; n],
+            phases: Vec::new(),
+            phase_flags: vec![0; n],
+            map_point: support[0],
+            support,
+            best_residual_chi2: 1.0,
+            no_contact_chi2: 1e3,
+            probability: probability.clone(),
+        };
+        let summary = summarize(&posterior, &surface, &pose, 7);
+        let mut links = surface.link.clone();
+        links.dedup();
+        assert_eq!(summary.per_link.len(), links.len());
+        for share in &summary.per_link {
+            let on = (0..n).filter(|&k| surface.link[k] == share.link);
+            let summed: f64 = on.clone().map(|k| probability[k]).sum();
+            let max = on.map(|k| display[k]).fold(0.0, f64::max);
+            assert!((share.summed - summed).abs() < 1e-12, "{share:?} vs {summed}");
+            assert_eq!(share.max.to_bits(), max.to_bits(), "{share:?} vs {max}");
+        }
+        let all: f64 = summary.per_link.iter().map(|s| s.summed).sum();
+        assert!((all - 1.0).abs() < 1e-12);
     }
 }
