@@ -81,6 +81,18 @@ fn at_the_place_friction_cuts_the_force_error() {
     assert!(frictional < 0.4 * plain, "{frictional} vs {plain}");
 }
 
+/// The median position errors (m) and force errors (N) without and with
+/// friction, in that order, printed under `what`.
+fn medians(what: &str, position: &[Vec<f64>; 2], force: &[Vec<f64>; 2]) -> [f64; 4] {
+    let [p0, p1, f0, f1] = [&position[0], &position[1], &force[0], &force[1]].map(|v| percentile(v, 0.5));
+    eprintln!(
+        "{what}: position {:.1} / {:.1} mm, force {f0:.2} / {f1:.2} N (frictionless / μ 0.1)",
+        p0 * 1e3,
+        p1 * 1e3
+    );
+    [p0, p1, f0, f1]
+}
+
 /// Per frame, friction moves the place as well as the force (the search
 /// minimises the friction model's marginal likelihood): over synthetic
 /// presses with tangential parts (seeds 1–4, 10 s at 20 Hz each, 394
@@ -133,19 +145,7 @@ fn per_frame_friction_lowers_the_force_error_and_keeps_the_place() {
             }
         }
     }
-    let median = |v: &[f64]| percentile(v, 0.5);
-    let (p0, p1, f0, f1) = (
-        median(&position[0]),
-        median(&position[1]),
-        median(&force[0]),
-        median(&force[1]),
-    );
-    eprintln!(
-        "{} frames: position {:.1} / {:.1} mm, force {f0:.2} / {f1:.2} N (frictionless / μ 0.1)",
-        position[0].len(),
-        p0 * 1e3,
-        p1 * 1e3
-    );
+    let [p0, p1, f0, f1] = medians(&format!("{} frames", position[0].len()), &position, &force);
     assert!(f1 < 0.95 * f0, "force {f1} vs {f0}");
     assert!(p1 < 1.1 * p0 + 1e-3, "position {p1} vs {p0}");
     assert!(tangential_seen > 20, "{tangential_seen} frames with a tangential force");
@@ -285,18 +285,7 @@ fn on_the_shared_presses_per_frame_friction_cuts_the_force_error() {
                 }
             }
         }
-        let median = |v: &[f64]| percentile(v, 0.5);
-        let (p0, p1, f0, f1) = (
-            median(&position[0]),
-            median(&position[1]),
-            median(&force[0]),
-            median(&force[1]),
-        );
-        eprintln!(
-            "{name}: position {:.1} / {:.1} mm, force {f0:.2} / {f1:.2} N (frictionless / μ 0.1)",
-            p0 * 1e3,
-            p1 * 1e3
-        );
+        let [p0, p1, f0, f1] = medians(name, &position, &force);
         assert!(f1 < 0.75 * f0, "{name}: force {f1} vs {f0}");
         assert!(p1 < 1.05 * p0 + 1e-3, "{name}: position {p1} vs {p0}");
     }

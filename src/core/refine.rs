@@ -613,23 +613,30 @@ mod tests {
         }
     }
 
+    /// The built-in LWR's surface (2000 samples, seed `seed`) and its
+    /// torque model in a bent pose.
+    fn posed_lwr(seed: u64) -> (crate::core::robot::Robot, Surface, TorqueModel) {
+        let robot = builtin::lwr4plus_generated().unwrap();
+        let links = robot.default_candidate_links();
+        let request = SurfaceRequest {
+            links: links.clone(),
+            total_points: 2000,
+            seed,
+        };
+        let surface = Surface::sample(&robot, &request).unwrap();
+        let q = [0.3, 0.6, -0.4, -1.2, 0.5, 0.9, 0.2];
+        let pose = RobotPose::new(&robot, &robot.joint_positions(&q, &[]).unwrap());
+        let model = TorqueModel::new(&robot, &pose, &links);
+        (robot, surface, model)
+    }
+
     /// Of two probable regions, the contact that explains the torques
     /// wins even when its region holds less of the sampled mass (which
     /// moves with the sampling); a region below a fifth of the heaviest is
     /// not considered.
     #[test]
     fn the_best_contact_of_the_probable_regions_wins() {
-        let robot = builtin::lwr4plus_generated().unwrap();
-        let links = robot.default_candidate_links();
-        let request = SurfaceRequest {
-            links: links.clone(),
-            total_points: 2000,
-            seed: 0,
-        };
-        let surface = Surface::sample(&robot, &request).unwrap();
-        let q = [0.3, 0.6, -0.4, -1.2, 0.5, 0.9, 0.2];
-        let pose = RobotPose::new(&robot, &robot.joint_positions(&q, &[]).unwrap());
-        let model = TorqueModel::new(&robot, &pose, &links);
+        let (robot, surface, model) = posed_lwr(0);
         let on = |name: &str| {
             let link = robot.link_id(name).unwrap();
             (0..surface.len()).find(|&k| surface.link[k] == link).unwrap()
@@ -662,17 +669,7 @@ mod tests {
     /// the force is recovered, tangential part included (0.05 N).
     #[test]
     fn with_friction_the_search_keeps_a_sliding_press_in_place() {
-        let robot = builtin::lwr4plus_generated().unwrap();
-        let links = robot.default_candidate_links();
-        let request = SurfaceRequest {
-            links: links.clone(),
-            total_points: 2000,
-            seed: 1,
-        };
-        let surface = Surface::sample(&robot, &request).unwrap();
-        let q = [0.3, 0.6, -0.4, -1.2, 0.5, 0.9, 0.2];
-        let pose = RobotPose::new(&robot, &robot.joint_positions(&q, &[]).unwrap());
-        let model = TorqueModel::new(&robot, &pose, &links);
+        let (robot, surface, model) = posed_lwr(1);
         let forearm = robot.link_id("lwr_4_link").unwrap();
         let mut rng = crate::core::rng::Rng::new(9);
         let (mut moved, mut kept, mut force_errors) = (Vec::new(), Vec::new(), Vec::new());
