@@ -191,7 +191,8 @@ impl ProprioscopeApp {
             )
             .on_hover_text(
                 "The estimated force gets a tangential part, Gaussian with a spread of μ times the push \
-                 (0: frictionless). The place is the frictionless estimate's.",
+                 (0: frictionless), and a frame's contact is placed where that model explains the \
+                 torques best. Over time the place stays the recording's; only the force changes.",
             );
         }
         ui.checkbox(&mut choice.phases, "phases A/B/C");
