@@ -71,26 +71,58 @@ struct Place {
     jj: [f64; 3],
 }
 
+/// `Q = JᵀWJ + I/s²` of a tangential force of spread `s`: the precision of
+/// that force given the torques.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct TangentialPrecision {
+    /// `Q` as (11, 12, 22).
+    q: [f64; 3],
+    /// `det Q`.
+    det: f64,
+    /// `1/s²`.
+    prior: f64,
+}
+
+impl TangentialPrecision {
+    /// From `JᵀWJ` as (11, 12, 22) and the spread, N; `None` at or below
+    /// [`NO_SPREAD_NEWTONS`] (or not a number): no tangential force.
+    pub(crate) fn new(jj: [f64; 3], spread: f64) -> Option<Self> {
+        if spread.is_nan() || spread <= NO_SPREAD_NEWTONS {
+            return None;
+        }
+        let prior = 1.0 / (spread * spread);
+        let q = [jj[0] + prior, jj[1], jj[2] + prior];
+        // Q is the sum of a positive semi-definite matrix and a positive
+        // multiple of I: its determinant is at least prior².
+        let det = (q[0] * q[2] - q[1] * q[1]).max(prior * prior);
+        Some(Self { q, det, prior })
+    }
+
+    /// `Q⁻¹` as (11, 12, 22).
+    pub(crate) fn inverse(&self) -> [f64; 3] {
+        let [q11, q12, q22] = self.q;
+        [q22 / self.det, -q12 / self.det, q11 / self.det]
+    }
+
+    /// `ln det(I + s² JᵀWJ)` (= `ln(s⁴ det Q)`).
+    fn log_volume(&self) -> f64 {
+        (self.det / (self.prior * self.prior)).max(1.0).ln()
+    }
+}
+
 /// At magnitude f: the marginal's `-2 ln L` (up to a constant), its
 /// Mahalanobis residual, and `E[g | f]` in tangent coordinates.
 fn at_magnitude(p: &Place, f: f64, friction: f64) -> (f64, f64, [f64; 2]) {
     let plain = (p.tt - 2.0 * f * p.ut + f * f * p.uu).max(0.0);
-    let spread = friction * f.abs();
-    if spread.is_nan() || spread <= NO_SPREAD_NEWTONS {
+    let Some(tangential) = TangentialPrecision::new(p.jj, friction * f.abs()) else {
         return (plain, plain, [0.0, 0.0]);
-    }
-    let precision = 1.0 / (spread * spread);
-    let (q11, q12, q22) = (p.jj[0] + precision, p.jj[1], p.jj[2] + precision);
-    // Q is the sum of a positive semi-definite matrix and a positive
-    // multiple of I: its determinant is at least precision².
-    let det = (q11 * q22 - q12 * q12).max(precision * precision);
+    };
+    let [i11, i12, i22] = tangential.inverse();
     let r = [p.jt[0] - f * p.ju[0], p.jt[1] - f * p.ju[1]];
-    let g = [(q22 * r[0] - q12 * r[1]) / det, (q11 * r[1] - q12 * r[0]) / det];
+    let g = [i11 * r[0] + i12 * r[1], i12 * r[0] + i22 * r[1]];
     let explained = r[0] * g[0] + r[1] * g[1];
     let residual = (plain - explained).max(0.0);
-    // det(I + s² JᵀWJ) = s⁴ det Q.
-    let log_volume = (det / (precision * precision)).max(1.0).ln();
-    (residual + log_volume, residual, g)
+    (residual + tangential.log_volume(), residual, g)
 }
 
 /// The force at `point_in_link` (inward normal `inward_normal_in_link`) of

@@ -88,18 +88,13 @@ struct Metric<'a> {
 impl<'a> Metric<'a> {
     /// The metric of noise precisions `weights` with tangential torques
     /// `tangential` (none: frictionless) whose force has the spread
-    /// `spread`, N (at or below 1 nN: frictionless).
+    /// `spread`, N (below [`friction::TangentialPrecision::new`]'s floor:
+    /// frictionless).
     fn new(weights: &'a [f64], tangential: Option<[&'a [f64]; 2]>, spread: f64) -> Self {
-        let tangential = tangential.filter(|_| spread > 1e-9).map(|[j1, j2]| {
-            let precision = 1.0 / (spread * spread);
-            let (q11, q12, q22) = (
-                inner(weights, j1, j1) + precision,
-                inner(weights, j1, j2),
-                inner(weights, j2, j2) + precision,
-            );
-            // A positive semi-definite matrix plus a positive multiple of I.
-            let det = (q11 * q22 - q12 * q12).max(precision * precision);
-            ([j1, j2], [q22 / det, -q12 / det, q11 / det])
+        let tangential = tangential.and_then(|[j1, j2]| {
+            let jj = [inner(weights, j1, j1), inner(weights, j1, j2), inner(weights, j2, j2)];
+            let q = friction::TangentialPrecision::new(jj, spread)?;
+            Some(([j1, j2], q.inverse()))
         });
         Self { weights, tangential }
     }

@@ -308,19 +308,9 @@ pub fn summarize_refined(
 /// a point's position.
 #[must_use]
 pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level: f64) -> CredibleSet {
-    // Four running maxima: one chain of `max` waits on each step.
-    let mut tops = [0.0_f64; 4];
-    for chunk in posterior.support.chunks(4) {
-        for (top, &k) in tops.iter_mut().zip(chunk) {
-            if let Some(&p) = posterior.probability.get(k) {
-                *top = top.max(p);
-            }
-        }
-    }
-    let top = tops.into_iter().fold(0.0, f64::max);
     // Points below 1e-18 of the largest hold less than 1e-12 together for
     // any surface we sample: they never enter a 90 % set.
-    let (points, mass) = most_probable_holding(&posterior.support, &posterior.probability, top * 1e-18, level);
+    let (points, mass) = most_probable_holding(&posterior.support, &posterior.probability, 1e-18, level);
     let positions: Vec<DVec3> = points.iter().map(|&k| world(k)).collect();
     let mean = points
         .iter()
@@ -335,34 +325,40 @@ pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level
 /// The fewest of the points `indices` (probabilities `probability[k]`)
 /// whose probabilities add up to at least `level` (all of them if they
 /// hold less), in index order, and that sum: the most probable ones, ties
-/// broken by the lower index. Points with probability ≤ `floor`, ≤ 0 or
-/// NaN are never taken.
+/// broken by the lower index. Points with probability ≤ `relative_floor`
+/// times the largest, ≤ 0 or NaN are never taken.
 ///
 /// In time linear in the points, without sorting them: they are bucketed
 /// by the top 16 bits of their probability (sign, exponent and four bits
 /// of mantissa: for positive numbers the bits order as the values do, so
 /// every point of a bucket is more probable than every point of a lower
-/// one). One pass counts each bucket's mass; whole buckets are taken from
+/// one). One pass finds the largest, the next counts each bucket's mass;
+/// whole buckets are taken from
 /// the top while they hold less than `level`; a second pass collects
 /// them, and only the points of the bucket that crosses the level are
 /// sorted. (Sorting them all would cost most of a broad posterior's
 /// update.) The sum adds whole buckets, each summed in the order given,
 /// then the crossing bucket's points one by one.
-fn most_probable_holding(indices: &[usize], probability: &[f64], floor: f64, level: f64) -> (Vec<usize>, f64) {
+fn most_probable_holding(indices: &[usize], probability: &[f64], relative_floor: f64, level: f64) -> (Vec<usize>, f64) {
     let key = |p: f64| (p.to_bits() >> 48) as usize;
-    let taken_at = |k: usize| probability.get(k).copied().filter(|&p| p > 0.0 && p > floor);
-    let (mut low, mut high) = (usize::MAX, 0);
+    let positive = |k: usize| probability.get(k).copied().filter(|&p| p > 0.0);
+    let (mut low, mut top) = (f64::INFINITY, 0.0_f64);
     for &k in indices {
-        if let Some(p) = taken_at(k) {
-            low = low.min(key(p));
-            high = high.max(key(p));
+        if let Some(p) = positive(k) {
+            low = low.min(p);
+            top = top.max(p);
         }
     }
     let mut taken = Vec::new();
     let mut mass = 0.0;
-    if low > high {
+    let floor = top * relative_floor;
+    let taken_at = |k: usize| positive(k).filter(|&p| p > floor);
+    if !(top > 0.0 && top > floor) {
         return (taken, mass);
     }
+    let high = key(top);
+    // The bucket of the floor or of the least probable, whichever is higher.
+    let low = key(low.max(floor));
     // Bucket b holds the points of key `high - b`: bucket 0 the most probable.
     let mut bucket_mass = vec![0.0; high - low + 1];
     for &k in indices {
@@ -503,11 +499,16 @@ mod tests {
         assert_eq!(holding(&items, 0.6), (vec![0, 3], 0.75), "ties: the lower index first");
         assert_eq!(holding(&[(0.0, 0), (f64::NAN, 1)], 0.9), (Vec::new(), 0.0));
         assert_eq!(holding(&items, 0.0), (Vec::new(), 0.0));
-        // The floor leaves out what is at or below it.
+        // The floor (here half the largest) leaves out what is at or
+        // below it.
         let probability = [0.25, 0.0, f64::NAN, 0.5, 0.25];
         assert_eq!(
-            most_probable_holding(&[0, 1, 2, 3, 4], &probability, 0.25, 2.0),
+            most_probable_holding(&[0, 1, 2, 3, 4], &probability, 0.5, 2.0),
             (vec![3], 0.5)
+        );
+        assert_eq!(
+            most_probable_holding(&[0, 1, 2, 3, 4], &probability, 0.49, 2.0),
+            (vec![0, 3, 4], 1.0)
         );
         let mut rng = Rng::new(5);
         for n in [1, 7, 33, 200, 5000] {
