@@ -192,7 +192,8 @@ impl ProprioscopeApp {
             .on_hover_text(
                 "The estimated force gets a tangential part, Gaussian with a spread of μ times the push \
                  (0: frictionless), and a frame's contact is placed where that model explains the \
-                 torques best. Over time the place stays the recording's; only the force changes.",
+                 torques best. Smoothed, each press is fitted as a whole with one tangential force \
+                 fixed on the link, kept where it explains the press far better than none.",
             );
         }
         ui.checkbox(&mut choice.phases, "phases A/B/C");

@@ -16,6 +16,7 @@ pub mod observability;
 pub mod phases;
 pub mod picking;
 pub mod pipeline;
+pub mod press;
 pub mod primitives;
 pub mod refine;
 pub mod regions;

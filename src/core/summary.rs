@@ -157,6 +157,45 @@ pub fn contact_at(posterior: &Posterior, surface: &Surface, pose: &RobotPose, k:
 /// A refined contact in the world; its `point` is the sample nearest it
 /// on its link among those with mass (its start if none).
 fn refined_estimate(r: &RefinedContact, posterior: &Posterior, surface: &Surface, pose: &RobotPose) -> ContactEstimate {
+    placed_estimate(&PlacedContact::from(r), posterior, surface, pose)
+}
+
+/// A contact placed on the continuous surface by a search over more than
+/// the samples (a frame's refinement, or a fit over a whole press:
+/// [`crate::core::press`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlacedContact {
+    /// The link.
+    pub link: LinkId,
+    /// Contact point, link frame, m.
+    pub point_in_link: DVec3,
+    /// Inward unit normal, link frame.
+    pub inward_normal_in_link: DVec3,
+    /// Push along the inward normal, N.
+    pub force_newtons: f64,
+    /// Tangential force, link frame, N.
+    pub tangential_in_link: DVec3,
+    /// The sample reported when none of its link's samples has mass.
+    pub fallback_sample: usize,
+    /// `Σ (τ - model)² / σ²` of the frame at this contact.
+    pub residual_chi2: f64,
+}
+
+impl From<&RefinedContact> for PlacedContact {
+    fn from(r: &RefinedContact) -> Self {
+        Self {
+            link: r.link,
+            point_in_link: r.point_in_link,
+            inward_normal_in_link: r.inward_normal_in_link,
+            force_newtons: r.force_newtons,
+            tangential_in_link: r.tangential_in_link,
+            fallback_sample: r.start,
+            residual_chi2: r.residual_chi2,
+        }
+    }
+}
+
+fn placed_estimate(r: &PlacedContact, posterior: &Posterior, surface: &Surface, pose: &RobotPose) -> ContactEstimate {
     let owner = posterior
         .support
         .iter()
@@ -166,8 +205,8 @@ fn refined_estimate(r: &RefinedContact, posterior: &Posterior, surface: &Surface
             let d = |k: usize| surface.point_in_link[k].distance_squared(r.point_in_link);
             d(x).total_cmp(&d(y)).then(x.cmp(&y))
         })
-        .unwrap_or(r.start);
-    let frame = pose.world_from_link[r.link];
+        .unwrap_or(r.fallback_sample);
+    let frame = pose.world_from_link.get(r.link).copied().unwrap_or_default();
     let normal = frame.transform_vector3(r.inward_normal_in_link);
     let force_world = normal * r.force_newtons + frame.transform_vector3(r.tangential_in_link);
     ContactEstimate {
@@ -178,6 +217,65 @@ fn refined_estimate(r: &RefinedContact, posterior: &Posterior, surface: &Surface
         force_world,
         force_newtons: force_world.length(),
         probability: posterior.probability.get(owner).copied().unwrap_or(0.0),
+    }
+}
+
+/// The fit test and the verdict of a frame with `joints` sensed joints:
+/// of the refined contact's residual (its χ² and the sensed joints that
+/// move its link) when there is one, else of the best sample's.
+fn fit_and_verdict(
+    posterior: &Posterior,
+    joints: usize,
+    refined: Option<(f64, usize)>,
+    contact_probability: Option<f64>,
+) -> (Fit, Verdict) {
+    let (chi2, dof) = match refined {
+        Some((chi2, sensing_joints)) => (chi2, joints.saturating_sub(sensing_joints.min(3))),
+        None => (posterior.best_residual_chi2, joints.saturating_sub(1)),
+    };
+    let fit = Fit {
+        best_residual_chi2: chi2,
+        dof,
+        p_value: if dof == 0 { 1.0 } else { chi_square_survival(chi2, dof) },
+        no_contact_p: chi_square_survival(posterior.no_contact_chi2, joints),
+    };
+    let no_contact = match contact_probability {
+        Some(p) => p < 0.5,
+        None => fit.no_contact_p > NO_CONTACT_P,
+    };
+    let verdict = if no_contact {
+        Verdict::NoContact
+    } else if fit.p_value < POOR_FIT_P {
+        Verdict::PoorFit
+    } else {
+        Verdict::Contact
+    };
+    (fit, verdict)
+}
+
+impl Summary {
+    /// Reports `placed` (found by a fit over more than this frame, see
+    /// [`crate::core::press`]) as the contact, with the fit test and the
+    /// verdict of its residual; `sensing_joints` of the `joints` sensed
+    /// ones move its link. The posterior's summaries (shares, credible
+    /// set, clusters) stay.
+    pub fn place_contact(
+        &mut self,
+        placed: &PlacedContact,
+        sensing_joints: usize,
+        (posterior, surface, pose): (&Posterior, &Surface, &RobotPose),
+        joints: usize,
+    ) {
+        let (fit, verdict) = fit_and_verdict(
+            posterior,
+            joints,
+            Some((placed.residual_chi2, sensing_joints)),
+            self.contact_probability,
+        );
+        self.map = placed_estimate(placed, posterior, surface, pose);
+        self.refined = true;
+        self.fit = fit;
+        self.verdict = verdict;
     }
 }
 
@@ -213,27 +311,12 @@ pub fn summarize_refined(
     refined: Option<Refinement>,
     contact_probability: Option<f64>,
 ) -> Summary {
-    let (chi2, dof) = match refined {
-        Some(r) => (r.contact.residual_chi2, joints.saturating_sub(r.sensing_joints.min(3))),
-        None => (posterior.best_residual_chi2, joints.saturating_sub(1)),
-    };
-    let fit = Fit {
-        best_residual_chi2: chi2,
-        dof,
-        p_value: if dof == 0 { 1.0 } else { chi_square_survival(chi2, dof) },
-        no_contact_p: chi_square_survival(posterior.no_contact_chi2, joints),
-    };
-    let no_contact = match contact_probability {
-        Some(p) => p < 0.5,
-        None => fit.no_contact_p > NO_CONTACT_P,
-    };
-    let verdict = if no_contact {
-        Verdict::NoContact
-    } else if fit.p_value < POOR_FIT_P {
-        Verdict::PoorFit
-    } else {
-        Verdict::Contact
-    };
+    let (fit, verdict) = fit_and_verdict(
+        posterior,
+        joints,
+        refined.map(|r| (r.contact.residual_chi2, r.sensing_joints)),
+        contact_probability,
+    );
     // Every link gets a share, also those with no mass; only the support
     // adds to them.
     let mut per_link: Vec<LinkShare> = link_ranges(&surface.link)
