@@ -199,6 +199,26 @@ pub fn locate(shape: &LinkShape, from: MeshPoint, point_in_link: DVec3) -> MeshP
     at
 }
 
+/// Torques per newton at `here` into `columns`: the push `u` along the
+/// inward normal, its derivatives along the two tangents, and a push along
+/// each of the link's axes projected on the surface. `None` unless there
+/// are six columns.
+fn columns_at(model: &TorqueModel, link: LinkId, here: &SurfaceFrame, columns: &mut [Vec<f64>]) -> Option<()> {
+    let [u, d0, d1, c0, c1, c2] = columns else {
+        return None;
+    };
+    model.line_array_torques_into(link, &here.line(), u);
+    model.line_array_torques_into(link, &here.line_derivatives[0], d0);
+    model.line_array_torques_into(link, &here.line_derivatives[1], d1);
+    for (axis, out) in [DVec3::X, DVec3::Y, DVec3::Z].into_iter().zip([c0, c1, c2]) {
+        let direction = along_surface(axis, here.inward_normal);
+        let moment = here.point.cross(direction);
+        let line = [moment.x, moment.y, moment.z, direction.x, direction.y, direction.z];
+        model.line_array_torques_into(link, &line, out);
+    }
+    Some(())
+}
+
 /// The part of `v` perpendicular to the unit normal `n`.
 fn along_surface(v: DVec3, n: DVec3) -> DVec3 {
     v - v.dot(n) * n
@@ -359,22 +379,10 @@ impl Problem<'_> {
         for (t, frame) in self.frames.iter().enumerate() {
             let here = *normal.surface.get(t)?;
             let tau = frame.tau.get(..joints)?;
-            let model = frame.torque_model;
-            let [u, d0, d1, c0, c1, c2] = columns.as_mut_slice() else {
+            columns_at(frame.torque_model, self.link, &here, &mut columns)?;
+            let [u, d0, d1, c0, c1, c2] = columns.as_slice() else {
                 return None;
             };
-            model.line_array_torques_into(self.link, &here.line(), u);
-            model.line_array_torques_into(self.link, &here.line_derivatives[0], d0);
-            model.line_array_torques_into(self.link, &here.line_derivatives[1], d1);
-            for (axis, out) in [DVec3::X, DVec3::Y, DVec3::Z]
-                .into_iter()
-                .zip([&mut *c0, &mut *c1, &mut *c2])
-            {
-                let direction = along_surface(axis, here.inward_normal);
-                let moment = here.point.cross(direction);
-                let line = [moment.x, moment.y, moment.z, direction.x, direction.y, direction.z];
-                model.line_array_torques_into(self.link, &line, out);
-            }
             for (j, p) in pushed.iter_mut().enumerate() {
                 *p = u[j] + ratio.x * c0[j] + ratio.y * c1[j] + ratio.z * c2[j];
             }
@@ -404,8 +412,8 @@ impl Problem<'_> {
                     plain
                 }
             };
-            let places = [&*d0, &*d1];
-            let axes = [&*c0, &*c1, &*c2];
+            let places = [d0, d1];
+            let axes = [c0, c1, c2];
             let f2 = f * f;
             let block = normal.diagonal.get_mut(t)?;
             *block += DMat2::from_cols(

@@ -25,6 +25,12 @@ pub struct Region {
     pub members: Vec<usize>,
 }
 
+/// A cell whose region is not looked up yet.
+const UNSEEN: u32 = u32::MAX;
+
+/// A cell too light to join a region.
+const INACTIVE: u32 = u32::MAX - 1;
+
 fn root(parent: &mut [u32], mut i: u32) -> u32 {
     while parent[i as usize] != i {
         let grand = parent[parent[i as usize] as usize];
@@ -73,41 +79,55 @@ pub fn regions(
             }
         }
     }
-    // Per region root: weight, weighted position sum, members.
-    let mut slot = vec![u32::MAX; n];
+    // Per region: weight, weighted position sum, members, the top's
+    // weight. Each cell's region is looked up once, not per sample.
+    let mut slot = vec![UNSEEN; n];
+    let mut region_of_cell = vec![UNSEEN; n];
     let mut out: Vec<Region> = Vec::new();
     let mut sums: Vec<DVec3> = Vec::new();
+    let mut top_weight: Vec<f64> = Vec::new();
     for &k in samples {
         let Some(c) = cell_of(k) else { continue };
-        if !active(c) {
-            continue;
-        }
-        let r = root(&mut parent, c as u32) as usize;
-        if slot[r] == u32::MAX {
-            slot[r] = out.len() as u32;
-            out.push(Region {
-                link: surface.link[k],
-                weight: 0.0,
-                centre_in_link: DVec3::ZERO,
-                central: k,
-                top: k,
-                members: Vec::new(),
-            });
-            sums.push(DVec3::ZERO);
-        }
-        let i = slot[r] as usize;
+        let Some(&known) = region_of_cell.get(c) else { continue };
+        let i = match known {
+            INACTIVE => continue,
+            UNSEEN if !active(c) => {
+                region_of_cell[c] = INACTIVE;
+                continue;
+            }
+            UNSEEN => {
+                let r = root(&mut parent, c as u32) as usize;
+                if slot[r] == UNSEEN {
+                    slot[r] = out.len() as u32;
+                    out.push(Region {
+                        link: surface.link[k],
+                        weight: 0.0,
+                        centre_in_link: DVec3::ZERO,
+                        central: k,
+                        top: k,
+                        members: Vec::new(),
+                    });
+                    sums.push(DVec3::ZERO);
+                    top_weight.push(weight(k));
+                }
+                region_of_cell[c] = slot[r];
+                slot[r] as usize
+            }
+            i => i as usize,
+        };
         let w = weight(k);
         out[i].weight += w;
         sums[i] += surface.point_in_link[k] * w;
         out[i].members.push(k);
         let top = out[i].top;
-        let heavier = match w.total_cmp(&weight(top)) {
+        let heavier = match w.total_cmp(&top_weight[i]) {
             std::cmp::Ordering::Greater => true,
             std::cmp::Ordering::Equal => k < top,
             std::cmp::Ordering::Less => false,
         };
         if heavier {
             out[i].top = k;
+            top_weight[i] = w;
         }
     }
     for (region, sum) in out.iter_mut().zip(&sums) {
