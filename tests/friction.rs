@@ -189,6 +189,9 @@ fn smoothed(
             Temporal::Smooth,
             &sequence,
             |i, update, _| {
+                // Every frame once, in order, though a press's frames wait
+                // for its end.
+                assert_eq!(i, maps.len());
                 if let Some(truth) = &frames[i].contact {
                     position.push(update.summary.map.point_world.distance(truth.point_world));
                     force.push(update.summary.map.force_world.distance(truth.force_world));
@@ -197,6 +200,7 @@ fn smoothed(
             },
         )
         .unwrap();
+        assert_eq!(maps.len(), frames.len());
         (position, force, maps)
     })
 }
