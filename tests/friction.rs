@@ -14,7 +14,7 @@ use proprioscope::core::pipeline::Estimator;
 use proprioscope::core::refine::Measurement;
 use proprioscope::core::rng::Rng;
 use proprioscope::core::surface::{Surface, SurfaceRequest};
-use proprioscope::core::synth::{SynthSettings, synthesize};
+use proprioscope::core::synth::{SynthSettings, as_sequence, joint_positions, synthesize};
 use proprioscope::core::torque::TorqueModel;
 
 /// The estimator's settings of these tests: σ 0.05 N·m, 1–30 N.
@@ -158,26 +158,15 @@ fn smoothed(
     robot: &proprioscope::core::robot::Robot,
     frames: &[proprioscope::core::synth::SynthFrame],
 ) -> [(Vec<f64>, Vec<f64>, Vec<proprioscope::core::summary::ContactEstimate>); 2] {
-    use proprioscope::core::pipeline::{SequenceFrame, Temporal, estimate_sequence};
+    use proprioscope::core::pipeline::{Temporal, estimate_sequence};
     use proprioscope::core::temporal::{TemporalModel, TemporalSettings};
     let request = SurfaceRequest {
         links: robot.default_candidate_links(),
         total_points: 1000,
         seed: 0,
     };
-    let positions: Vec<Vec<f64>> = frames
-        .iter()
-        .map(|f| robot.joint_positions(&f.q, &[]).unwrap())
-        .collect();
-    let sequence: Vec<SequenceFrame> = frames
-        .iter()
-        .zip(&positions)
-        .map(|(f, p)| SequenceFrame {
-            t_secs: f.t_secs,
-            joint_positions: p,
-            tau: &f.tau,
-        })
-        .collect();
+    let positions = joint_positions(robot, frames).unwrap();
+    let sequence = as_sequence(frames, &positions);
     [0.0, 0.1].map(|friction| {
         let estimator = Estimator::new(robot, &request, settings(friction), None).unwrap();
         let model = TemporalModel::new(&estimator.surface, TemporalSettings::default(), true).unwrap();

@@ -11,10 +11,10 @@ use proprioscope::core::bias::{estimate_bias, without_bias};
 use proprioscope::core::builtin;
 use proprioscope::core::estimator::EstimatorSettings;
 use proprioscope::core::metrics::{Detection, detection, percentile};
-use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, estimate_sequence};
+use proprioscope::core::pipeline::{Estimator, Temporal, estimate_sequence};
 use proprioscope::core::summary::Verdict;
 use proprioscope::core::surface::SurfaceRequest;
-use proprioscope::core::synth::{SynthSettings, synthesize};
+use proprioscope::core::synth::{SynthSettings, as_sequence, joint_positions, synthesize};
 use proprioscope::core::temporal::{TemporalModel, TemporalSettings};
 
 /// Median position error over contact frames and the detection record.
@@ -62,19 +62,8 @@ fn run_with(seed: u64, surface_seed: u64, points: usize, offset: f64, debias: bo
     };
     let estimator = Estimator::new(&robot, &request, settings, None).unwrap();
     let model = TemporalModel::new(&estimator.surface, TemporalSettings::default(), true).unwrap();
-    let positions: Vec<Vec<f64>> = frames
-        .iter()
-        .map(|f| robot.joint_positions(&f.q, &[]).unwrap())
-        .collect();
-    let sequence: Vec<SequenceFrame> = frames
-        .iter()
-        .zip(&positions)
-        .map(|(f, p)| SequenceFrame {
-            t_secs: f.t_secs,
-            joint_positions: p,
-            tau: &f.tau,
-        })
-        .collect();
+    let positions = joint_positions(&robot, &frames).unwrap();
+    let sequence = as_sequence(&frames, &positions);
     let truth: Vec<Option<bool>> = frames.iter().map(|f| Some(f.contact.is_some())).collect();
     [Temporal::None, Temporal::Filter, Temporal::Smooth].map(|temporal| {
         let mut errors = Vec::new();

@@ -7,8 +7,9 @@
 use glam::DVec3;
 
 use crate::core::kinematics::RobotPose;
+use crate::core::pipeline::SequenceFrame;
 use crate::core::rng::Rng;
-use crate::core::robot::{LinkId, Robot};
+use crate::core::robot::{LinkId, Robot, RobotError};
 use crate::core::surface::{Surface, SurfaceError, SurfaceRequest};
 use crate::core::torque::joint_torques;
 
@@ -94,6 +95,28 @@ pub struct SynthFrame {
     pub tau: Vec<f64>,
     /// The contact, if any.
     pub contact: Option<SynthContact>,
+}
+
+/// Every joint's position at each of `frames` (see
+/// [`Robot::joint_positions`]), for [`as_sequence`].
+pub fn joint_positions(robot: &Robot, frames: &[SynthFrame]) -> Result<Vec<Vec<f64>>, RobotError> {
+    frames.iter().map(|f| robot.joint_positions(&f.q, &[])).collect()
+}
+
+/// `frames` as a sequence to estimate
+/// ([`crate::core::pipeline::estimate_sequence`]), with every joint's
+/// position from [`joint_positions`].
+#[must_use]
+pub fn as_sequence<'a>(frames: &'a [SynthFrame], positions: &'a [Vec<f64>]) -> Vec<SequenceFrame<'a>> {
+    frames
+        .iter()
+        .zip(positions)
+        .map(|(f, p)| SequenceFrame {
+            t_secs: f.t_secs,
+            joint_positions: p,
+            tau: &f.tau,
+        })
+        .collect()
 }
 
 /// Why a session could not be drawn.
