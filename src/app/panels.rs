@@ -193,7 +193,8 @@ impl ProprioscopeApp {
                 "The estimated force gets a tangential part, Gaussian with a spread of μ times the push \
                  (0: frictionless), and a frame's contact is placed where that model explains the \
                  torques best. Smoothed, each press is fitted as a whole with one tangential force \
-                 fixed on the link, kept where it explains the press far better than none.",
+                 fixed on the link, kept where it explains the press far better than none; filtered, \
+                 the friction model's force is taken once the press so far supports it.",
             );
         }
         ui.checkbox(&mut choice.phases, "phases A/B/C");

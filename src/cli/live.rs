@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
 use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot};
-use proprioscope::core::pipeline::{Estimator, Temporal};
+use proprioscope::core::pipeline::{Estimator, FrictionGate, Temporal};
 use proprioscope::core::surface::SurfaceRequest;
 use proprioscope::core::temporal::{FilterState, TemporalModel};
 use proprioscope::io::live::{LiveEvent, LiveSource};
@@ -134,6 +134,8 @@ struct Live {
     estimator: Estimator,
     model: Option<TemporalModel>,
     filter: FilterState,
+    /// With friction: what the press so far says for it.
+    friction_gate: FrictionGate,
 }
 
 /// `estimate --live ADDR`.
@@ -226,6 +228,7 @@ fn start(args: &EstimateArgs, robot: Option<&str>, temporal: Temporal) -> Result
         estimator,
         model,
         filter: FilterState::default(),
+        friction_gate: FrictionGate::default(),
     })
 }
 
@@ -246,7 +249,10 @@ fn estimate_frame(
                 .estimator
                 .update_for_sequence(&live.robot, &positions, &frame.tau)?;
             let belief = live.filter.step(model, frame.t, &likelihood)?;
-            live.estimator.with_belief(&live.robot, pending, &frame.tau, belief)
+            let mut update = live.estimator.with_belief(&live.robot, pending, &frame.tau, belief);
+            live.estimator
+                .gate_friction(&live.robot, &mut update, (number, &frame.tau), &mut live.friction_gate);
+            update
         }
     };
     let ms = t0.elapsed().as_secs_f64() * 1e3;

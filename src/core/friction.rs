@@ -138,19 +138,67 @@ pub fn frictional_force(
     m: &Measurement,
     friction: f64,
 ) -> Option<FrictionalForce> {
-    let normal = inward_normal_in_link.try_normalize()?;
-    let (t1, t2) = normal.any_orthonormal_pair();
-    let joints = model.sensed_count();
-    let (mut u, mut j1, mut j2) = (vec![0.0; joints], vec![0.0; joints], vec![0.0; joints]);
-    model.unit_torques_into(link, point_in_link, normal, &mut u);
-    model.unit_torques_into(link, point_in_link, t1, &mut j1);
-    model.unit_torques_into(link, point_in_link, t2, &mut j2);
-    let fit = fit(&u, [&j1, &j2], m, friction)?;
-    Some(FrictionalForce {
-        normal_newtons: fit.normal_newtons,
-        tangential_in_link: t1 * fit.tangential[0] + t2 * fit.tangential[1],
-        residual_chi2: fit.residual_chi2,
-    })
+    let place = PlaceTorques::new(model, link, point_in_link, inward_normal_in_link)?;
+    place.force(m, friction).map(|(force, _)| force)
+}
+
+/// At one place, the friction model's force, the frictionless one, and
+/// how much lower the friction model's `-2 ln L` is (negative where the
+/// tangential force's spread costs more than it explains): what a
+/// frame says for or against friction there. `None` as
+/// [`frictional_force`].
+#[must_use]
+pub fn friction_evidence(
+    model: &TorqueModel,
+    link: LinkId,
+    (point_in_link, inward_normal_in_link): (DVec3, DVec3),
+    m: &Measurement,
+    friction: f64,
+) -> Option<(FrictionalForce, FrictionalForce, f64)> {
+    let place = PlaceTorques::new(model, link, point_in_link, inward_normal_in_link)?;
+    let (with, with_cost) = place.force(m, friction)?;
+    let (without, without_cost) = place.force(m, 0.0)?;
+    Some((with, without, without_cost - with_cost))
+}
+
+/// The torques per newton of a push at a place and of forces along two
+/// tangents there.
+struct PlaceTorques {
+    tangents: [DVec3; 2],
+    push: Vec<f64>,
+    along: [Vec<f64>; 2],
+}
+
+impl PlaceTorques {
+    fn new(model: &TorqueModel, link: LinkId, point_in_link: DVec3, inward_normal_in_link: DVec3) -> Option<Self> {
+        let normal = inward_normal_in_link.try_normalize()?;
+        let (t1, t2) = normal.any_orthonormal_pair();
+        let joints = model.sensed_count();
+        let (mut u, mut j1, mut j2) = (vec![0.0; joints], vec![0.0; joints], vec![0.0; joints]);
+        model.unit_torques_into(link, point_in_link, normal, &mut u);
+        model.unit_torques_into(link, point_in_link, t1, &mut j1);
+        model.unit_torques_into(link, point_in_link, t2, &mut j2);
+        Some(Self {
+            tangents: [t1, t2],
+            push: u,
+            along: [j1, j2],
+        })
+    }
+
+    /// The force with friction μ = `friction` and its `-2 ln L`.
+    fn force(&self, m: &Measurement, friction: f64) -> Option<(FrictionalForce, f64)> {
+        let [j1, j2] = &self.along;
+        let fit = fit(&self.push, [j1, j2], m, friction)?;
+        let [t1, t2] = self.tangents;
+        Some((
+            FrictionalForce {
+                normal_newtons: fit.normal_newtons,
+                tangential_in_link: t1 * fit.tangential[0] + t2 * fit.tangential[1],
+                residual_chi2: fit.residual_chi2,
+            },
+            fit.cost,
+        ))
+    }
 }
 
 /// The friction model's fit at one place, from its torques per newton.

@@ -2,11 +2,14 @@
 //! built once (they live in link frames), then each measurement is an
 //! update at its own configuration.
 
+use glam::DVec3;
+
 use crate::core::contact::{PatchForms, PosedSurface};
 use crate::core::estimator::{EstimateError, EstimatorSettings, Mode, Posterior, estimate_keeping_forms};
+use crate::core::friction::friction_evidence;
 use crate::core::kinematics::RobotPose;
 use crate::core::phases::PhaseHierarchy;
-use crate::core::press::{PressFrame, PressSettings, fit_press, locate};
+use crate::core::press::{FRICTION_GAIN, PressFrame, PressSettings, fit_press, locate};
 use crate::core::refine::{Measurement, contact_at_offsets, refine};
 use crate::core::robot::{LinkId, Robot};
 use crate::core::special::chi_square_survival;
@@ -316,6 +319,73 @@ impl Estimator {
         Some(())
     }
 
+    /// Filtering with friction: a frame's force at the recording's place
+    /// is the friction model's only once the press so far says so, its
+    /// frames' evidence for friction there (the drop in `-2 ln L` from a
+    /// frictionless push) adding up to more than
+    /// [`crate::core::press::FRICTION_GAIN`]; before, the frictionless
+    /// force. What the filter can know of a press (its frames up to now)
+    /// decides, as the whole press decides when smoothing.
+    /// `i` numbers the frames in order, `tau` is this frame's torques and
+    /// `gate` what the frames before left (start from its default).
+    pub fn gate_friction(
+        &self,
+        robot: &Robot,
+        update: &mut Update,
+        (i, tau): (usize, &[f64]),
+        gate: &mut FrictionGate,
+    ) {
+        if !self.fits_presses() || !is_pressed(update) {
+            *gate = FrictionGate::default();
+            return;
+        }
+        let link = update.summary.map.link;
+        if gate.last != Some((i.wrapping_sub(1), link)) {
+            gate.gain = 0.0;
+        }
+        gate.last = Some((i, link));
+        let Some(from_world) = update.pose.world_from_link.get(link).map(|x| x.inverse()) else {
+            return;
+        };
+        let map = &update.summary.map;
+        let place = (
+            from_world.transform_point3(map.point_world),
+            from_world.transform_vector3(map.inward_normal_world),
+        );
+        let weights: Vec<f64> = self.settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
+        let measurement = Measurement {
+            tau,
+            weights: &weights,
+            force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
+            friction: self.settings.friction,
+        };
+        let model = TorqueModel::new(robot, &update.pose, &self.links);
+        let Some((_, frictionless, gain)) =
+            friction_evidence(&model, link, place, &measurement, self.settings.friction)
+        else {
+            return;
+        };
+        gate.gain += gain;
+        if gate.gain > FRICTION_GAIN {
+            return;
+        }
+        let placed = PlacedContact {
+            link,
+            point_in_link: place.0,
+            inward_normal_in_link: place.1.normalize_or_zero(),
+            force_newtons: frictionless.normal_newtons,
+            tangential_in_link: DVec3::ZERO,
+            fallback_sample: map.point,
+            residual_chi2: frictionless.residual_chi2,
+        };
+        update.summary.place_contact(
+            &placed,
+            model.twists(link).len(),
+            (&update.posterior, &self.surface, &update.pose),
+            model.sensed_count(),
+        );
+    }
+
     /// Whether posteriors integrate each sample's patch (exact mode with
     /// patches): their samples are then weighed by area.
     #[must_use]
@@ -534,6 +604,7 @@ pub fn estimate_sequence_while(
         }
         (Some(model), Temporal::Filter) => {
             let mut filter = Filter::new(model);
+            let mut gate = FrictionGate::default();
             for (i, f) in frames.iter().enumerate() {
                 if !keep_going() {
                     return Ok(false);
@@ -548,7 +619,8 @@ pub fn estimate_sequence_while(
                     continue;
                 };
                 let belief = filter.step(f.t_secs, &likelihood)?;
-                let update = estimator.with_belief(robot, update, f.tau, belief);
+                let mut update = estimator.with_belief(robot, update, f.tau, belief);
+                estimator.gate_friction(robot, &mut update, (i, f.tau), &mut gate);
                 each(i, update, ms(t0));
             }
         }
@@ -606,6 +678,16 @@ pub fn estimate_sequence_while(
         }
     }
     Ok(true)
+}
+
+/// What filtering with friction knows of the press so far
+/// ([`Estimator::gate_friction`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FrictionGate {
+    /// The last frame and its link, while a press goes on.
+    last: Option<(usize, LinkId)>,
+    /// Its frames' evidence for friction, summed.
+    gain: f64,
 }
 
 /// While smoothing with friction, a press's frames wait for its end: the
