@@ -151,6 +151,27 @@ fn per_frame_friction_lowers_the_force_error_and_keeps_the_place() {
     assert!(tangential_seen > 20, "{tangential_seen} frames with a tangential force");
 }
 
+/// A synthetic session of 10 s at 50 Hz whose presses on links 4–7
+/// carry tangential parts of up to `friction` of the push.
+fn presses(
+    robot: &proprioscope::core::robot::Robot,
+    friction: f64,
+    seed: u64,
+) -> Vec<proprioscope::core::synth::SynthFrame> {
+    let pressed: Vec<usize> = robot
+        .default_candidate_links()
+        .into_iter()
+        .filter(|&l| l >= 4)
+        .collect();
+    let settings = SynthSettings {
+        duration_secs: 10.0,
+        rate_hz: 50.0,
+        friction,
+        ..SynthSettings::default()
+    };
+    synthesize(robot, &pressed, &settings, seed).unwrap()
+}
+
 /// Sessions estimated over time (`temporal`) frictionless and with μ 0.1 over one
 /// surface (1000 points, seed 0): per frame, the position error (m) and
 /// force error (N) of the contact frames, and the map of every frame.
@@ -203,20 +224,9 @@ fn over_time(
 #[test]
 fn smoothed_presses_are_fitted_with_their_friction() {
     let robot = builtin::lwr4plus_generated().unwrap();
-    let pressed: Vec<usize> = robot
-        .default_candidate_links()
-        .into_iter()
-        .filter(|&l| l >= 4)
-        .collect();
-    let synth = |friction: f64| SynthSettings {
-        duration_secs: 10.0,
-        rate_hz: 50.0,
-        friction,
-        ..SynthSettings::default()
-    };
     let (mut position, mut force) = ([Vec::new(), Vec::new()], [Vec::new(), Vec::new()]);
     for seed in 1..=3 {
-        let frames = synthesize(&robot, &pressed, &synth(0.3), seed).unwrap();
+        let frames = presses(&robot, 0.3, seed);
         for (i, (p, f, _)) in over_time(&robot, &frames, Temporal::Smooth, 1000)
             .into_iter()
             .enumerate()
@@ -231,7 +241,7 @@ fn smoothed_presses_are_fitted_with_their_friction() {
     let (mut position, mut force) = ([Vec::new(), Vec::new()], [Vec::new(), Vec::new()]);
     let (mut changed, mut total) = (0, 0);
     for seed in 1..=2 {
-        let frames = synthesize(&robot, &pressed, &synth(0.0), seed).unwrap();
+        let frames = presses(&robot, 0.0, seed);
         let [(p0, f0, plain), (p1, f1, frictional)] = over_time(&robot, &frames, Temporal::Smooth, 1000);
         changed += plain.iter().zip(&frictional).filter(|(a, b)| a != b).count();
         total += plain.len();
@@ -264,22 +274,11 @@ fn smoothed_presses_are_fitted_with_their_friction() {
 #[test]
 fn filtered_presses_take_friction_once_the_press_says_so() {
     let robot = builtin::lwr4plus_generated().unwrap();
-    let pressed: Vec<usize> = robot
-        .default_candidate_links()
-        .into_iter()
-        .filter(|&l| l >= 4)
-        .collect();
-    let synth = |friction: f64| SynthSettings {
-        duration_secs: 10.0,
-        rate_hz: 50.0,
-        friction,
-        ..SynthSettings::default()
-    };
     for (friction, seeds) in [(0.3, 1..=2), (0.0, 1..=2)] {
         let (mut position, mut force) = ([Vec::new(), Vec::new()], [Vec::new(), Vec::new()]);
         let (mut changed, mut total) = (0, 0);
         for seed in seeds {
-            let frames = synthesize(&robot, &pressed, &synth(friction), seed).unwrap();
+            let frames = presses(&robot, friction, seed);
             let [(p0, f0, plain), (p1, f1, frictional)] = over_time(&robot, &frames, Temporal::Filter, 5000);
             changed += plain
                 .iter()
