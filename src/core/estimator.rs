@@ -82,6 +82,12 @@ pub struct EstimatorSettings {
 pub const DEFAULT_FORCE_RANGE_NEWTONS: (f64, f64) = (1.0, 30.0);
 
 impl EstimatorSettings {
+    /// `1/σ²` per sensed joint: the weights of the likelihood's metric.
+    #[must_use]
+    pub fn weights(&self) -> Vec<f64> {
+        self.sigma.iter().map(|s| 1.0 / (s * s)).collect()
+    }
+
     /// Exact mode with patches over every sample, the default force range,
     /// frictionless, with torque noise `sigma` per sensed joint: what the
     /// command line estimates with unless told otherwise. Vary a field
@@ -695,7 +701,7 @@ pub fn estimate_keeping_forms(
 ) -> Result<Posterior, EstimateError> {
     validate(model, tau, settings)?;
     let n = model.points();
-    let weights: Vec<f64> = settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
+    let weights = settings.weights();
     let no_contact_chi2: f64 = weights.iter().zip(tau).map(|(w, t)| w * t * t).sum();
     let (patches, a, b, terms) = likelihood_terms(model, tau, settings, &weights, no_contact_chi2, forms_out);
     let q = Quadratic {

@@ -142,11 +142,10 @@ pub fn frictional_force(
     place.force(m, friction).map(|(force, _)| force)
 }
 
-/// At one place, the friction model's force, the frictionless one, and
-/// how much lower the friction model's `-2 ln L` is (negative where the
-/// tangential force's spread costs more than it explains): what a
-/// frame says for or against friction there. `None` as
-/// [`frictional_force`].
+/// At one place, the frictionless force and how much lower the friction
+/// model's `-2 ln L` is than its (negative where the tangential force's
+/// spread costs more than it explains): what a frame says for or against
+/// friction there. `None` as [`frictional_force`].
 #[must_use]
 pub fn friction_evidence(
     model: &TorqueModel,
@@ -154,11 +153,11 @@ pub fn friction_evidence(
     (point_in_link, inward_normal_in_link): (DVec3, DVec3),
     m: &Measurement,
     friction: f64,
-) -> Option<(FrictionalForce, FrictionalForce, f64)> {
+) -> Option<(FrictionalForce, f64)> {
     let place = PlaceTorques::new(model, link, point_in_link, inward_normal_in_link)?;
-    let (with, with_cost) = place.force(m, friction)?;
+    let (_, with_cost) = place.force(m, friction)?;
     let (without, without_cost) = place.force(m, 0.0)?;
-    Some((with, without, without_cost - with_cost))
+    Some((without, without_cost - with_cost))
 }
 
 /// The torques per newton of a push at a place and of forces along two
@@ -369,6 +368,28 @@ mod tests {
         let total = s.normal * got.normal_newtons + got.tangential_in_link;
         assert!(total.distance(force) < 1e-3, "{total} vs {force}");
         assert!(got.tangential_in_link.dot(s.normal).abs() < 1e-12);
+    }
+
+    /// A frame's evidence for friction at the true place: negative for a
+    /// straight push without noise (the frictionless push explains it
+    /// exactly, the friction model pays the volume of its spread), large
+    /// for a push with a 20 % tangential part; the frictionless force is
+    /// the straight push's.
+    #[test]
+    fn friction_evidence_tells_a_drag_from_a_straight_push() {
+        let s = setup();
+        let (t1, _) = s.normal.any_orthonormal_pair();
+        let weights = vec![400.0; 7];
+        let evidence = |force: DVec3| {
+            let tau = torques(&s, force);
+            friction_evidence(&s.model, s.link, (s.point, s.normal), &measurement(&tau, &weights), 0.1).unwrap()
+        };
+        let (straight, straight_gain) = evidence(s.normal * 10.0);
+        // The magnitude comes from the golden-section search (1e-6 N).
+        assert!((straight.normal_newtons - 10.0).abs() < 1e-5, "{straight:?}");
+        assert!(straight.residual_chi2 < 1e-9 && straight_gain < 0.0, "{straight_gain}");
+        let (_, drag_gain) = evidence(s.normal * 10.0 + t1 * 2.0);
+        assert!(drag_gain > 30.0, "{drag_gain}");
     }
 
     /// The marginal residual equals a brute-force minimum over the

@@ -176,7 +176,7 @@ impl Estimator {
         };
         let refined = (self.settings.patches && self.settings.mode == Mode::Exact && refine_contact)
             .then(|| {
-                let weights: Vec<f64> = self.settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
+                let weights = self.settings.weights();
                 let measurement = Measurement {
                     tau,
                     weights: &weights,
@@ -291,7 +291,7 @@ impl Estimator {
                 start: locate(shape, sample, point_in_link),
             });
         }
-        let weights: Vec<f64> = self.settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
+        let weights = self.settings.weights();
         let settings = PressSettings {
             weights: &weights,
             force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
@@ -309,14 +309,20 @@ impl Estimator {
                 fallback_sample: update.summary.map.point,
                 residual_chi2: contact.residual_chi2,
             };
-            update.summary.place_contact(
-                &placed,
-                model.twists(link).len(),
-                (&update.posterior, &self.surface, &update.pose),
-                model.sensed_count(),
-            );
+            self.place(update, &placed, model);
         }
         Some(())
+    }
+
+    /// Reports `placed` as `update`'s contact (see
+    /// [`Summary::place_contact`]), `model` being the frame's torques.
+    fn place(&self, update: &mut Update, placed: &PlacedContact, model: &TorqueModel) {
+        update.summary.place_contact(
+            placed,
+            model.twists(placed.link).len(),
+            (&update.posterior, &self.surface, &update.pose),
+            model.sensed_count(),
+        );
     }
 
     /// Filtering with friction: a frame's force at the recording's place
@@ -326,6 +332,7 @@ impl Estimator {
     /// [`crate::core::press::FRICTION_GAIN`]; before, the frictionless
     /// force. What the filter can know of a press (its frames up to now)
     /// decides, as the whole press decides when smoothing.
+    ///
     /// `i` numbers the frames in order, `tau` is this frame's torques and
     /// `gate` what the frames before left (start from its default).
     pub fn gate_friction(
@@ -352,7 +359,7 @@ impl Estimator {
             from_world.transform_point3(map.point_world),
             from_world.transform_vector3(map.inward_normal_world),
         );
-        let weights: Vec<f64> = self.settings.sigma.iter().map(|s| 1.0 / (s * s)).collect();
+        let weights = self.settings.weights();
         let measurement = Measurement {
             tau,
             weights: &weights,
@@ -360,8 +367,7 @@ impl Estimator {
             friction: self.settings.friction,
         };
         let model = TorqueModel::new(robot, &update.pose, &self.links);
-        let Some((_, frictionless, gain)) =
-            friction_evidence(&model, link, place, &measurement, self.settings.friction)
+        let Some((frictionless, gain)) = friction_evidence(&model, link, place, &measurement, self.settings.friction)
         else {
             return;
         };
@@ -378,12 +384,7 @@ impl Estimator {
             fallback_sample: map.point,
             residual_chi2: frictionless.residual_chi2,
         };
-        update.summary.place_contact(
-            &placed,
-            model.twists(link).len(),
-            (&update.posterior, &self.surface, &update.pose),
-            model.sensed_count(),
-        );
+        self.place(update, &placed, &model);
     }
 
     /// Whether posteriors integrate each sample's patch (exact mode with
