@@ -254,6 +254,27 @@ fn fit_and_verdict(
 }
 
 impl Summary {
+    /// Reports `other`'s contact and fit test (a summary of the same
+    /// frame by other means) as this summary's, the verdict following
+    /// this summary's contact probability; shares, credible set and
+    /// clusters stay.
+    pub fn take_contact_of(&mut self, other: &Summary) {
+        self.map = other.map;
+        self.refined = other.refined;
+        self.fit = other.fit;
+        let no_contact = match self.contact_probability {
+            Some(p) => p < 0.5,
+            None => other.verdict == Verdict::NoContact,
+        };
+        self.verdict = if no_contact {
+            Verdict::NoContact
+        } else if self.fit.p_value < POOR_FIT_P {
+            Verdict::PoorFit
+        } else {
+            Verdict::Contact
+        };
+    }
+
     /// Reports `placed` (found by a fit over more than this frame, see
     /// [`crate::core::press`]) as the contact, with the fit test and the
     /// verdict of its residual; `sensing_joints` of the `joints` sensed
