@@ -158,18 +158,27 @@ fn presses(
     friction: f64,
     seed: u64,
 ) -> Vec<proprioscope::core::synth::SynthFrame> {
-    let pressed: Vec<usize> = robot
-        .default_candidate_links()
-        .into_iter()
-        .filter(|&l| l >= 4)
-        .collect();
     let settings = SynthSettings {
         duration_secs: 10.0,
         rate_hz: 50.0,
         friction,
         ..SynthSettings::default()
     };
-    synthesize(robot, &pressed, &settings, seed).unwrap()
+    presses_drawn(robot, &settings, seed)
+}
+
+/// A synthetic session drawn with `settings`, pressing links 4–7.
+fn presses_drawn(
+    robot: &proprioscope::core::robot::Robot,
+    settings: &SynthSettings,
+    seed: u64,
+) -> Vec<proprioscope::core::synth::SynthFrame> {
+    let pressed: Vec<usize> = robot
+        .default_candidate_links()
+        .into_iter()
+        .filter(|&l| l >= 4)
+        .collect();
+    synthesize(robot, &pressed, settings, seed).unwrap()
 }
 
 /// Sessions estimated over time (`temporal`) frictionless and with μ 0.1 over one
@@ -507,11 +516,6 @@ fn a_smoothed_press_its_frames_contradict_reports_their_own_contacts() {
     use proprioscope::core::summary::Verdict;
     use proprioscope::core::temporal::{TemporalModel, TemporalSettings};
     let robot = builtin::lwr4plus_generated().unwrap();
-    let pressed: Vec<usize> = robot
-        .default_candidate_links()
-        .into_iter()
-        .filter(|&l| l >= 4)
-        .collect();
     let synth = SynthSettings {
         duration_secs: 6.0,
         rate_hz: 50.0,
@@ -519,7 +523,7 @@ fn a_smoothed_press_its_frames_contradict_reports_their_own_contacts() {
         slide_m_per_s: 0.03,
         ..SynthSettings::default()
     };
-    let frames = synthesize(&robot, &pressed, &synth, 1).unwrap();
+    let frames = presses_drawn(&robot, &synth, 1);
     let positions = joint_positions(&robot, &frames).unwrap();
     let sequence = as_sequence(&frames, &positions);
     let request = SurfaceRequest {

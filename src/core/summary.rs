@@ -243,14 +243,19 @@ fn fit_and_verdict(
         Some(p) => p < 0.5,
         None => fit.no_contact_p > NO_CONTACT_P,
     };
-    let verdict = if no_contact {
+    (fit, verdict_of(no_contact, &fit))
+}
+
+/// *No contact* where there is none, else *poorly explained* or *contact*
+/// by the fit test.
+fn verdict_of(no_contact: bool, fit: &Fit) -> Verdict {
+    if no_contact {
         Verdict::NoContact
     } else if fit.p_value < POOR_FIT_P {
         Verdict::PoorFit
     } else {
         Verdict::Contact
-    };
-    (fit, verdict)
+    }
 }
 
 impl Summary {
@@ -266,13 +271,7 @@ impl Summary {
             Some(p) => p < 0.5,
             None => other.verdict == Verdict::NoContact,
         };
-        self.verdict = if no_contact {
-            Verdict::NoContact
-        } else if self.fit.p_value < POOR_FIT_P {
-            Verdict::PoorFit
-        } else {
-            Verdict::Contact
-        };
+        self.verdict = verdict_of(no_contact, &self.fit);
     }
 
     /// Reports `placed` (found by a fit over more than this frame, see
