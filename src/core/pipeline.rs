@@ -369,7 +369,7 @@ impl Estimator {
             gate.gain = 0.0;
         }
         gate.last = Some((i, link));
-        let Some(from_world) = update.pose.world_from_link.get(link).map(|x| x.inverse()) else {
+        let Some(from_world) = update.pose.world_from_link.get(link).map(glam::DAffine3::inverse) else {
             return;
         };
         let map = &update.summary.map;
