@@ -27,7 +27,7 @@ pub fn exp(x: f64) -> f64 {
     let k = shifted - ROUNDER;
     let r = x - k * LN2_HI - k * LN2_LO;
     // e^r, |r| ≤ ln2/2: Taylor to r¹³ (the next term is below 1e-17).
-    let mut p: f64 = 1.0 / 6_227_020_800.0;
+    let mut p = 1.0 / 6_227_020_800.0;
     for d in [
         479_001_600.0,
         39_916_800.0,
@@ -43,7 +43,7 @@ pub fn exp(x: f64) -> f64 {
         1.0,
         1.0,
     ] {
-        p = p.mul_add(r, 1.0 / d);
+        p = p * r + 1.0 / d;
     }
     // 2^k from k's bits (the low bits of `shifted`).
     let scale = f64::from_bits(shifted.to_bits().wrapping_add(1023) << 52);
@@ -64,9 +64,9 @@ pub fn ln(y: f64) -> f64 {
     // ln m = 2 atanh z, |z| ≤ 0.172: the series to z¹⁹.
     let z = (m - 1.0) / (m + 1.0);
     let z2 = z * z;
-    let mut s: f64 = 1.0 / 21.0;
+    let mut s = 1.0 / 21.0;
     for d in [19.0, 17.0, 15.0, 13.0, 11.0, 9.0, 7.0, 5.0, 3.0, 1.0] {
-        s = s.mul_add(z2, 1.0 / d);
+        s = s * z2 + 1.0 / d;
     }
     e * LN_2 + 2.0 * z * s
 }
@@ -116,11 +116,11 @@ pub fn ln_erfcx_parts(x: f64, coefficients: &[f64; ERFCX_DEGREE]) -> (f64, f64) 
     // Clenshaw.
     let (mut b1, mut b2) = (0.0, 0.0);
     for &c in coefficients.iter().skip(1).rev() {
-        let b0 = (2.0 * u).mul_add(b1, c - b2);
+        let b0 = 2.0 * u * b1 - b2 + c;
         b2 = b1;
         b1 = b0;
     }
-    (t, u.mul_add(b1, coefficients[0] - b2))
+    (t, u * b1 - b2 + coefficients[0])
 }
 
 /// What [`ln_erf_difference_many`] needs, fetched once.
