@@ -340,6 +340,21 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
     assert!(ok && out.contains("median force error"), "{err}");
     let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--friction=-1", "--n", "1000"]);
     assert!(!ok && err.contains("friction"), "{err}");
+    // The default, `auto`: said on stderr where it takes friction (over
+    // time); a word that is neither a number nor `auto` is refused.
+    let (ok, _, err) = run(&[
+        "estimate",
+        session.to_str().unwrap(),
+        "--temporal",
+        "smooth",
+        "--friction",
+        "auto",
+        "--n",
+        "1000",
+    ]);
+    assert!(ok && err.contains("--friction auto: μ = 0.2"), "{err}");
+    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--friction", "lots"]);
+    assert!(!ok && err.contains("auto"), "{err}");
 }
 
 /// A free local TCP address (bound and let go: another program could take

@@ -106,8 +106,13 @@ pub struct EstimatorChoice {
     pub alpha: f64,
     /// Seed of random particles.
     pub particle_seed: u64,
-    /// Friction μ (0: frictionless).
+    /// Friction μ (0: frictionless), when not `friction_auto`.
     pub friction: f64,
+    /// Friction by how frames are combined
+    /// ([`crate::core::pipeline::Temporal::default_friction`]: 0 for a
+    /// frame alone, [`crate::core::pipeline::OVER_TIME_FRICTION`] filtered
+    /// or smoothed), as `estimate --friction auto`.
+    pub friction_auto: bool,
 }
 
 impl EstimatorChoice {
@@ -128,6 +133,9 @@ impl EstimatorChoice {
             alpha: e.phases.alpha,
             particle_seed: e.particle_seed,
             friction: e.friction,
+            // A scene without a friction (0, the field's default) leaves
+            // it to how the frames are combined.
+            friction_auto: e.friction == 0.0,
         }
     }
 }
@@ -143,6 +151,7 @@ impl Default for EstimatorChoice {
             alpha: 0.5,
             particle_seed: 0,
             friction: 0.0,
+            friction_auto: true,
         }
     }
 }
@@ -311,11 +320,23 @@ impl Model {
             force_min_newtons: self.force_range_newtons.0,
             force_max_newtons: self.force_range_newtons.1,
             particle_seed: e.particle_seed,
-            friction: e.friction,
+            // Auto is written as 0, which reads back as auto.
+            friction: if e.friction_auto { 0.0 } else { e.friction },
         }
     }
 
-    /// The core estimator's settings.
+    /// The core estimator's settings for frames combined by `temporal`
+    /// (the friction follows it when `friction_auto`).
+    #[must_use]
+    pub fn estimator_settings_for(&self, temporal: crate::core::pipeline::Temporal) -> EstimatorSettings {
+        let mut settings = self.estimator_settings();
+        if self.estimator.friction_auto && settings.mode == Mode::Exact {
+            settings.friction = temporal.default_friction();
+        }
+        settings
+    }
+
+    /// The core estimator's settings (for a frame alone).
     #[must_use]
     pub fn estimator_settings(&self) -> EstimatorSettings {
         let joints = self.robot.sensed().len();
@@ -410,6 +431,7 @@ impl Model {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::core::pipeline::{OVER_TIME_FRICTION, Temporal};
 
     fn model() -> Model {
         let robot = crate::core::builtin::lwr4plus_generated().unwrap();
@@ -459,6 +481,7 @@ mod tests {
             phases: true,
             particle_seed: 3,
             friction: 0.3,
+            friction_auto: false,
             ..EstimatorChoice::default()
         };
         m.sigma[2] = 0.3;
@@ -474,6 +497,25 @@ mod tests {
         }
         assert!((m.estimator_settings().sigma[2] - 0.3).abs() < 1e-15);
         assert!((m.estimator_settings().friction - 0.3).abs() < 1e-15);
+        // A chosen μ holds however frames are combined.
+        assert!((m.estimator_settings_for(Temporal::Smooth).friction - 0.3).abs() < 1e-15);
+    }
+
+    /// Friction auto (the default): none for a frame alone, the over-time
+    /// μ filtered or smoothed, as `estimate --friction auto`; written to a
+    /// scene as 0, which reads back as auto.
+    #[test]
+    fn auto_friction_follows_how_frames_are_combined() {
+        let m = model();
+        assert!(m.estimator.friction_auto);
+        let mu = |t| m.estimator_settings_for(t).friction;
+        assert!(mu(Temporal::None).abs() < 1e-15);
+        assert!((mu(Temporal::Filter) - OVER_TIME_FRICTION).abs() < 1e-15);
+        assert!((mu(Temporal::Smooth) - OVER_TIME_FRICTION).abs() < 1e-15);
+        assert!(m.estimator_settings().friction.abs() < 1e-15);
+        let scene = m.scene_estimator();
+        assert!(scene.friction.abs() < 1e-15);
+        assert_eq!(EstimatorChoice::from_scene(&scene), m.estimator);
     }
 
     #[test]

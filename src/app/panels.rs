@@ -1,7 +1,7 @@
 //! The estimator panel: σ, resolution, mode and phases, the estimate's
 //! summary, and the heatmap's options.
 
-use super::{Command, HeatLayer, ModeChoice, ProprioscopeApp, Verdict, egui, phase_report};
+use super::{Command, EstimatorChoice, HeatLayer, ModeChoice, ProprioscopeApp, Verdict, egui, phase_report};
 
 /// Adds `slider` labelled `label`, its width chosen so that the slider,
 /// its value and the label fit the panel (a narrow window keeps every row
@@ -10,6 +10,32 @@ fn fitted_slider(ui: &mut egui::Ui, slider: egui::Slider<'_>, label: &str) -> eg
     let text = label_width(ui, label);
     ui.spacing_mut().slider_width = (ui.available_width() - text - 80.0).clamp(40.0, 220.0);
     ui.add(slider.text(label))
+}
+
+/// The friction controls of the estimator panel (exact mode): auto, or
+/// one μ.
+fn friction_ui(ui: &mut egui::Ui, choice: &mut EstimatorChoice) {
+    ui.checkbox(&mut choice.friction_auto, "friction auto").on_hover_text(
+        "Friction by how frames are combined: none for a frame alone (one frame cannot pin \
+         a tangential force and its place suffers), μ = 0.2 for a filtered or smoothed \
+         session, where a press takes friction only where it explains the torques far \
+         better than none.",
+    );
+    ui.add_enabled_ui(!choice.friction_auto, |ui| {
+        fitted_slider(
+            ui,
+            egui::Slider::new(&mut choice.friction, 0.0..=1.0).update_while_editing(false),
+            "friction μ",
+        )
+    })
+    .inner
+    .on_hover_text(
+        "The estimated force gets a tangential part, Gaussian with a spread of μ times the push \
+         (0: frictionless), and a frame's contact is placed where that model explains the \
+         torques best. Smoothed, each press is fitted as a whole with one tangential force \
+         fixed on the link, kept where it explains the press far better than none; filtered, \
+         the friction model's force is taken once the press so far supports it.",
+    );
 }
 
 /// How wide `text` is laid out on one line in the body font, points.
@@ -184,18 +210,7 @@ impl ProprioscopeApp {
             }
         }
         if choice.mode == ModeChoice::Exact {
-            fitted_slider(
-                ui,
-                egui::Slider::new(&mut choice.friction, 0.0..=1.0).update_while_editing(false),
-                "friction μ",
-            )
-            .on_hover_text(
-                "The estimated force gets a tangential part, Gaussian with a spread of μ times the push \
-                 (0: frictionless), and a frame's contact is placed where that model explains the \
-                 torques best. Smoothed, each press is fitted as a whole with one tangential force \
-                 fixed on the link, kept where it explains the press far better than none; filtered, \
-                 the friction model's force is taken once the press so far supports it.",
-            );
+            friction_ui(ui, &mut choice);
         }
         ui.checkbox(&mut choice.phases, "phases A/B/C");
         if choice.phases {

@@ -189,7 +189,7 @@ impl ProprioscopeApp {
                     total_points: m.surface_points,
                     seed: m.surface_seed,
                 },
-                settings: m.estimator_settings(),
+                settings: m.estimator_settings_for(replay.over_time),
                 phase_sizes: m.estimator.phases.then_some(m.estimator.phase_sizes),
                 first: replay.frame,
                 over_time: replay.over_time,

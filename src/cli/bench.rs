@@ -463,8 +463,10 @@ fn seed_run(
     use proprioscope::core::summary::Verdict;
     use proprioscope::io::session::Truth;
     let robot = how.robot;
+    // Friction as `estimate` takes it when not told: over time only.
     let settings = EstimatorSettings {
         patches: how.patches,
+        friction: how.temporal.default_friction(),
         ..EstimatorSettings::exact(vec![how.sigma; robot.sensed().len()])
     };
     let request = SurfaceRequest {

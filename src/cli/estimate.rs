@@ -18,7 +18,7 @@ use proprioscope::io::mcap_out::{EstimateMessage, EstimateWriter};
 use proprioscope::io::recording::{is_recording, read_bytes};
 use proprioscope::io::session::{Session, Truth, kept_frame_numbers};
 
-use super::{EstimatorArgs, TemporalArg, TemporalArgs, TopicArgs};
+use super::{EstimatorArgs, FrictionArg, TemporalArg, TemporalArgs, TopicArgs};
 
 /// Options of `estimate`.
 #[derive(Debug, clap::Args)]
@@ -285,6 +285,16 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
     run_session(args, path)
 }
 
+/// `--friction` for frames combined by `temporal` (`auto` said on stderr
+/// where it takes friction).
+fn friction_for(args: &EstimateArgs, temporal: Temporal) -> f64 {
+    let mu = args.estimator.friction.for_temporal(temporal);
+    if args.estimator.friction == FrictionArg::Auto && mu > 0.0 {
+        eprintln!("--friction auto: μ = {mu} over time (choose with --friction μ; 0: frictionless)");
+    }
+    mu
+}
+
 /// Estimates the session file at `path`.
 fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     let (session, file_frames, origin_ns) = read_session(args, path)?;
@@ -301,7 +311,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
         total_points: resolved.surface_points,
         seed: args.estimator.seed,
     };
-    let estimator = Estimator::new(&robot, &request, resolved.settings, resolved.phase_sizes)?;
+    let mut estimator = Estimator::new(&robot, &request, resolved.settings, resolved.phase_sizes)?;
     eprintln!(
         "{}: {} frames; {} surface points on {} links, sampled in {:.0} ms",
         path.display(),
@@ -315,6 +325,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
         None => None,
     };
     let temporal = chosen_temporal(args, &session, estimator.surface.len(), estimator.uses_patches());
+    estimator.settings.friction = friction_for(args, temporal);
     let model = match temporal {
         Temporal::None => None,
         Temporal::Filter | Temporal::Smooth => Some(

@@ -208,7 +208,8 @@ fn start(args: &EstimateArgs, robot: Option<&str>, temporal: Temporal) -> Result
         frames: Vec::new(),
     };
     let robot = session_robot(&empty, None, &args.package_paths, &args.estimator.links)?;
-    let resolved = args.estimator.resolve(&robot)?;
+    let mut resolved = args.estimator.resolve(&robot)?;
+    resolved.settings.friction = args.estimator.friction.for_temporal(temporal);
     let request = SurfaceRequest {
         links: resolved.links.clone(),
         total_points: resolved.surface_points,

@@ -213,9 +213,40 @@ pub struct EstimatorArgs {
     #[arg(long)]
     pub threads: Option<usize>,
     /// Friction μ: the refined contact's force gets a tangential part
-    /// whose spread is μ times the push (0: frictionless).
-    #[arg(long, default_value_t = 0.0, value_parser = finite)]
-    pub friction: f64,
+    /// whose spread is μ times the push (0: frictionless); `auto`: 0 for
+    /// frames alone, 0.2 over time (`--temporal filter|smooth`, where
+    /// friction is taken only where a press says so).
+    #[arg(long, default_value = "auto", value_parser = friction_arg)]
+    pub friction: FrictionArg,
+}
+
+/// `--friction`: a μ, or `auto`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FrictionArg {
+    /// By how frames are combined ([`Temporal::default_friction`]).
+    Auto,
+    /// This μ everywhere.
+    Mu(f64),
+}
+
+impl FrictionArg {
+    /// μ for frames combined by `temporal`.
+    pub fn for_temporal(self, temporal: Temporal) -> f64 {
+        match self {
+            Self::Auto => temporal.default_friction(),
+            Self::Mu(mu) => mu,
+        }
+    }
+}
+
+/// Parses `--friction`: `auto` or a finite number.
+fn friction_arg(text: &str) -> Result<FrictionArg, String> {
+    if text.trim().eq_ignore_ascii_case("auto") {
+        return Ok(FrictionArg::Auto);
+    }
+    finite(text)
+        .map(FrictionArg::Mu)
+        .map_err(|e| format!("{e} (give μ ≥ 0, or auto)"))
 }
 
 /// What the options ask for, resolved against a robot.
@@ -283,7 +314,9 @@ impl EstimatorArgs {
             force_min_newtons: self.fmin,
             force_max_newtons: self.fmax,
             particle_seed: self.seed,
-            friction: self.friction,
+            // Frames alone until the caller knows how frames are
+            // combined (`FrictionArg::for_temporal`).
+            friction: self.friction.for_temporal(Temporal::None),
         };
         let mut settings = scene.to_core(joints).map_err(|e| anyhow::anyhow!(e))?;
         settings.patches = !self.points_only;

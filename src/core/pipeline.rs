@@ -509,6 +509,31 @@ pub enum Temporal {
     Smooth,
 }
 
+/// The friction μ that frames combined over time are estimated with when
+/// the user has not said (`estimate --friction auto`, `bench`, the app's
+/// *auto* friction). Over time friction enters only where a press, or the
+/// press so far, explains its torques far better with it than without
+/// ([`crate::core::press`], [`Estimator::gate_friction`]), so frictionless
+/// presses keep their estimate; on synthetic presses dragging by up to
+/// 15 % and 30 % of the push, smoothing at μ = 0.2 places them better
+/// than at 0.1 (30 %, `synth` seed 1: 10.8 → 4.2 mm at the median) and
+/// 0.3 lost a `../shared` press at one surface seed (README, *Friction*).
+pub const OVER_TIME_FRICTION: f64 = 0.2;
+
+impl Temporal {
+    /// μ when the user has not said: [`OVER_TIME_FRICTION`] over time,
+    /// 0 for frames alone (a frame alone cannot pin the two extra unknowns
+    /// of a tangential force, and its place suffers: frictionless
+    /// synthetic presses 3.7 → 7.7 mm at μ = 0.2).
+    #[must_use]
+    pub const fn default_friction(self) -> f64 {
+        match self {
+            Self::None => 0.0,
+            Self::Filter | Self::Smooth => OVER_TIME_FRICTION,
+        }
+    }
+}
+
 /// How a session is best estimated over time when the user has not said
 /// (`estimate --temporal auto`, the app): a recording (frames closer than
 /// a contact lasts, see [`is_continuous_recording`]) smoothed, or filtered
