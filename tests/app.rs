@@ -148,6 +148,28 @@ fn the_phases_checkbox_runs_phases_a_b_c() {
     );
 }
 
+/// Friction auto is on by default and says what it takes; unticking it
+/// brings the μ slider, whose value then holds over time too.
+#[test]
+fn the_friction_auto_checkbox_gives_way_to_the_mu_slider() {
+    use proprioscope::core::pipeline::{OVER_TIME_FRICTION, Temporal};
+    let mut harness = app_harness();
+    settle(&mut harness);
+    assert!(harness.state().model.estimator.friction_auto);
+    assert!(harness.query_by_label_contains("over time, 0 per frame").is_some());
+    let slider = egui::accesskit::Role::Slider;
+    assert!(harness.query_by_role_and_label(slider, "friction μ").is_none());
+    let model = &harness.state().model;
+    assert!((model.estimator_settings_for(Temporal::Smooth).friction - OVER_TIME_FRICTION).abs() < 1e-15);
+    harness.get_by_label("friction auto").click();
+    harness.run_steps(2);
+    settle(&mut harness);
+    let model = &harness.state().model;
+    assert!(!model.estimator.friction_auto);
+    assert!(model.estimator_settings_for(Temporal::Smooth).friction.abs() < 1e-15);
+    assert!(harness.query_by_role_and_label(slider, "friction μ").is_some());
+}
+
 #[test]
 fn view_options_change_the_picture_but_do_not_re_estimate() {
     let mut harness = app_harness();

@@ -1,6 +1,8 @@
 //! The estimator panel: σ, resolution, mode and phases, the estimate's
 //! summary, and the heatmap's options.
 
+use crate::core::pipeline::OVER_TIME_FRICTION;
+
 use super::{Command, EstimatorChoice, HeatLayer, ModeChoice, ProprioscopeApp, Verdict, egui, phase_report};
 
 /// Adds `slider` labelled `label`, its width chosen so that the slider,
@@ -21,14 +23,16 @@ fn friction_ui(ui: &mut egui::Ui, choice: &mut EstimatorChoice) {
          session, where a press takes friction only where it explains the torques far \
          better than none.",
     );
-    ui.add_enabled_ui(!choice.friction_auto, |ui| {
-        fitted_slider(
-            ui,
-            egui::Slider::new(&mut choice.friction, 0.0..=1.0).update_while_editing(false),
-            "friction μ",
-        )
-    })
-    .inner
+    if choice.friction_auto {
+        // What auto takes, in place of a slider that would read 0.
+        ui.weak(format!("friction μ: {OVER_TIME_FRICTION} over time, 0 per frame"));
+        return;
+    }
+    fitted_slider(
+        ui,
+        egui::Slider::new(&mut choice.friction, 0.0..=1.0).update_while_editing(false),
+        "friction μ",
+    )
     .on_hover_text(
         "The estimated force gets a tangential part, Gaussian with a spread of μ times the push \
          (0: frictionless), and a frame's contact is placed where that model explains the \
