@@ -278,7 +278,8 @@ fn a_narrow_window_keeps_the_estimator_panel_readable() {
         "Estimator",
         "σ [N·m]",
         "N (surface points)",
-        "friction μ",
+        "friction auto",
+        "friction μ: 0.2 over time, 0 per frame",
         "hide below",
         "observability",
         "red-green",
@@ -291,6 +292,17 @@ fn a_narrow_window_keeps_the_estimator_panel_readable() {
                 view.right()
             );
         }
+    }
+    // With friction auto off, its μ slider takes the row.
+    harness.get_by_label("friction auto").click();
+    harness.run_steps(3);
+    for node in harness.get_all_by_label("friction μ") {
+        let r = node.rect();
+        assert!(
+            r.left() >= view.right() - 1.0 && r.right() <= w + 0.5,
+            "friction μ: {r:?}, the view ends at {}",
+            view.right()
+        );
     }
 }
 
