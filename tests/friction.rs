@@ -274,6 +274,58 @@ fn smoothed_at_the_default_friction_halves_the_per_frame_error() {
     assert!((Temporal::Filter.default_friction() - OVER_TIME_FRICTION).abs() < 1e-15);
 }
 
+/// Over a recording, friction is fitted per press: one tangential force
+/// fixed in the link's frame for the whole press (as `core::synth` draws
+/// it), kept where it explains the press far better than none
+/// (`core::press`). On synthetic sessions with tangential parts of up to
+/// 30 % (seeds 1–3, 10 s at 50 Hz, 1000 surface points) the smoothed
+/// median position error falls from 26.9 to 21.9 mm and the force error
+/// from 1.92 to 1.33 N. Without a tangential part (seeds 1–2) 97 of 1000
+/// frames change, presses that the frictionless search left a centimetre
+/// off at this coarse sampling (1.2 → 1.0 mm, 0.27 → 0.19 N at the
+/// median); at 5000 points 3 of 4000 frames changed on four such
+/// sessions (`synth --seed 1..4`, 20 s at 50 Hz).
+#[test]
+fn smoothed_presses_are_fitted_with_their_friction() {
+    let robot = builtin::lwr4plus_generated().unwrap();
+    let (mut position, mut force) = ([Vec::new(), Vec::new()], [Vec::new(), Vec::new()]);
+    for seed in 1..=3 {
+        let frames = presses(&robot, 0.3, seed);
+        for (i, (p, f, _)) in over_time(&robot, &frames, Temporal::Smooth, 1000)
+            .into_iter()
+            .enumerate()
+        {
+            position[i].extend(p);
+            force[i].extend(f);
+        }
+    }
+    let [p0, p1, f0, f1] = medians(&format!("smoothed, {} frames", position[0].len()), &position, &force);
+    assert!(f1 < 0.7 * f0, "force {f1} vs {f0}");
+    assert!(p1 < p0, "position {p1} vs {p0}");
+    let (mut position, mut force) = ([Vec::new(), Vec::new()], [Vec::new(), Vec::new()]);
+    let (mut changed, mut total) = (0, 0);
+    for seed in 1..=2 {
+        let frames = presses(&robot, 0.0, seed);
+        let [(p0, f0, plain), (p1, f1, frictional)] = over_time(&robot, &frames, Temporal::Smooth, 1000);
+        changed += plain.iter().zip(&frictional).filter(|(a, b)| a != b).count();
+        total += plain.len();
+        position[0].extend(p0);
+        position[1].extend(p1);
+        force[0].extend(f0);
+        force[1].extend(f1);
+    }
+    let [p0, p1, f0, f1] = medians(
+        &format!("without friction, {changed} of {total} frames changed"),
+        &position,
+        &force,
+    );
+    assert!(changed * 5 < total, "{changed} of {total} frames changed");
+    assert!(
+        p1 <= p0 + 2e-4 && f1 <= f0 + 0.02,
+        "position {p1} vs {p0}, force {f1} vs {f0}"
+    );
+}
+
 /// Filtering with friction, a frame's force at the recording's place is
 /// the friction model's once the press so far gives enough evidence for
 /// friction, the frictionless one before. Measured (10 s at 50 Hz, 5000

@@ -17,12 +17,13 @@ fn fitted_slider(ui: &mut egui::Ui, slider: egui::Slider<'_>, label: &str) -> eg
 /// The friction controls of the estimator panel (exact mode): auto, or
 /// one μ.
 fn friction_ui(ui: &mut egui::Ui, choice: &mut EstimatorChoice) {
-    ui.checkbox(&mut choice.friction_auto, "friction auto").on_hover_text(
-        "Friction by how frames are combined: none for a frame alone (one frame cannot pin \
-         a tangential force and its place suffers), μ = 0.2 for a filtered or smoothed \
-         session, where a press takes friction only where it explains the torques far \
-         better than none.",
-    );
+    ui.checkbox(&mut choice.friction_auto, "friction auto")
+        .on_hover_text(format!(
+            "Friction by how frames are combined: none for a frame alone (one frame cannot pin \
+         a tangential force and its place suffers), μ = {OVER_TIME_FRICTION} for a filtered or \
+         smoothed session, where a press takes friction only where it explains the torques far \
+         better than none."
+        ));
     if choice.friction_auto {
         // What auto takes, in place of a slider that would read 0.
         ui.weak(format!("friction μ: {OVER_TIME_FRICTION} over time, 0 per frame"));
