@@ -29,10 +29,12 @@ pub struct SynthSettings {
     /// Ramp up and down, s each.
     pub ramp_secs: f64,
     /// Each press slides at a speed uniform in `[0, this]`, m/s, in a random
-    /// tangent direction.
+    /// tangent direction (fixed in the link's frame for the press, its part
+    /// along the surface at each frame).
     pub slide_m_per_s: f64,
     /// Each press's tangential force is this fraction of its normal
-    /// force at most (uniform in `[0, this]`), in a random tangent direction.
+    /// force at most (uniform in `[0, this]`), in a random tangent direction
+    /// (fixed in the link's frame for the press, as the slide's).
     pub friction: f64,
     /// Each joint's constant sensor offset is uniform in `[-this, this]`, N·m.
     pub bias_newton_metres: f64,
@@ -287,6 +289,12 @@ pub fn synthesize(
     let dt = 1.0 / settings.rate_hz;
     let mut press_index = 0;
     let mut place = None;
+    // The press's slide and drag directions, link frame: drawn at its
+    // first frame as angles in the tangent plane there, then kept (the
+    // slide takes its part along the surface at each frame). A mesh's
+    // tangents are its triangles' edges, so angles taken anew at every
+    // frame would turn both at every edge the slide crosses.
+    let mut heading: Option<(DVec3, DVec3)> = None;
     let mut out = Vec::with_capacity(frames);
     for i in 0..frames {
         let t = i as f64 * dt;
@@ -298,6 +306,7 @@ pub fn synthesize(
         while presses.get(press_index).is_some_and(|p| t >= p.end) {
             press_index += 1;
             place = None;
+            heading = None;
         }
         let pose = RobotPose::new(robot, &robot.joint_positions(&q, &[]).unwrap_or_default());
         let mut tau = vec![0.0; joints];
@@ -314,9 +323,17 @@ pub fn synthesize(
             if let (Some(link), Some(shape), Some(at)) = (link, shape, at)
                 && let Some(f) = shape.frame(at)
             {
-                let direction = f.tangents[0] * p.slide_angle.cos() + f.tangents[1] * p.slide_angle.sin();
+                let (slide_in_link, drag_in_link) = *heading.get_or_insert_with(|| {
+                    let towards = |angle: f64| f.tangents[0] * angle.cos() + f.tangents[1] * angle.sin();
+                    (towards(p.slide_angle), towards(p.friction_angle))
+                });
+                let on_surface = |v: DVec3| (v - v.dot(f.inward_normal) * f.inward_normal).normalize_or_zero();
+                let direction = on_surface(slide_in_link);
                 place = Some(shape.walk(at, direction * (p.slide_speed * dt)));
-                let along = f.tangents[0] * p.friction_angle.cos() + f.tangents[1] * p.friction_angle.sin();
+                // The drag as drawn (for a press that holds its place, the
+                // tangent direction of its triangle, as before headings
+                // were kept).
+                let along = drag_in_link;
                 let world = pose.world_from_link.get(link).copied().unwrap_or_default();
                 let point_world = world.transform_point3(f.point);
                 let force_world = world.transform_vector3(f.inward_normal + along * p.friction) * magnitude;
@@ -407,6 +424,61 @@ mod tests {
             .collect();
         let fastest = steps.iter().copied().fold(0.0, f64::max);
         assert!(fastest > 0.0 && fastest <= 0.04 / 200.0 * 1.01, "{fastest}");
+    }
+
+    /// A sliding press keeps its heading: the place moves along a smooth
+    /// path (no turn at the mesh's triangle edges, where the tangents of
+    /// the surface frame change), and the tangential force keeps its
+    /// direction in the link's frame.
+    #[test]
+    fn slides_and_drags_keep_their_heading() {
+        let robot = builtin::lwr4plus_generated().unwrap();
+        let links = robot.default_candidate_links();
+        let settings = SynthSettings {
+            slide_m_per_s: 0.04,
+            friction: 0.3,
+            ..SynthSettings::default()
+        };
+        let frames = synthesize(&robot, &links, &settings, 5).unwrap();
+        let contacts: Vec<Option<(SynthContact, DVec3)>> = frames
+            .iter()
+            .map(|f| {
+                let c = f.contact?;
+                let pose = RobotPose::new(&robot, &robot.joint_positions(&f.q, &[]).ok()?);
+                let link_from_world = pose.world_from_link.get(c.link)?.inverse();
+                Some((c, link_from_world.transform_vector3(c.force_world)))
+            })
+            .collect();
+        let (mut turns, mut drag_turns) = (Vec::new(), Vec::new());
+        for w in contacts.windows(3) {
+            let [Some((a, fa)), Some((b, fb)), Some((c, _))] = w else {
+                continue;
+            };
+            if a.link != b.link || b.link != c.link {
+                continue;
+            }
+            let (s1, s2) = (b.point_in_link - a.point_in_link, c.point_in_link - b.point_in_link);
+            if s1.length() > 1e-6 && s2.length() > 1e-6 && s1.length() < 0.01 && s2.length() < 0.01 {
+                turns.push(s1.angle_between(s2));
+            }
+            // The tangential parts: the force less its part along the
+            // step's normal, approximated by the force's own direction
+            // change (the normal turns by the step over the radius).
+            if fa.length() > 1.0 && fb.length() > 1.0 {
+                drag_turns.push(fa.angle_between(*fb));
+            }
+        }
+        let most = |v: &[f64]| v.iter().copied().fold(0.0, f64::max).to_degrees();
+        eprintln!(
+            "{} steps, largest turn {:.1}°; {} forces, largest turn {:.1}°",
+            turns.len(),
+            most(&turns),
+            drag_turns.len(),
+            most(&drag_turns)
+        );
+        assert!(turns.len() > 100 && drag_turns.len() > 100);
+        assert!(most(&turns) < 20.0, "{turns:?}");
+        assert!(most(&drag_turns) < 2.0);
     }
 
     #[test]
