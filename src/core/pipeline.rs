@@ -9,11 +9,13 @@ use crate::core::estimator::{EstimateError, EstimatorSettings, Mode, Posterior, 
 use crate::core::friction::friction_evidence;
 use crate::core::kinematics::RobotPose;
 use crate::core::phases::PhaseHierarchy;
-use crate::core::press::{FRICTION_GAIN, PressFrame, PressSettings, fit_press, locate};
+use crate::core::press::{FRICTION_GAIN, PressAnswer, PressFrame, PressSettings, explain_press, locate};
 use crate::core::refine::{Measurement, contact_at_offsets, refine};
 use crate::core::robot::{LinkId, Robot};
 use crate::core::special::chi_square_survival;
-use crate::core::summary::{NO_CONTACT_P, PlacedContact, Refinement, Summary, Verdict, summarize_refined};
+use crate::core::summary::{
+    ContactEstimate, NO_CONTACT_P, PlacedContact, Refinement, Summary, Verdict, summarize_refined,
+};
 use crate::core::surface::{Surface, SurfaceError, SurfaceRequest};
 use crate::core::temporal::{
     Belief, Filter, FrameLikelihood, MAX_SMOOTHER_BYTES, Offset, PatchInformation, Smoother, TemporalError,
@@ -267,7 +269,7 @@ impl Estimator {
         }
         let t0 = std::time::Instant::now();
         if self.fits_presses() {
-            self.fit_press_of(robot, frames, slide_m_per_sqrt_s, press);
+            self.fit_press_of(robot, frames, slide_m_per_sqrt_s, press, alone);
         }
         check_press(press, alone);
         let share_ms = t0.elapsed().as_secs_f64() * 1e3 / press.len() as f64;
@@ -278,37 +280,28 @@ impl Estimator {
 
     /// [`Estimator::settle_press`]'s fit; `None` (nothing changed) where
     /// the press keeps its estimates.
+    ///
+    /// The press is fitted from the recording's places and, where enough
+    /// of its frames alone (`alone`) place the contact elsewhere (on
+    /// another link, or on this one farther than [`ALTERNATIVE_MIN_M`]),
+    /// also from theirs; an alternative replaces the recording's places
+    /// only where it explains the press by [`FRICTION_GAIN`] better. The
+    /// smoother's model has no friction: where a press drags, it may
+    /// settle on a place (or a link) that the frames alone, placed with
+    /// friction in mind by the fit, contradict.
     fn fit_press_of(
         &self,
         robot: &Robot,
         frames: &[SequenceFrame],
         slide_m_per_sqrt_s: f64,
         press: &mut [(usize, Update, f64)],
+        alone: &[Option<Summary>],
     ) -> Option<()> {
         let link = press.first()?.1.summary.map.link;
-        let shape = self.surface.shape(link)?;
         let models: Vec<TorqueModel> = press
             .iter()
             .map(|(_, update, _)| TorqueModel::new(robot, &update.pose, &self.links))
             .collect();
-        let mut press_frames = Vec::with_capacity(press.len());
-        for ((i, update, _), torque_model) in press.iter().zip(&models) {
-            let frame = frames.get(*i)?;
-            let map = &update.summary.map;
-            let point_in_link = update
-                .pose
-                .world_from_link
-                .get(link)?
-                .inverse()
-                .transform_point3(map.point_world);
-            let sample = *self.surface.location.get(map.point)?;
-            press_frames.push(PressFrame {
-                t_secs: frame.t_secs,
-                torque_model,
-                tau: frame.tau,
-                start: locate(shape, sample, point_in_link),
-            });
-        }
         let weights = self.settings.weights();
         let settings = PressSettings {
             weights: &weights,
@@ -316,20 +309,141 @@ impl Estimator {
             friction: self.settings.friction,
             slide_m_per_sqrt_s: slide_m_per_sqrt_s * PRESS_SLIDE_FRACTION,
         };
-        let fit = fit_press(shape, link, &press_frames, &settings)?;
-        for (((_, update, _), contact), model) in press.iter_mut().zip(&fit.contacts).zip(&models) {
+        let recording: Vec<Option<&ContactEstimate>> = press.iter().map(|(_, u, _)| Some(&u.summary.map)).collect();
+        let here = self.explain_on(link, press, &recording, frames, &models, &settings)?;
+        let mut best = (link, here);
+        let mut alternative = false;
+        // The frames' own places, in groups (one link, within
+        // `ALTERNATIVE_GROUP_M` of the group's first place in the link's
+        // frame): a group is one coherent place for the whole press.
+        let own: Vec<Option<&ContactEstimate>> = (0..press.len())
+            .map(|k| alone.get(k)?.as_ref().filter(|s| s.refined).map(|s| &s.map))
+            .collect();
+        let mut groups: Vec<Group> = Vec::new();
+        for (k, ((_, update, _), map)) in press.iter().zip(&own).enumerate() {
+            let Some(map) = map else { continue };
+            let Some(point) = update
+                .pose
+                .world_from_link
+                .get(map.link)
+                .map(|world_from_link| world_from_link.inverse().transform_point3(map.point_world))
+            else {
+                continue;
+            };
+            let apart = map.link != update.summary.map.link
+                || map.point_world.distance(update.summary.map.point_world) > ALTERNATIVE_MIN_M;
+            match groups
+                .iter_mut()
+                .find(|g| g.link == map.link && g.center_in_link.distance(point) <= ALTERNATIVE_GROUP_M)
+            {
+                Some(g) => {
+                    g.members.push(k);
+                    g.apart += usize::from(apart);
+                }
+                None => groups.push(Group {
+                    link: map.link,
+                    center_in_link: point,
+                    members: vec![k],
+                    apart: usize::from(apart),
+                }),
+            }
+        }
+        groups.sort_by(|a, b| b.members.len().cmp(&a.members.len()).then(a.members.cmp(&b.members)));
+        let needed = ALTERNATIVE_MIN_FRAMES.max(press.len().div_ceil(ALTERNATIVE_MIN_SHARE));
+        for group in groups
+            .iter()
+            .filter(|g| g.members.len() >= needed && g.apart >= needed)
+            .take(MAX_ALTERNATIVES)
+        {
+            let mut starts: Vec<Option<&ContactEstimate>> = vec![None; press.len()];
+            for &k in &group.members {
+                if let (Some(start), Some(map)) = (starts.get_mut(k), own.get(k)) {
+                    *start = *map;
+                }
+            }
+            if let Some(answer) = self.explain_on(group.link, press, &starts, frames, &models, &settings)
+                && answer.1.cost < best.1.1.cost - FRICTION_GAIN
+            {
+                best = (group.link, answer);
+                alternative = true;
+            }
+        }
+        let (link, (fallback, answer)) = best;
+        // The recording's own places, frictionless: nothing to change.
+        if !answer.friction && !alternative {
+            return Some(());
+        }
+        for ((((_, update, _), contact), model), &fallback_sample) in
+            press.iter_mut().zip(&answer.contacts).zip(&models).zip(&fallback)
+        {
             let placed = PlacedContact {
                 link,
                 point_in_link: contact.point_in_link,
                 inward_normal_in_link: contact.inward_normal_in_link,
                 force_newtons: contact.force_newtons,
                 tangential_in_link: contact.tangential_in_link,
-                fallback_sample: update.summary.map.point,
+                fallback_sample,
                 residual_chi2: contact.residual_chi2,
             };
             self.place(update, &placed, model);
         }
         Some(())
+    }
+
+    /// The press's frames fitted on `link` (see [`explain_press`]), each
+    /// started at its place in `starts` when that is on `link`, else at
+    /// the place of the nearest frame's that is (a place persists in its
+    /// link's frame); with each frame's sample to fall back on. `None`
+    /// where no start is on `link`.
+    fn explain_on(
+        &self,
+        link: LinkId,
+        press: &[(usize, Update, f64)],
+        starts: &[Option<&ContactEstimate>],
+        frames: &[SequenceFrame],
+        models: &[TorqueModel],
+        settings: &PressSettings,
+    ) -> Option<(Vec<usize>, PressAnswer)> {
+        let shape = self.surface.shape(link)?;
+        let have: Vec<usize> = (0..press.len())
+            .filter(|&k| starts.get(k).copied().flatten().is_some_and(|m| m.link == link))
+            .collect();
+        let mut press_frames = Vec::with_capacity(press.len());
+        let mut fallback = Vec::with_capacity(press.len());
+        for (k, ((i, _, _), torque_model)) in press.iter().zip(models).enumerate() {
+            // The nearest frame with a start (`have` is sorted).
+            let after = have.partition_point(|&j| j < k);
+            let nearest = match (after.checked_sub(1).and_then(|b| have.get(b)), have.get(after)) {
+                (Some(&before), Some(&next)) => {
+                    if k - before <= next - k {
+                        before
+                    } else {
+                        next
+                    }
+                }
+                (Some(&j), None) | (None, Some(&j)) => j,
+                (None, None) => return None,
+            };
+            let map = starts.get(nearest).copied().flatten()?;
+            let (_, update, _) = press.get(nearest)?;
+            let point_in_link = update
+                .pose
+                .world_from_link
+                .get(link)?
+                .inverse()
+                .transform_point3(map.point_world);
+            let sample = *self.surface.location.get(map.point)?;
+            let frame = frames.get(*i)?;
+            press_frames.push(PressFrame {
+                t_secs: frame.t_secs,
+                torque_model,
+                tau: frame.tau,
+                start: locate(shape, sample, point_in_link),
+            });
+            fallback.push(map.point);
+        }
+        let answer = explain_press(shape, link, &press_frames, settings)?;
+        Some((fallback, answer))
     }
 
     /// Reports `placed` as `update`'s contact (see
@@ -796,6 +910,36 @@ impl PressQueue<'_> {
         );
     }
 }
+
+/// Frames of a press whose own contacts lie on one link within
+/// [`ALTERNATIVE_GROUP_M`] of the first's (link frame).
+struct Group {
+    link: LinkId,
+    center_in_link: DVec3,
+    /// The frames, by number within the press.
+    members: Vec<usize>,
+    /// How many of them place the contact elsewhere than the recording.
+    apart: usize,
+}
+
+/// The radius of a [`Group`], m.
+pub const ALTERNATIVE_GROUP_M: f64 = 0.03;
+
+/// A frame alone places its press's contact elsewhere when on another
+/// link or farther than this from the recording's place, m (a few patch
+/// widths: closer, both fits start in the same valley).
+pub const ALTERNATIVE_MIN_M: f64 = 0.02;
+
+/// A press is fitted from its frames' own places too when at least this
+/// many of its frames, and…
+pub const ALTERNATIVE_MIN_FRAMES: usize = 3;
+
+/// …at least one in this many, place the contact elsewhere on one link.
+pub const ALTERNATIVE_MIN_SHARE: usize = 4;
+
+/// Links a press is fitted on besides the recording's, at most (those
+/// where most frames alone place it).
+pub const MAX_ALTERNATIVES: usize = 2;
 
 /// Longest run of frames fitted as one press (2 s at 200 Hz): a longer
 /// contact is fitted in pieces, so that what waits for a press's end

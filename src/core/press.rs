@@ -135,10 +135,51 @@ pub struct PressFit {
 /// 0, there are no frames, or the surface cannot be evaluated).
 #[must_use]
 pub fn fit_press(shape: &LinkShape, link: LinkId, frames: &[PressFrame], settings: &PressSettings) -> Option<PressFit> {
-    if frames.is_empty()
-        || !(settings.friction > 0.0 && settings.friction.is_finite())
-        || !(settings.slide_m_per_sqrt_s > 0.0 && settings.slide_m_per_sqrt_s.is_finite())
-    {
+    if !(settings.friction > 0.0 && settings.friction.is_finite()) {
+        return None;
+    }
+    let answer = explain_press(shape, link, frames, settings)?;
+    answer.friction.then_some(PressFit {
+        contacts: answer.contacts,
+        tangential_ratio_in_link: answer.tangential_ratio_in_link,
+        gain: answer.gain,
+    })
+}
+
+/// The press's best explanation on one link from one start: the
+/// frictionless fit, or the friction model's where it is kept (as in
+/// [`fit_press`]), with its cost, so that explanations on other links or
+/// from other starts can be weighed against it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PressAnswer {
+    /// Each frame's contact, in the frames' order.
+    pub contacts: Vec<PressContact>,
+    /// γ, link frame (zero without friction).
+    pub tangential_ratio_in_link: DVec3,
+    /// `-2 ln` of the posterior at the fit (the cost of the module's
+    /// documentation, γ's prior included when friction is kept).
+    pub cost: f64,
+    /// Whether the friction model was kept.
+    pub friction: bool,
+    /// How much lower the cost is with friction than without (0 without a
+    /// friction setting).
+    pub gain: f64,
+}
+
+/// Fits the press `frames` (in time order, all on `link`, each started at
+/// its `start`) without friction and, with a friction setting, with it;
+/// returns the friction model's fit where [`fit_press`] would keep it and
+/// the frictionless one otherwise. `None` without frames, without a
+/// positive finite slide length, or where the surface cannot be
+/// evaluated.
+#[must_use]
+pub fn explain_press(
+    shape: &LinkShape,
+    link: LinkId,
+    frames: &[PressFrame],
+    settings: &PressSettings,
+) -> Option<PressAnswer> {
+    if frames.is_empty() || !(settings.slide_m_per_sqrt_s > 0.0 && settings.slide_m_per_sqrt_s.is_finite()) {
         return None;
     }
     let problem = Problem {
@@ -149,19 +190,26 @@ pub fn fit_press(shape: &LinkShape, link: LinkId, frames: &[PressFrame], setting
     };
     let start: Vec<MeshPoint> = frames.iter().map(|f| f.start).collect();
     let frictionless = problem.descend(start.clone(), false)?;
-    let frictional = problem.descend(start, true)?;
-    let gain = frictionless.normal.cost - frictional.normal.cost;
-    let plausible = frictional.ratio.length() <= RATIO_LIMIT_SPREADS * settings.friction;
-    if !(gain > FRICTION_GAIN && plausible) {
-        return None;
-    }
-    let ratio = frictional.ratio;
-    let contacts = frictional
+    let with_friction = settings.friction > 0.0 && settings.friction.is_finite();
+    let frictional = if with_friction {
+        problem.descend(start, true)
+    } else {
+        None
+    };
+    let gain = frictional
+        .as_ref()
+        .map_or(0.0, |f| frictionless.normal.cost - f.normal.cost);
+    let kept =
+        frictional.filter(|f| gain > FRICTION_GAIN && f.ratio.length() <= RATIO_LIMIT_SPREADS * settings.friction);
+    let friction = kept.is_some();
+    let found = kept.unwrap_or(frictionless);
+    let ratio = found.ratio;
+    let contacts = found
         .locations
         .iter()
-        .zip(&frictional.normal.surface)
-        .zip(&frictional.normal.magnitudes)
-        .zip(&frictional.normal.residuals)
+        .zip(&found.normal.surface)
+        .zip(&found.normal.magnitudes)
+        .zip(&found.normal.residuals)
         .map(
             |(((&location, surface), &force_newtons), &residual_chi2)| PressContact {
                 location,
@@ -173,9 +221,11 @@ pub fn fit_press(shape: &LinkShape, link: LinkId, frames: &[PressFrame], setting
             },
         )
         .collect();
-    Some(PressFit {
+    Some(PressAnswer {
         contacts,
         tangential_ratio_in_link: ratio,
+        cost: found.normal.cost,
+        friction,
         gain,
     })
 }
@@ -726,6 +776,39 @@ mod tests {
         assert!(ratio_error < 0.08, "{ratio_error}");
         assert!(plain_place > 3.0 * place && plain_place > 3e-3, "{plain_place}");
         assert!(fit.gain > FRICTION_GAIN);
+    }
+
+    /// `explain_press` hands over what `fit_press` keeps, and otherwise the
+    /// frictionless fit with its cost, so that fits from other starts can
+    /// be weighed against it: the friction model's cost is the
+    /// frictionless one less the gain, and without a friction setting the
+    /// answer is frictionless with no gain.
+    #[test]
+    fn a_press_is_explained_with_its_cost() {
+        let p = press([0.15, -0.1], 0.05, 3);
+        let shape = p.surface.shape(p.link).unwrap();
+        let frames = press_frames(&p);
+        let answer = explain_press(shape, p.link, &frames, &settings(0.1)).unwrap();
+        let fit = fit_press(shape, p.link, &frames, &settings(0.1)).unwrap();
+        assert!(answer.friction);
+        assert_eq!(answer.contacts, fit.contacts);
+        assert!((answer.gain - fit.gain).abs() < 1e-9);
+        let plain = explain_press(shape, p.link, &frames, &settings(0.0)).unwrap();
+        assert!(!plain.friction && plain.gain.abs() < 1e-15);
+        assert_eq!(plain.tangential_ratio_in_link, DVec3::ZERO);
+        assert!(
+            (plain.cost - answer.cost - answer.gain).abs() < 1e-6 * plain.cost,
+            "{plain:?}"
+        );
+        // The residuals are the cost less the slide (and γ's prior).
+        let residuals: f64 = plain.contacts.iter().map(|c| c.residual_chi2).sum();
+        assert!(residuals <= plain.cost && residuals > 0.5 * plain.cost);
+        let straight = press([0.0, 0.0], 0.05, 0);
+        let frames = press_frames(&straight);
+        let shape = straight.surface.shape(straight.link).unwrap();
+        let kept = explain_press(shape, straight.link, &frames, &settings(0.1)).unwrap();
+        assert!(!kept.friction);
+        assert!(explain_press(shape, straight.link, &[], &settings(0.1)).is_none());
     }
 
     /// A press without a tangential force keeps its frictionless estimate:
