@@ -239,11 +239,14 @@ fn estimated(
 /// `estimate S --temporal none|smooth --friction 0|0.1|0.2 --seed 0–2` at
 /// 5000 points on 20 s sessions (`synth --seconds 20 --rate 50 --friction
 /// 0.3 --seed 1..6`, links 4–7): per frame 8.5–27.5 mm, smoothed at μ 0.2
-/// 2.4–8.9 mm; at μ 0 seeds 1 and 3 smoothed to 16.5 and 20.6 mm, and at
-/// μ 0.1 seed 1 to 10.8–28.9 mm. Here seeds 1 and 3 of those sessions
-/// (surface seed 0: 18.7, 19.3 → 4.2, 4.3 mm) and seed 1 without friction
-/// (3.7 → 0.7 mm). On 10 s of seed 3 (fewer presses) the same comparison
-/// gives 29.9 → 22.0 mm: the target is a recording's, not a few presses'.
+/// 2.4–6.1 mm; at μ 0 seeds 1 and 3 smoothed to 16.5 and 20.6 mm. Here
+/// seeds 1 and 3 of those sessions (surface seed 0: 18.7, 19.3 → 3.7, 3.0
+/// mm), seed 1 without friction (3.7 → 0.7 mm) and seed 1 sliding at up to
+/// 3 cm/s with up to 15 % (`--slide 0.03 --friction 0.15`: 10.6 → 2.2 mm).
+/// Seed 3's force error, 0.24 N, was 0.56 N before presses were also
+/// fitted from their frames' own places (`pipeline::ALTERNATIVE_*`); that
+/// also took 10 s of seed 3 from 29.9 → 22.0 mm to 29.9 → 3.0 mm, and
+/// the sliding session's smoothed error from 4.7 to 2.2 mm.
 #[test]
 fn smoothed_at_the_default_friction_halves_the_per_frame_error() {
     use proprioscope::core::pipeline::OVER_TIME_FRICTION;
@@ -637,7 +640,9 @@ fn a_smoothed_press_its_frames_contradict_reports_their_own_contacts() {
     }
     // The forces reported on frames called contacts: p90 measured 12.6 N,
     // 23.5 N without the check (the rest is a link 4 press smoothed onto
-    // link 3, which explains its frames as well as their own contacts).
+    // link 3, which explains its frames as well as their own contacts),
+    // on the session as `synth` drew slides before it kept their
+    // directions; 7.0 N as drawn now.
     let force_errors: Vec<f64> = frames
         .iter()
         .zip(&smoothed)
