@@ -311,7 +311,7 @@ impl Estimator {
         };
         let recording: Vec<Option<&ContactEstimate>> = press.iter().map(|(_, u, _)| Some(&u.summary.map)).collect();
         let here = self.explain_on(link, press, &recording, frames, &models, &settings)?;
-        let mut best = (link, here);
+        let (mut best_link, mut best) = (link, here);
         let mut alternative = false;
         // The frames' own places, in groups (one link, within
         // `ALTERNATIVE_GROUP_M` of the group's first place in the link's
@@ -362,13 +362,13 @@ impl Estimator {
                 }
             }
             if let Some(answer) = self.explain_on(group.link, press, &starts, frames, &models, &settings)
-                && answer.1.cost < best.1.1.cost - FRICTION_GAIN
+                && answer.1.cost < best.1.cost - FRICTION_GAIN
             {
-                best = (group.link, answer);
+                (best_link, best) = (group.link, answer);
                 alternative = true;
             }
         }
-        let (link, (fallback, answer)) = best;
+        let (link, (fallback, answer)) = (best_link, best);
         // The recording's own places, frictionless: nothing to change.
         if !answer.friction && !alternative {
             return Some(());

@@ -135,9 +135,6 @@ pub struct PressFit {
 /// 0, there are no frames, or the surface cannot be evaluated).
 #[must_use]
 pub fn fit_press(shape: &LinkShape, link: LinkId, frames: &[PressFrame], settings: &PressSettings) -> Option<PressFit> {
-    if !(settings.friction > 0.0 && settings.friction.is_finite()) {
-        return None;
-    }
     let answer = explain_press(shape, link, frames, settings)?;
     answer.friction.then_some(PressFit {
         contacts: answer.contacts,

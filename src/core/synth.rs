@@ -461,9 +461,9 @@ mod tests {
             if s1.length() > 1e-6 && s2.length() > 1e-6 && s1.length() < 0.01 && s2.length() < 0.01 {
                 turns.push(s1.angle_between(s2));
             }
-            // The tangential parts: the force less its part along the
-            // step's normal, approximated by the force's own direction
-            // change (the normal turns by the step over the radius).
+            // The whole force, link frame: its normal part turns only by
+            // a step over the surface's radius, so a turn of its
+            // tangential part shows.
             if fa.length() > 1.0 && fb.length() > 1.0 {
                 drag_turns.push(fa.angle_between(*fb));
             }
