@@ -435,61 +435,82 @@ pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level
 /// by the top 16 bits of their probability (sign, exponent and four bits
 /// of mantissa: for positive numbers the bits order as the values do, so
 /// every point of a bucket is more probable than every point of a lower
-/// one). One pass finds the largest, the next counts each bucket's mass;
-/// whole buckets are taken from
-/// the top while they hold less than `level`; a second pass collects
+/// one). One pass finds the largest and the least, the next gives each
+/// point its bucket and counts each bucket's mass; whole buckets are taken
+/// from the top while they hold less than `level`; a last pass collects
 /// them, and only the points of the bucket that crosses the level are
 /// sorted. (Sorting them all would cost most of a broad posterior's
 /// update.) The sum adds whole buckets, each summed in the order given,
 /// then the crossing bucket's points one by one.
 fn most_probable_holding(indices: &[usize], probability: &[f64], relative_floor: f64, level: f64) -> (Vec<usize>, f64) {
     let key = |p: f64| (p.to_bits() >> 48) as usize;
-    let positive = |k: usize| probability.get(k).copied().filter(|&p| p > 0.0);
-    let (mut low, mut top) = (f64::INFINITY, 0.0_f64);
-    for &k in indices {
-        if let Some(p) = positive(k) {
-            low = low.min(p);
-            top = top.max(p);
-        }
-    }
-    let mut taken = Vec::new();
-    let mut mass = 0.0;
+    // Each listed point's probability, 0 where it is never taken (≤ 0,
+    // NaN, not in `probability`): the passes below then run without a
+    // branch per point that depends on the data (in a broad posterior
+    // such branches miss half the time, and cost most of this function).
+    let values: Vec<f64> = indices
+        .iter()
+        .map(|&k| probability.get(k).copied().filter(|&p| p > 0.0).unwrap_or(0.0))
+        .collect();
+    let top = values.iter().copied().fold(0.0_f64, f64::max);
+    let low = values
+        .iter()
+        .copied()
+        .fold(f64::INFINITY, |low, p| if p > 0.0 { low.min(p) } else { low });
     let floor = top * relative_floor;
-    let taken_at = |k: usize| positive(k).filter(|&p| p > floor);
     if !(top > 0.0 && top > floor) {
-        return (taken, mass);
+        return (Vec::new(), 0.0);
     }
     let high = key(top);
     // The bucket of the floor or of the least probable, whichever is higher.
     let low = key(low.max(floor));
-    // Bucket b holds the points of key `high - b`: bucket 0 the most probable.
-    let mut bucket_mass = vec![0.0; high - low + 1];
-    for &k in indices {
-        if let Some(p) = taken_at(k)
-            && let Some(m) = bucket_mass.get_mut(high - key(p))
-        {
+    // Bucket b holds the points of key `high - b`: bucket 0 the most
+    // probable. What is not taken goes in bucket `untaken`, one past the
+    // `crossing` of a level above the total.
+    let buckets_taken = high.saturating_sub(low) + 1;
+    let untaken = buckets_taken + 1;
+    let mut bucket_mass = vec![0.0; untaken + 1];
+    let buckets: Vec<u32> = values
+        .iter()
+        .map(|&p| {
+            let b = if p > floor {
+                high.saturating_sub(key(p)).min(buckets_taken - 1)
+            } else {
+                untaken
+            };
+            u32::try_from(b).unwrap_or(u32::MAX)
+        })
+        .collect();
+    for (&b, &p) in buckets.iter().zip(&values) {
+        if let Some(m) = bucket_mass.get_mut(b as usize) {
             *m += p;
         }
     }
     // Buckets before `crossing` are taken whole.
-    let mut crossing = bucket_mass.len();
-    for (b, &m) in bucket_mass.iter().enumerate() {
+    let mut crossing = buckets_taken;
+    let mut mass = 0.0;
+    for (b, &m) in bucket_mass.iter().take(buckets_taken).enumerate() {
         if mass + m >= level {
             crossing = b;
             break;
         }
         mass += m;
     }
+    let mut taken = vec![0; indices.len()];
+    let mut count = 0;
     let mut last: Vec<(f64, usize)> = Vec::new();
-    for &k in indices {
-        if let Some(p) = taken_at(k) {
-            match (high - key(p)).cmp(&crossing) {
-                std::cmp::Ordering::Less => taken.push(k),
-                std::cmp::Ordering::Equal => last.push((p, k)),
-                std::cmp::Ordering::Greater => {}
-            }
+    for ((&k, &b), &p) in indices.iter().zip(&buckets).zip(&values) {
+        let b = b as usize;
+        // Written always, kept when taken: no branch to mispredict.
+        if let Some(slot) = taken.get_mut(count) {
+            *slot = k;
+        }
+        count += usize::from(b < crossing);
+        if b == crossing {
+            last.push((p, k));
         }
     }
+    taken.truncate(count);
     last.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
     for (p, k) in last {
         if mass >= level {
