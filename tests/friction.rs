@@ -15,6 +15,7 @@ use proprioscope::core::refine::Measurement;
 use proprioscope::core::rng::Rng;
 use proprioscope::core::surface::{Surface, SurfaceRequest};
 use proprioscope::core::synth::{SynthSettings, as_sequence, joint_positions, synthesize};
+use proprioscope::core::temporal::TemporalSettings;
 use proprioscope::core::torque::TorqueModel;
 
 /// The estimator's settings of these tests: σ 0.05 N·m, 1–30 N.
@@ -203,18 +204,32 @@ fn estimated(
     friction: f64,
     points: usize,
 ) -> (Vec<f64>, Vec<f64>, Vec<proprioscope::core::summary::ContactEstimate>) {
+    let surface = (points, 0);
+    estimated_with(robot, frames, temporal, friction, surface, TemporalSettings::default())
+}
+
+/// [`estimated`] over a surface of `(points, seed)`, with the temporal
+/// model's `settings`.
+fn estimated_with(
+    robot: &proprioscope::core::robot::Robot,
+    frames: &[proprioscope::core::synth::SynthFrame],
+    temporal: proprioscope::core::pipeline::Temporal,
+    friction: f64,
+    (points, seed): (usize, u64),
+    temporal_settings: TemporalSettings,
+) -> (Vec<f64>, Vec<f64>, Vec<proprioscope::core::summary::ContactEstimate>) {
     use proprioscope::core::pipeline::estimate_sequence;
-    use proprioscope::core::temporal::{TemporalModel, TemporalSettings};
+    use proprioscope::core::temporal::TemporalModel;
     let request = SurfaceRequest {
         links: robot.default_candidate_links(),
         total_points: points,
-        seed: 0,
+        seed,
     };
     let positions = joint_positions(robot, frames).unwrap();
     let sequence = as_sequence(frames, &positions);
     {
         let estimator = Estimator::new(robot, &request, settings(friction), None).unwrap();
-        let model = TemporalModel::new(&estimator.surface, TemporalSettings::default(), true).unwrap();
+        let model = TemporalModel::new(&estimator.surface, temporal_settings, true).unwrap();
         let (mut position, mut force, mut maps) = (Vec::new(), Vec::new(), Vec::new());
         estimate_sequence(&estimator, robot, Some(&model), temporal, &sequence, |i, update, _| {
             // Every frame once, in order, though a press's frames wait
@@ -283,6 +298,45 @@ fn smoothed_at_the_default_friction_halves_the_per_frame_error() {
     }
     assert!((Temporal::None.default_friction()).abs() < 1e-15);
     assert!((Temporal::Filter.default_friction() - OVER_TIME_FRICTION).abs() < 1e-15);
+}
+
+/// Contacts that slide a few centimetres a second are followed with a
+/// slide length to match (README, *Contacts that slide*): 20 s of presses
+/// sliding at up to 3 cm/s and dragging by up to 15 % (`synth --slide 0.03
+/// --friction 0.15 --seed 4`, links 4–7) over surface seed 1, per frame
+/// 26.8 mm, smoothed at μ 0.2 with the default length (1 cm/√s) 20.7 mm:
+/// not half. With `--slide 0.03`, 4.3 mm.
+#[test]
+fn contacts_that_slide_are_followed_with_their_slide_length() {
+    let robot = builtin::lwr4plus_generated().unwrap();
+    let synth = SynthSettings {
+        duration_secs: 20.0,
+        rate_hz: 50.0,
+        friction: 0.15,
+        slide_m_per_s: 0.03,
+        ..SynthSettings::default()
+    };
+    let frames = presses_drawn(&robot, &synth, 4);
+    let surface = (5000, 1);
+    let median = |temporal, friction, settings| {
+        percentile(&estimated_with(&robot, &frames, temporal, friction, surface, settings).0, 0.5)
+    };
+    let per_frame = median(Temporal::None, 0.0, TemporalSettings::default());
+    let mu = Temporal::Smooth.default_friction();
+    let default_length = median(Temporal::Smooth, mu, TemporalSettings::default());
+    let sliding = TemporalSettings {
+        slide_m_per_sqrt_s: 0.03,
+        ..TemporalSettings::default()
+    };
+    let their_length = median(Temporal::Smooth, mu, sliding);
+    eprintln!(
+        "per frame {:.1} mm, smoothed with the default slide {:.1} mm, with 3 cm/√s {:.1} mm",
+        per_frame * 1e3,
+        default_length * 1e3,
+        their_length * 1e3
+    );
+    assert!(per_frame > 0.02, "{per_frame}");
+    assert!(their_length <= 0.5 * per_frame, "{their_length} vs {per_frame}");
 }
 
 /// A press whose recording (the frictionless smoother) settles on a place
