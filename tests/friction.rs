@@ -319,7 +319,10 @@ fn contacts_that_slide_are_followed_with_their_slide_length() {
     let frames = presses_drawn(&robot, &synth, 4);
     let surface = (5000, 1);
     let median = |temporal, friction, settings| {
-        percentile(&estimated_with(&robot, &frames, temporal, friction, surface, settings).0, 0.5)
+        percentile(
+            &estimated_with(&robot, &frames, temporal, friction, surface, settings).0,
+            0.5,
+        )
     };
     let per_frame = median(Temporal::None, 0.0, TemporalSettings::default());
     let mu = Temporal::Smooth.default_friction();

@@ -841,7 +841,11 @@ mod tests {
                 worst = worst.min(answer.gain);
             }
         }
-        assert!(worst >= -1e-6, "a friction fit costlier than the frictionless one by {}", -worst);
+        assert!(
+            worst >= -1e-6,
+            "a friction fit costlier than the frictionless one by {}",
+            -worst
+        );
     }
 
     /// A press without a tangential force keeps its frictionless estimate:
