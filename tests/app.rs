@@ -558,6 +558,48 @@ fn a_recording_is_smoothed_and_can_be_estimated_frame_by_frame() {
     );
 }
 
+/// Filtered or smoothed, the timeline offers the slide length (as
+/// `estimate --slide`); setting it estimates the session again with it
+/// (the smoothed places move), out of range it is clamped, and
+/// frames estimated alone offer none.
+#[test]
+fn the_slide_length_is_set_in_the_timeline() {
+    use proprioscope::app::{Command, SLIDE_RANGE};
+    use proprioscope::core::pipeline::Temporal;
+    let path = demo_session("slide.session.json", 1.0);
+    let mut harness = session_harness(&path);
+    assert!(harness.query_all_by_label("slide").next().is_some());
+    let places = |harness: &Harness<'_, ProprioscopeApp>| -> Vec<glam::DVec3> {
+        harness
+            .state()
+            .session_estimates
+            .iter()
+            .map(|e| e.unwrap().point_world)
+            .collect()
+    };
+    let before = places(&harness);
+    harness.state_mut().apply(Command::SetSlide(0.05));
+    settle(&mut harness);
+    let replay = harness.state().model.replay.clone().unwrap();
+    assert!((replay.slide_m_per_sqrt_s - 0.05).abs() < 1e-15);
+    let after = places(&harness);
+    assert!(
+        before.iter().zip(&after).any(|(b, a)| b.distance(*a) > 1e-6),
+        "{before:?}\n{after:?}"
+    );
+    harness.state_mut().apply(Command::SetSlide(5.0));
+    harness.state_mut().apply(Command::SetSlide(f64::NAN));
+    let replay = harness.state().model.replay.clone().unwrap();
+    assert!(
+        (replay.slide_m_per_sqrt_s - SLIDE_RANGE.1).abs() < 1e-15,
+        "{}",
+        replay.slide_m_per_sqrt_s
+    );
+    harness.state_mut().apply(Command::SetOverTime(Temporal::None));
+    settle(&mut harness);
+    assert!(harness.query_all_by_label("slide").next().is_none());
+}
+
 #[test]
 fn session_metrics_export_as_json() {
     let path = demo_session("metrics.session.json", 0.5);

@@ -52,8 +52,25 @@ pub enum Command {
     SetOverTime(Temporal),
     /// Take the session's estimated torque bias off its frames (true) or not.
     SetBias(bool),
+    /// How far a contact slides over time, m/√s (clamped to
+    /// [`super::SLIDE_RANGE`]; not a finite number: ignored).
+    SetSlide(f64),
     /// Advance playback by this much wall-clock time, s.
     Tick(f64),
+}
+
+/// The replay's settings that `command` sets (the others: nothing).
+fn set_replay(r: &mut super::Replay, command: &Command) {
+    match *command {
+        Command::SetSpeed(speed) => r.speed = speed.clamp(SPEED_RANGE.0, SPEED_RANGE.1),
+        Command::SetLoop(on) => r.looping = on,
+        Command::SetOverTime(temporal) => r.over_time = temporal,
+        Command::SetBias(on) => r.bias_auto = on,
+        Command::SetSlide(slide_m_per_sqrt_s) if slide_m_per_sqrt_s.is_finite() => {
+            r.slide_m_per_sqrt_s = slide_m_per_sqrt_s.clamp(super::SLIDE_RANGE.0, super::SLIDE_RANGE.1);
+        }
+        _ => {}
+    }
 }
 
 impl Model {
@@ -137,24 +154,13 @@ impl Model {
                     r.playing = on;
                 }
             }
-            Command::SetSpeed(speed) => {
+            Command::SetSpeed(_)
+            | Command::SetLoop(_)
+            | Command::SetOverTime(_)
+            | Command::SetBias(_)
+            | Command::SetSlide(_) => {
                 if let Some(r) = &mut self.replay {
-                    r.speed = speed.clamp(SPEED_RANGE.0, SPEED_RANGE.1);
-                }
-            }
-            Command::SetLoop(on) => {
-                if let Some(r) = &mut self.replay {
-                    r.looping = on;
-                }
-            }
-            Command::SetOverTime(temporal) => {
-                if let Some(r) = &mut self.replay {
-                    r.over_time = temporal;
-                }
-            }
-            Command::SetBias(on) => {
-                if let Some(r) = &mut self.replay {
-                    r.bias_auto = on;
+                    set_replay(r, &command);
                 }
             }
             Command::Tick(dt_secs) => self.tick(dt_secs),

@@ -73,10 +73,17 @@ pub struct Replay {
     /// Take each joint's torque bias, estimated from the session, off
     /// every frame (as `estimate --bias auto`).
     pub bias_auto: bool,
+    /// How far a contact slides, filtered or smoothed: RMS along each
+    /// surface direction after one second, m/√s (as `estimate --slide`).
+    pub slide_m_per_sqrt_s: f64,
 }
 
 /// Slowest and fastest playback.
 pub const SPEED_RANGE: (f64, f64) = (0.1, 10.0);
+
+/// Shortest and longest slide length the timeline offers, m/√s: from
+/// contacts that barely move to ones that wipe along a link.
+pub const SLIDE_RANGE: (f64, f64) = (0.001, 0.1);
 
 /// The estimator's mode as the panel offers it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

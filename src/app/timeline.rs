@@ -7,7 +7,7 @@ use std::sync::Arc;
 use eframe::egui;
 
 use super::session::{self, EstimateJob, FrameEstimate, LoadFailure, Loader, SessionData};
-use super::{Command, Model, ProprioscopeApp, Replay, SPEED_RANGE, per_joint};
+use super::{Command, Model, ProprioscopeApp, Replay, SLIDE_RANGE, SPEED_RANGE, per_joint};
 use crate::core::pipeline::{Temporal, automatic_temporal};
 use crate::core::robot::{LinkId, Robot};
 use crate::core::summary::Verdict;
@@ -37,6 +37,7 @@ pub(super) struct SessionKey {
     force_range_newtons: (f64, f64),
     surface_seed: u64,
     over_time: Temporal,
+    slide_m_per_sqrt_s: f64,
     bias_auto: bool,
     /// Whether the bias taken off is known (it is estimated on a thread:
     /// the frames are estimated once it is there).
@@ -135,6 +136,7 @@ impl ProprioscopeApp {
                 clock_secs: 0.0,
                 over_time,
                 bias_auto: false,
+                slide_m_per_sqrt_s: TemporalSettings::default().slide_m_per_sqrt_s,
             }),
         };
         let first = self.first_frame.take().unwrap_or(0);
@@ -193,6 +195,10 @@ impl ProprioscopeApp {
                 phase_sizes: m.estimator.phases.then_some(m.estimator.phase_sizes),
                 first: replay.frame,
                 over_time: replay.over_time,
+                temporal: TemporalSettings {
+                    slide_m_per_sqrt_s: replay.slide_m_per_sqrt_s,
+                    ..TemporalSettings::default()
+                },
                 bias: self.session_bias().cloned(),
             });
             self.session_key = Some(key);
@@ -239,6 +245,7 @@ impl ProprioscopeApp {
             force_range_newtons: m.force_range_newtons,
             surface_seed: m.surface_seed,
             over_time: replay.over_time,
+            slide_m_per_sqrt_s: replay.slide_m_per_sqrt_s,
             bias_auto: replay.bias_auto,
             bias_known: self.session_bias().is_some(),
         })
@@ -402,6 +409,27 @@ impl ProprioscopeApp {
             .on_hover_text(
                 "how the session's frames are estimated: a contact lasts, so frames together say more than alone",
             );
+        if replay.over_time != Temporal::None {
+            // In cm/√s: the range reads 0.1–10 rather than 0.001–0.1. A
+            // drag value: the row has no room for another slider.
+            let mut slide_cm = replay.slide_m_per_sqrt_s * 100.0;
+            let hover = "how far a contact may slide, RMS along the surface after one second (as estimate --slide): \
+                         1 cm/√s for presses that stay put, 2–3 for contacts that slide a few centimetres a second";
+            ui.label("slide").on_hover_text(hover);
+            if ui
+                .add(
+                    egui::DragValue::new(&mut slide_cm)
+                        .range(SLIDE_RANGE.0 * 100.0..=SLIDE_RANGE.1 * 100.0)
+                        .speed(0.02)
+                        .max_decimals(2)
+                        .suffix(" cm/√s"),
+                )
+                .on_hover_text(hover)
+                .changed()
+            {
+                commands.push(Command::SetSlide(slide_cm / 100.0));
+            }
+        }
         let mut bias_auto = replay.bias_auto;
         if ui
             .checkbox(&mut bias_auto, "take off bias")

@@ -34,6 +34,8 @@ pub struct EstimateJob {
     pub first: usize,
     /// Each frame alone, or together (filtered, smoothed).
     pub over_time: Temporal,
+    /// The temporal model's settings, filtered or smoothed.
+    pub temporal: TemporalSettings,
     /// A torque bias per frame to take off (`bias[frame][joint]`, N·m).
     pub bias: Option<Arc<Vec<Vec<f64>>>>,
 }
@@ -183,12 +185,8 @@ fn estimate_together(job: &EstimateJob, estimator: &Estimator, serving: &Serving
                 tau,
             })
             .collect();
-        let model = TemporalModel::new(
-            &estimator.surface,
-            TemporalSettings::default(),
-            estimator.uses_patches(),
-        )
-        .map_err(|e| e.to_string())?;
+        let model = TemporalModel::new(&estimator.surface, job.temporal, estimator.uses_patches())
+            .map_err(|e| e.to_string())?;
         estimate_sequence_while(
             estimator,
             &job.robot,
