@@ -38,11 +38,12 @@ use crate::core::torque::{TorqueModel, weighted_dot as inner};
 
 /// The drop in `-2 ln L` (the cost above, both searches started from the
 /// same places, and the friction model's again from the frictionless
-/// answer where it ended costlier) that the friction model must reach over
-/// the frictionless one to be kept. Three more unknowns fitting noise gain about 3; 30 is
-/// a likelihood ratio of e¹⁵ (χ² with three degrees of freedom beyond it:
-/// a chance of 1e-6). Measured on synthetic sessions (`synth --friction
-/// 0.15|0.3`, seeds 1–6) the answer moves little between 15 and 60.
+/// answer where it ended costlier) that the friction model must reach
+/// over the frictionless one to be kept. Three more unknowns fitting
+/// noise gain about 3; 30 is a likelihood ratio of e¹⁵ (χ² with three
+/// degrees of freedom beyond it: a chance of 1e-6). Measured on synthetic
+/// sessions (`synth --friction 0.15|0.3`, seeds 1–6) the answer moves
+/// little between 15 and 60.
 pub const FRICTION_GAIN: f64 = 30.0;
 
 /// A fitted γ longer than this many spreads μ is taken for a model
