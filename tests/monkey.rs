@@ -1,6 +1,6 @@
 //! The monkey test: thousands of seeded random actions on the app (menu
 //! items, shipped scenes, robot switches, clicks, drags and wheel turns in
-//! the 3-D view, sliders, checkboxes, keys, sessions opened, played,
+//! the 3-D view, sliders and drag values, checkboxes, keys, sessions opened, played,
 //! scrubbed and closed, recordings started and stopped, a robot recording
 //! that asks for its topics, a live stream listened to and fed), with the model's
 //! invariants checked after each. `MONKEY_ACTIONS` sets how many (2000 by
@@ -121,7 +121,13 @@ fn act(harness: &mut Harness<'_, ProprioscopeApp>, rng: &mut Rng, m: &mut Monkey
             }
         }
         3 | 4 => {
-            let sliders = labels(harness, Role::Slider);
+            // Sliders and drag values (a drag value is a spin button).
+            let role = if rng.below(3) == 0 {
+                Role::SpinButton
+            } else {
+                Role::Slider
+            };
+            let sliders = labels(harness, role);
             if sliders.is_empty() {
                 "no slider".to_owned()
             } else {
@@ -133,10 +139,10 @@ fn act(harness: &mut Harness<'_, ProprioscopeApp>, rng: &mut Rng, m: &mut Monkey
                     2 => rng.uniform_in(0.0, 100_000.0),
                     _ => 0.0,
                 };
-                if let Some(node) = harness.query_all_by_role(Role::Slider).nth(i) {
+                if let Some(node) = harness.query_all_by_role(role).nth(i) {
                     node.set_value_accesskit(value);
                 }
-                format!("slider '{}' to {value}", sliders[i])
+                format!("{role:?} '{}' to {value}", sliders[i])
             }
         }
         5 | 6 => {
