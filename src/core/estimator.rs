@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use crate::core::contact::{PARALLEL_MIN_POINTS, PatchForms, UnitTorqueSource};
 use crate::core::fastmath::{self, ErfTable};
+use crate::core::lanes;
 use crate::core::phases::PhaseHierarchy;
 use crate::core::rng::Rng;
 use crate::core::simd::{Kernel, widest};
@@ -360,13 +361,7 @@ impl Quadratic<'_> {
     fn exact_scores(&self, points: &[usize], surface_points: usize) -> Scores {
         let (force, mut mass, profile_best) = self.profiles(points, surface_points);
         let slots_from = |low: f64, high: f64| -> Vec<usize> {
-            let slots_in = |start: usize, mass: &[f64]| -> Vec<usize> {
-                (start..)
-                    .zip(mass)
-                    .filter(|(_, m)| **m >= low && **m < high)
-                    .map(|(i, _)| i)
-                    .collect()
-            };
+            let slots_in = |start: usize, mass: &[f64]| -> Vec<usize> { slots_within(start, mass, low, high) };
             if mass.len() >= PARALLEL_MIN_POINTS {
                 const CHUNK: usize = 8192;
                 mass.par_chunks(CHUNK)
@@ -724,7 +719,6 @@ pub fn estimate_keeping_forms(
     let last = search_phases(&q, settings, hierarchy, n, &mut rng, &mut flags, &mut phases)?;
     let (mut scored, report) = evaluate(&q, &last, settings, n, &mut rng);
     phases.push(report);
-
     if last.len() == n {
         for f in &mut flags {
             *f |= phase_flag::C;
@@ -738,34 +732,46 @@ pub fn estimate_keeping_forms(
         .candidates
         .take()
         .unwrap_or_else(|| (0..scored.mass.len()).collect());
-    let best_mass = candidates
+    let candidate_mass: Vec<f64> = candidates
         .iter()
-        .map(|&i| scored.mass[i])
-        .fold(f64::NEG_INFINITY, |best, m| if m > best { m } else { best });
+        .map(|&i| scored.mass.get(i).copied().unwrap_or(f64::NEG_INFINITY))
+        .collect();
+    let best_mass = lanes::max_or(&candidate_mass, f64::NEG_INFINITY);
     let map_slot = candidates
         .iter()
-        .copied()
-        .find(|&i| scored.mass[i].total_cmp(&best_mass).is_eq())
-        .unwrap_or(0);
+        .zip(&candidate_mass)
+        .find(|&(_, m)| m.total_cmp(&best_mass).is_eq())
+        .map_or(0, |(&i, _)| i);
     // Only points near the best carry mass; listing them first keeps
     // `exp` off the rest (a branch around `exp` in a loop over every point
     // is compiled into an unconditional call, slow for large negative
-    // arguments).
-    let near: Vec<usize> = candidates
-        .into_iter()
-        .filter(|&i| scored.mass[i] >= best_mass + NEGLIGIBLE_LOG_MASS)
-        .collect();
+    // arguments). Each is written, and kept where near (no branch on the
+    // data), with its log-mass relative to the best.
+    let (mut near, mut relative) = (vec![0; candidates.len()], vec![0.0; candidates.len()]);
+    let mut count = 0;
+    for (&i, &m) in candidates.iter().zip(&candidate_mass) {
+        if let (Some(slot), Some(r)) = (near.get_mut(count), relative.get_mut(count)) {
+            *slot = i;
+            *r = m - best_mass;
+        }
+        count += usize::from(m >= best_mass + NEGLIGIBLE_LOG_MASS);
+    }
+    near.truncate(count);
+    relative.truncate(count);
     // Relative masses with the branch-free `exp` (one vectorised loop).
-    let relative: Vec<f64> = near.iter().map(|&i| scored.mass[i] - best_mass).collect();
     let weights: Vec<f64> = widest(ExpKernel(&relative));
-    let total = best_mass + weights.iter().sum::<f64>().ln();
+    let weight_sum = lanes::sum(&weights);
+    let total = best_mass + weight_sum.ln();
     // The smallest residual is among the likeliest points.
-    let best_residual_chi2 = near
+    let residuals: Vec<f64> = near
         .iter()
-        .filter(|&&i| scored.mass[i].is_finite())
-        .map(|&i| q.residual(last[i], scored.force[i]))
-        .fold(f64::INFINITY, f64::min);
-    let (probability, display, support) = spread_mass(&scored, &last, &near, &weights, total, n);
+        .map(|&i| match (last.get(i), scored.mass.get(i), scored.force.get(i)) {
+            (Some(&k), Some(m), Some(&f)) if m.is_finite() => q.residual(k, f),
+            _ => f64::INFINITY,
+        })
+        .collect();
+    let best_residual_chi2 = lanes::min_or(&residuals, f64::INFINITY);
+    let (probability, display, support) = spread_mass(&scored, &last, &near, &weights, (weight_sum, total), n);
     let (log_likelihood, force_newtons) = if last.len() == n {
         // A full search scores every point in order: no scatter needed.
         (scored.mass, scored.force)
@@ -800,12 +806,12 @@ fn spread_mass(
     last: &[usize],
     near: &[usize],
     weights: &[f64],
-    total: f64,
+    (weight_sum, total): (f64, f64),
     n: usize,
 ) -> (Vec<f64>, Vec<f64>, Vec<usize>) {
-    let weight_sum: f64 = weights.iter().sum();
     let (mut probability, mut display) = (vec![0.0; n], vec![0.0; n]);
-    let mut support = Vec::with_capacity(near.len());
+    let mut support = vec![0; near.len()];
+    let mut count = 0;
     let exact = scored.best.is_empty();
     for (&i, &weight) in near.iter().zip(weights) {
         let (Some(&k), Some(&mass)) = (last.get(i), scored.mass.get(i)) else {
@@ -821,10 +827,13 @@ fn spread_mass(
             *pk = p;
             *dk = shown;
         }
-        if p > 0.0 || shown > 0.0 {
-            support.push(k);
+        // Written always, kept where it carries mass: no branch to miss.
+        if let Some(slot) = support.get_mut(count) {
+            *slot = k;
         }
+        count += usize::from(p > 0.0 || shown > 0.0);
     }
+    support.truncate(count);
     // `last` is in index order already; this keeps the promise if that changes.
     if !support.is_sorted() {
         support.sort_unstable();
@@ -1314,6 +1323,23 @@ fn evaluate(
             (scores, report)
         }
     }
+}
+
+/// The positions (from `start`) of the values of `mass` in `[low, high)`,
+/// in order. Each position is written, and kept where it is in range: no
+/// branch that depends on the data (in a broad posterior a filter's
+/// branch misses often).
+fn slots_within(start: usize, mass: &[f64], low: f64, high: f64) -> Vec<usize> {
+    let mut out = vec![0; mass.len()];
+    let mut count = 0;
+    for (i, &m) in (start..).zip(mass) {
+        if let Some(slot) = out.get_mut(count) {
+            *slot = i;
+        }
+        count += usize::from(m >= low && m < high);
+    }
+    out.truncate(count);
+    out
 }
 
 /// `ln(e^x + e^y)` without overflow.

@@ -10,6 +10,7 @@ pub mod estimator;
 pub mod fastmath;
 pub mod friction;
 pub mod kinematics;
+pub mod lanes;
 pub mod mesh;
 pub mod metrics;
 pub mod observability;

@@ -6,6 +6,7 @@ use glam::DVec3;
 
 use crate::core::estimator::Posterior;
 use crate::core::kinematics::RobotPose;
+use crate::core::lanes;
 use crate::core::phases::link_ranges;
 use crate::core::refine::RefinedContact;
 use crate::core::regions::regions;
@@ -386,6 +387,7 @@ pub fn summarize_refined(
     if let Some(done) = run {
         add_run(&mut per_link, done);
     }
+
     let world = |k: usize| pose.point_to_world(surface.link[k], surface.point_in_link[k]);
     let grid_map = contact_at(posterior, surface, pose, posterior.map_point);
     let map = refined.map_or(grid_map, |r| refined_estimate(r.contact, posterior, surface, pose));
@@ -438,12 +440,14 @@ pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level
 /// one). One pass finds the largest and the least, the next gives each
 /// point its bucket and counts each bucket's mass; whole buckets are taken
 /// from the top while they hold less than `level`; a last pass collects
-/// them, and only the points of the bucket that crosses the level are
-/// sorted. (Sorting them all would cost most of a broad posterior's
-/// update.) The sum adds whole buckets, each summed in the order given,
-/// then the crossing bucket's points one by one.
+/// them, and the points of the bucket that crosses the level are chosen
+/// by [`take_most_probable`]. (Sorting them all would cost most of a
+/// broad posterior's update.) The sum adds whole buckets, each summed in
+/// the order given, then what the crossing bucket adds.
 fn most_probable_holding(indices: &[usize], probability: &[f64], relative_floor: f64, level: f64) -> (Vec<usize>, f64) {
-    let key = |p: f64| (p.to_bits() >> 48) as usize;
+    // The top 16 bits: the cast keeps them all.
+    #[allow(clippy::cast_possible_truncation)]
+    let key = |p: f64| (p.to_bits() >> 48) as u32;
     // Each listed point's probability, 0 where it is never taken (≤ 0,
     // NaN, not in `probability`): the passes below then run without a
     // branch per point that depends on the data (in a broad posterior
@@ -452,11 +456,8 @@ fn most_probable_holding(indices: &[usize], probability: &[f64], relative_floor:
         .iter()
         .map(|&k| probability.get(k).copied().filter(|&p| p > 0.0).unwrap_or(0.0))
         .collect();
-    let top = values.iter().copied().fold(0.0_f64, f64::max);
-    let low = values
-        .iter()
-        .copied()
-        .fold(f64::INFINITY, |low, p| if p > 0.0 { low.min(p) } else { low });
+    let top = lanes::max_or(&values, 0.0);
+    let low = lanes::min_positive(&values);
     let floor = top * relative_floor;
     if !(top > 0.0 && top > floor) {
         return (Vec::new(), 0.0);
@@ -469,18 +470,13 @@ fn most_probable_holding(indices: &[usize], probability: &[f64], relative_floor:
     // `crossing` of a level above the total.
     let buckets_taken = high.saturating_sub(low) + 1;
     let untaken = buckets_taken + 1;
-    let mut bucket_mass = vec![0.0; untaken + 1];
-    let buckets: Vec<u32> = values
-        .iter()
-        .map(|&p| {
-            let b = if p > floor {
-                high.saturating_sub(key(p)).min(buckets_taken - 1)
-            } else {
-                untaken
-            };
-            u32::try_from(b).unwrap_or(u32::MAX)
-        })
-        .collect();
+    let mut bucket_mass = vec![0.0; untaken as usize + 1];
+    // A plain loop over `u32`s: the compiler vectorises it.
+    let mut buckets = vec![0_u32; values.len()];
+    for (b, &p) in buckets.iter_mut().zip(&values) {
+        let taken_bucket = high.saturating_sub(key(p)).min(buckets_taken - 1);
+        *b = if p > floor { taken_bucket } else { untaken };
+    }
     for (&b, &p) in buckets.iter().zip(&values) {
         if let Some(m) = bucket_mass.get_mut(b as usize) {
             *m += p;
@@ -489,7 +485,7 @@ fn most_probable_holding(indices: &[usize], probability: &[f64], relative_floor:
     // Buckets before `crossing` are taken whole.
     let mut crossing = buckets_taken;
     let mut mass = 0.0;
-    for (b, &m) in bucket_mass.iter().take(buckets_taken).enumerate() {
+    for (b, &m) in (0..buckets_taken).zip(&bucket_mass) {
         if mass + m >= level {
             crossing = b;
             break;
@@ -500,7 +496,6 @@ fn most_probable_holding(indices: &[usize], probability: &[f64], relative_floor:
     let mut count = 0;
     let mut last: Vec<(f64, usize)> = Vec::new();
     for ((&k, &b), &p) in indices.iter().zip(&buckets).zip(&values) {
-        let b = b as usize;
         // Written always, kept when taken: no branch to mispredict.
         if let Some(slot) = taken.get_mut(count) {
             *slot = k;
@@ -511,16 +506,56 @@ fn most_probable_holding(indices: &[usize], probability: &[f64], relative_floor:
         }
     }
     taken.truncate(count);
-    last.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
-    for (p, k) in last {
-        if mass >= level {
+    let mut picked = Vec::new();
+    mass += take_most_probable(&mut last, level - mass, &mut picked);
+    picked.sort_unstable();
+    taken.extend(picked);
+    // Two sorted runs where `indices` is sorted: the stable sort merges
+    // them in linear time.
+    #[allow(clippy::stable_sort_primitive)]
+    taken.sort();
+    (taken, mass)
+}
+
+/// Moves into `taken` the fewest, most probable of `items` (probability,
+/// index; ties to the lower index) whose probabilities add up to at least
+/// `need`, and returns their sum. In expected linear time: each step
+/// splits the items at their median (the upper half gathered by
+/// selection, not sorted) and goes on in the half that crosses `need`,
+/// taking the upper one whole where it does not; the last few are sorted
+/// and taken one by one. (In a flat posterior the crossing bucket of
+/// [`most_probable_holding`] holds hundreds of points, most of which are
+/// never taken.)
+fn take_most_probable(items: &mut [(f64, usize)], need: f64, taken: &mut Vec<usize>) -> f64 {
+    const SORT_BELOW: usize = 32;
+    let order = |x: &(f64, usize), y: &(f64, usize)| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1));
+    let mut added = 0.0;
+    let mut rest = items;
+    while added < need && !rest.is_empty() {
+        if rest.len() <= SORT_BELOW {
+            rest.sort_unstable_by(order);
+            for &(p, k) in rest.iter() {
+                if added >= need {
+                    break;
+                }
+                taken.push(k);
+                added += p;
+            }
             break;
         }
-        taken.push(k);
-        mass += p;
+        let mid = rest.len() / 2;
+        rest.select_nth_unstable_by(mid, order);
+        let (upper, lower) = rest.split_at_mut(mid);
+        let upper_mass: f64 = upper.iter().map(|x| x.0).sum();
+        if added + upper_mass >= need {
+            rest = upper;
+        } else {
+            added += upper_mass;
+            taken.extend(upper.iter().map(|x| x.1));
+            rest = lower;
+        }
     }
-    taken.sort_unstable();
-    (taken, mass)
+    added
 }
 
 /// Probable points grouped into connected regions of the surface's cells

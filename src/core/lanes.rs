@@ -1,0 +1,111 @@
+//! Reductions over many surface points (largest, least positive, sum) kept
+//! in eight independent running values, combined at the end.
+//!
+//! A fold with one running value waits on the previous step at every
+//! element (`f64::max` is a compare and a blend, an addition four cycles):
+//! over a broad posterior's thousands of points such folds cost more than
+//! the arithmetic around them. Eight running values let the compiler use
+//! vector instructions and keep several steps in flight. `max` and
+//! `min_positive` are exact whatever the order; `sum` adds in another
+//! order than a plain fold (eight partial sums), so its last bits may
+//! differ from one.
+
+/// Running values per reduction: two AVX2 vectors of four.
+const LANES: usize = 8;
+
+/// The largest of `values` and `floor` (NaN ignored, as `f64::max` does).
+#[inline(always)]
+#[must_use]
+pub fn max_or(values: &[f64], floor: f64) -> f64 {
+    let mut acc = [floor; LANES];
+    let mut chunks = values.chunks_exact(LANES);
+    for chunk in &mut chunks {
+        for (a, &v) in acc.iter_mut().zip(chunk) {
+            *a = a.max(v);
+        }
+    }
+    let rest = chunks.remainder().iter().fold(floor, |m, &v| m.max(v));
+    acc.iter().fold(rest, |m, &v| m.max(v))
+}
+
+/// The least of `values` and `ceiling` (NaN ignored, as `f64::min` does).
+#[inline(always)]
+#[must_use]
+pub fn min_or(values: &[f64], ceiling: f64) -> f64 {
+    let mut acc = [ceiling; LANES];
+    let mut chunks = values.chunks_exact(LANES);
+    for chunk in &mut chunks {
+        for (a, &v) in acc.iter_mut().zip(chunk) {
+            *a = a.min(v);
+        }
+    }
+    let rest = chunks.remainder().iter().fold(ceiling, |m, &v| m.min(v));
+    acc.iter().fold(rest, |m, &v| m.min(v))
+}
+
+/// The least positive of `values` (∞ where none is).
+#[inline(always)]
+#[must_use]
+pub fn min_positive(values: &[f64]) -> f64 {
+    let keep = |v: f64| if v > 0.0 { v } else { f64::INFINITY };
+    let mut acc = [f64::INFINITY; LANES];
+    let mut chunks = values.chunks_exact(LANES);
+    for chunk in &mut chunks {
+        for (a, &v) in acc.iter_mut().zip(chunk) {
+            *a = a.min(keep(v));
+        }
+    }
+    let rest = chunks.remainder().iter().fold(f64::INFINITY, |m, &v| m.min(keep(v)));
+    acc.iter().fold(rest, |m, &v| m.min(v))
+}
+
+/// The sum of `values`, in eight partial sums (see the module's note on
+/// the order).
+#[inline(always)]
+#[must_use]
+pub fn sum(values: &[f64]) -> f64 {
+    let mut acc = [0.0; LANES];
+    let mut chunks = values.chunks_exact(LANES);
+    for chunk in &mut chunks {
+        for (a, &v) in acc.iter_mut().zip(chunk) {
+            *a += v;
+        }
+    }
+    let rest: f64 = chunks.remainder().iter().sum();
+    let (low, high) = acc.split_at(LANES / 2);
+    let pairs: f64 = low.iter().zip(high).map(|(l, h)| l + h).sum();
+    pairs + rest
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::rng::Rng;
+
+    #[test]
+    fn reductions_match_plain_folds() {
+        let mut rng = Rng::new(3);
+        for n in [0, 1, 7, 8, 9, 100, 4999] {
+            let mut values: Vec<f64> = (0..n).map(|_| rng.uniform_in(-1.0, 2.0)).collect();
+            if n > 5 {
+                values[5] = f64::NAN;
+            }
+            let plain_max = values.iter().fold(-3.0_f64, |m, &v| m.max(v));
+            assert_eq!(max_or(&values, -3.0).to_bits(), plain_max.to_bits(), "n {n}");
+            let plain_least = values.iter().fold(1.5_f64, |m, &v| m.min(v));
+            assert_eq!(min_or(&values, 1.5).to_bits(), plain_least.to_bits(), "n {n}");
+            let plain_min = values
+                .iter()
+                .fold(f64::INFINITY, |m, &v| if v > 0.0 { m.min(v) } else { m });
+            assert_eq!(min_positive(&values).to_bits(), plain_min.to_bits(), "n {n}");
+            let finite: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+            let plain_sum: f64 = finite.iter().sum();
+            assert!(
+                (sum(&finite) - plain_sum).abs() <= 1e-12 * (1.0 + plain_sum.abs()),
+                "n {n}"
+            );
+        }
+        assert_eq!(max_or(&[], 0.5).to_bits(), 0.5_f64.to_bits());
+        assert!(min_positive(&[-1.0, 0.0]).is_infinite());
+    }
+}
