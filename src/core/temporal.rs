@@ -33,6 +33,7 @@
 use crate::core::contact::PatchForms;
 use crate::core::estimator::Posterior;
 use crate::core::fastmath;
+use crate::core::lanes;
 use crate::core::simd::{Kernel, widest};
 use crate::core::surface::{Surface, WINDOW_FRACTION};
 
@@ -404,6 +405,24 @@ impl Kernel for WeighKernel<'_> {
             let d = gains[k] - top;
             let e = fastmath::exp(d);
             out[k] = if d > -700.0 { predicted[k] * e } else { 0.0 };
+        }
+        out
+    }
+}
+
+/// `e^(-rate · slide)` per sample: the chance that a contact stays on it
+/// while sliding `slide` (m², the slide length squared times the time),
+/// as a [`Kernel`].
+struct DecayKernel<'a>(&'a [f64], f64);
+
+impl Kernel for DecayKernel<'_> {
+    type Output = Vec<f64>;
+    #[inline(always)]
+    fn run(self) -> Vec<f64> {
+        let (rates, slide) = (self.0, self.1);
+        let mut out = vec![0.0; rates.len()];
+        for (o, &rate) in out.iter_mut().zip(rates) {
+            *o = fastmath::exp(-rate * slide);
         }
         out
     }
@@ -781,8 +800,11 @@ impl Offset {
             return Self::window(rho_m);
         }
         let [l11, l12, l22] = self.precision;
-        let (s11, s12, s22) = (l22 / det, -l12 / det, l11 / det);
-        let [m1, m2] = self.mean_m();
+        let [n1, n2] = self.shift;
+        // One division for the covariance and the mean (`mean_m`'s).
+        let inverse_det = 1.0 / det;
+        let (s11, s12, s22) = (l22 * inverse_det, -l12 * inverse_det, l11 * inverse_det);
+        let (m1, m2) = (s11 * n1 + s12 * n2, s12 * n1 + s22 * n2);
         let r2 = rho_m * rho_m;
         let w = 1.0 - own;
         // Second moments about 0, then about the mixture's mean `own·m`.
@@ -797,7 +819,8 @@ impl Offset {
         if !(vdet > 0.0 && vdet.is_finite()) {
             return Self::window(rho_m);
         }
-        let (p11, p12, p22) = (v22 / vdet, -v12 / vdet, v11 / vdet);
+        let inverse_vdet = 1.0 / vdet;
+        let (p11, p12, p22) = (v22 * inverse_vdet, -v12 * inverse_vdet, v11 * inverse_vdet);
         Self {
             precision: [p11, p12, p22],
             shift: [p11 * c1 + p12 * c2, p12 * c1 + p22 * c2],
@@ -886,7 +909,7 @@ impl Belief {
 
     /// Divides by the total; `false` (and unchanged) when it is 0 or not finite.
     fn normalize(&mut self) -> bool {
-        let total = self.no_contact + self.points.iter().sum::<f64>();
+        let total = self.no_contact + lanes::sum(&self.points);
         if !(total > 0.0 && total.is_finite()) {
             return false;
         }
@@ -1002,7 +1025,7 @@ impl TemporalModel {
     #[must_use]
     pub fn predict(&self, belief: &Belief, dt_secs: f64) -> Belief {
         let s = self.step(dt_secs);
-        let contact: f64 = belief.points.iter().sum();
+        let contact = lanes::sum(&belief.points);
         let mut moved = belief.points.clone();
         let mut scratch = Vec::new();
         self.graph.diffuse(&mut moved, self.slide_rate(), dt_secs, &mut scratch);
@@ -1017,21 +1040,23 @@ impl TemporalModel {
         // arrived (a hop, a new press) is anywhere in the patch.
         let offsets = if self.tracks_offsets() && belief.offsets.len() == points.len() {
             let slide = self.slide_rate() * dt_secs;
+            // What stays on each sample over `dt`, in one vectorised pass
+            // (the loop below is scalar: one at a time, `exp` there cost
+            // more than the rest of it).
+            let stays = widest(DecayKernel(&self.hop_rate, slide));
             points
                 .iter()
                 .enumerate()
                 .map(|(k, &predicted)| {
-                    let (Some(&before), Some(offset), Some(&rate), Some(&rho)) = (
+                    let (Some(&before), Some(offset), Some(&decay), Some(&rho)) = (
                         belief.points.get(k),
                         belief.offsets.get(k),
-                        self.hop_rate.get(k),
+                        stays.get(k),
                         self.window_m.get(k),
                     ) else {
                         return Offset::window(1.0);
                     };
-                    // The library's `exp`: this loop stays scalar, and one at a
-                    // time the long series of `fastmath::exp` waits on each step.
-                    let kept = stay * before * (-rate * slide).exp();
+                    let kept = stay * before * decay;
                     let own = if predicted > 0.0 { kept / predicted } else { 0.0 };
                     // Nearly all its own or nearly all arrived: no mixing.
                     if own > 1.0 - 1e-9 {
@@ -1106,11 +1131,8 @@ impl TemporalModel {
     fn correct(&self, predicted: &Belief, likelihood: &FrameLikelihood) -> Belief {
         let weigh = |predicted: &Belief| {
             let (gains, offsets) = self.gains(predicted, likelihood);
-            let top = gains
-                .iter()
-                .copied()
-                .filter(|l| !l.is_nan())
-                .fold(likelihood.no_contact, f64::max);
+            // NaN left out, as `f64::max` does.
+            let top = lanes::max_or(&gains, likelihood.no_contact);
             let scale = |l: f64| {
                 let d = l - top;
                 // NaN, -inf and anything below e^-700 of the best: 0.
