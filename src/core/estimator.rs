@@ -393,7 +393,7 @@ impl Quadratic<'_> {
         // peak in f); then points with profiles below the first threshold
         // may still be within reach of the best evidence: score them too,
         // so that every point left out is negligible.
-        let best_evidence = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let best_evidence = lanes::max_or(&values, f64::NEG_INFINITY);
         if best_evidence - FAR_BELOW < threshold {
             let extra = slots_from(best_evidence - FAR_BELOW, threshold);
             values.extend(evidence(&extra));

@@ -8,6 +8,7 @@ use crate::core::contact::{PatchForms, PosedSurface};
 use crate::core::estimator::{EstimateError, EstimatorSettings, Mode, Posterior, estimate_keeping_forms};
 use crate::core::friction::friction_evidence;
 use crate::core::kinematics::RobotPose;
+use crate::core::lanes;
 use crate::core::phases::PhaseHierarchy;
 use crate::core::press::{FRICTION_GAIN, PressAnswer, PressFrame, PressSettings, explain_press, locate};
 use crate::core::refine::{Measurement, contact_at_offsets, refine};
@@ -562,16 +563,15 @@ impl Estimator {
         let contact_probability = belief.contact_probability();
         let probability_len = probability.len();
         let mut posterior = update.posterior;
-        let top = probability.iter().copied().fold(0.0, f64::max);
-        posterior.support = (0..probability.len())
-            .filter(|&k| probability.get(k).is_some_and(|&p| p > 0.0 && p >= 1e-26 * top))
-            .collect();
-        posterior.map_point = posterior
-            .support
-            .iter()
-            .copied()
-            .max_by(|&x, &y| probability[x].total_cmp(&probability[y]).then(y.cmp(&x)))
-            .unwrap_or(posterior.map_point);
+        let top = lanes::max_or(&probability, 0.0);
+        posterior.support = lanes::positions_where(&probability, |p| p > 0.0 && p >= 1e-26 * top);
+        // The most probable sample (the first of equals); where nothing is
+        // positive, the frame's own.
+        if top > 0.0
+            && let Some(k) = probability.iter().position(|p| p.total_cmp(&top).is_eq())
+        {
+            posterior.map_point = k;
+        }
         posterior.display.clone_from(&probability);
         posterior.probability = probability;
         // With offsets the place is the whole recording's: each frame's

@@ -423,7 +423,9 @@ pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level
         .map(|(&k, p)| *p * posterior.probability[k])
         .sum::<DVec3>()
         / mass.max(f64::MIN_POSITIVE);
-    let radius_m = positions.iter().map(|p| p.distance(mean)).fold(0.0, f64::max);
+    // `sqrt` is monotone: the largest distance is the root of the largest square.
+    let squared: Vec<f64> = positions.iter().map(|p| p.distance_squared(mean)).collect();
+    let radius_m = lanes::max_or(&squared, 0.0).sqrt();
     CredibleSet { points, mass, radius_m }
 }
 

@@ -896,14 +896,14 @@ impl Belief {
     /// Probability that there is a contact.
     #[must_use]
     pub fn contact_probability(&self) -> f64 {
-        self.points.iter().sum::<f64>().clamp(0.0, 1.0)
+        lanes::sum(&self.points).clamp(0.0, 1.0)
     }
 
     /// Where the contact is, if there is one: the samples' probabilities
     /// divided by their sum (`None` when they are all 0).
     #[must_use]
     pub fn where_given_contact(&self) -> Option<Vec<f64>> {
-        let total: f64 = self.points.iter().sum();
+        let total = lanes::sum(&self.points);
         (total > 0.0 && total.is_finite()).then(|| self.points.iter().map(|p| p / total).collect())
     }
 
