@@ -64,13 +64,18 @@ pub fn regions(
     }
     let heaviest = cell_weight.iter().copied().fold(0.0, f64::max);
     let floor = heaviest * min_cell_fraction;
-    let active = |c: usize| cell_weight[c] > 0.0 && cell_weight[c] >= floor;
+    let is_active: Vec<bool> = cell_weight.iter().map(|&w| w > 0.0 && w >= floor).collect();
+    let active = |c: usize| is_active.get(c).copied().unwrap_or(false);
     let mut parent: Vec<u32> = (0..n as u32).collect();
     for c in 0..n {
         if !active(c) {
             continue;
         }
-        for &d in cells.neighbours_of(c) {
+        // Each pair once, from its lower cell (neighbours are mutual, and
+        // each list is sorted).
+        let around = cells.neighbours_of(c);
+        let higher = around.partition_point(|&d| d as usize <= c);
+        for &d in around.get(higher..).unwrap_or(&[]) {
             if active(d as usize) {
                 let (a, b) = (root(&mut parent, c as u32), root(&mut parent, d));
                 if a != b {
