@@ -220,8 +220,17 @@ fn estimate_writes_one_json_line_per_frame_and_a_summary() {
     }
     assert_eq!(first["verdict"], "contact");
     assert!(first["truth"]["position_error_m"].as_f64().unwrap() < 0.05, "{first}");
+    // The links' shares of the posterior: at least 1 % each, most
+    // probable first, adding up to at most 1, the contact's link among them.
+    let links = first["links"].as_array().unwrap();
+    let shares: Vec<f64> = links.iter().map(|l| l["probability"].as_f64().unwrap()).collect();
+    assert!(!shares.is_empty() && shares.iter().all(|&p| p >= 0.01), "{first}");
+    assert!(shares.windows(2).all(|w| w[0] >= w[1]), "{first}");
+    assert!(shares.iter().sum::<f64>() <= 1.0 + 1e-9, "{first}");
+    assert!(links.iter().any(|l| l["link"] == first["link"]), "{first}");
     assert_eq!(lines[1]["verdict"], "no_contact");
     assert!(lines[1]["point"].is_null());
+    assert!(lines[1]["links"].is_null());
 }
 
 /// `--temporal filter|smooth`: the same JSON lines plus each frame's

@@ -474,6 +474,7 @@ pub(super) fn frame_json(
         "credible90_points": s.credible90.points.len(),
         "credible90_radius_m": s.credible90.radius_m,
         "clusters": s.clusters.len(),
+        "links": contact.then(|| link_shares_json(robot, s)),
         "fit_p": s.fit.p_value,
         "no_contact_p": s.fit.no_contact_p,
         "evaluated": update.posterior.phases.iter().map(|p| [p.points, p.particles]).collect::<Vec<_>>(),
@@ -490,6 +491,27 @@ pub(super) fn frame_json(
         v["truth"] = serde_json::Value::Null;
     }
     v
+}
+
+/// Links that hold at least [`LINK_SHARE_SHOWN`] of the posterior given a
+/// contact, most probable first: where one frame (or a recording) cannot
+/// tell the links apart, the shares say so.
+const LINK_SHARE_SHOWN: f64 = 0.01;
+
+/// The `links` field of a frame's JSON line: `[{"link", "probability"}]`,
+/// most probable first (equal shares by name).
+fn link_shares_json(robot: &Robot, s: &proprioscope::core::summary::Summary) -> serde_json::Value {
+    let mut shares: Vec<(String, f64)> = s
+        .per_link
+        .iter()
+        .filter(|share| share.summed >= LINK_SHARE_SHOWN)
+        .filter_map(|share| Some((robot.links.get(share.link)?.name.clone(), share.summed)))
+        .collect();
+    shares.sort_by(|x, y| y.1.total_cmp(&x.1).then_with(|| x.0.cmp(&y.0)));
+    shares
+        .into_iter()
+        .map(|(link, probability)| serde_json::json!({ "link": link, "probability": probability }))
+        .collect()
 }
 
 /// The errors table: all frames, then by number of sensing joints.
