@@ -387,7 +387,6 @@ pub fn summarize_refined(
     if let Some(done) = run {
         add_run(&mut per_link, done);
     }
-
     let world = |k: usize| pose.point_to_world(surface.link[k], surface.point_in_link[k]);
     let grid_map = contact_at(posterior, surface, pose, posterior.map_point);
     let map = refined.map_or(grid_map, |r| refined_estimate(r.contact, posterior, surface, pose));
