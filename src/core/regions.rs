@@ -84,55 +84,61 @@ pub fn regions(
             }
         }
     }
-    // Per region: weight, weighted position sum, members, the top's
-    // weight. Each cell's region is looked up once, not per sample.
+    // Each active cell's region, numbered in the order of the cells (the
+    // regions are sorted at the end, so the numbering does not show): a
+    // sample then finds its region in one lookup.
     let mut slot = vec![UNSEEN; n];
-    let mut region_of_cell = vec![UNSEEN; n];
+    let mut region_of_cell = vec![INACTIVE; n];
     let mut out: Vec<Region> = Vec::new();
-    let mut sums: Vec<DVec3> = Vec::new();
-    let mut top_weight: Vec<f64> = Vec::new();
+    for c in 0..n {
+        if !active(c) {
+            continue;
+        }
+        let r = root(&mut parent, c as u32) as usize;
+        if slot[r] == UNSEEN {
+            slot[r] = out.len() as u32;
+            out.push(Region {
+                link: cells.link[c],
+                weight: 0.0,
+                centre_in_link: DVec3::ZERO,
+                central: 0,
+                top: usize::MAX,
+                members: Vec::new(),
+            });
+        }
+        region_of_cell[c] = slot[r];
+    }
+    // Per region: weight, weighted position sum, members and the top, in
+    // the order the samples are given.
+    let mut sums = vec![DVec3::ZERO; out.len()];
+    let mut top_weight = vec![f64::NEG_INFINITY; out.len()];
     for &k in samples {
-        let Some(c) = cell_of(k) else { continue };
-        let Some(&known) = region_of_cell.get(c) else { continue };
-        let i = match known {
-            INACTIVE => continue,
-            UNSEEN if !active(c) => {
-                region_of_cell[c] = INACTIVE;
-                continue;
-            }
-            UNSEEN => {
-                let r = root(&mut parent, c as u32) as usize;
-                if slot[r] == UNSEEN {
-                    slot[r] = out.len() as u32;
-                    out.push(Region {
-                        link: surface.link[k],
-                        weight: 0.0,
-                        centre_in_link: DVec3::ZERO,
-                        central: k,
-                        top: k,
-                        members: Vec::new(),
-                    });
-                    sums.push(DVec3::ZERO);
-                    top_weight.push(weight(k));
-                }
-                region_of_cell[c] = slot[r];
-                slot[r] as usize
-            }
-            i => i as usize,
+        let Some(&i) = cell_of(k).and_then(|c| region_of_cell.get(c)) else {
+            continue;
+        };
+        let (Some(region), Some(sum), Some(top), Some(&point)) = (
+            out.get_mut(i as usize),
+            sums.get_mut(i as usize),
+            top_weight.get_mut(i as usize),
+            surface.point_in_link.get(k),
+        ) else {
+            continue;
         };
         let w = weight(k);
-        out[i].weight += w;
-        sums[i] += surface.point_in_link[k] * w;
-        out[i].members.push(k);
-        let top = out[i].top;
-        let heavier = match w.total_cmp(&top_weight[i]) {
-            std::cmp::Ordering::Greater => true,
-            std::cmp::Ordering::Equal => k < top,
-            std::cmp::Ordering::Less => false,
-        };
+        region.weight += w;
+        *sum += point * w;
+        region.members.push(k);
+        // The first sample is the top until a heavier one (or an equal one
+        // with a lower index) comes.
+        let heavier = region.top == usize::MAX
+            || match w.total_cmp(top) {
+                std::cmp::Ordering::Greater => true,
+                std::cmp::Ordering::Equal => k < region.top,
+                std::cmp::Ordering::Less => false,
+            };
         if heavier {
-            out[i].top = k;
-            top_weight[i] = w;
+            region.top = k;
+            *top = w;
         }
     }
     for (region, sum) in out.iter_mut().zip(&sums) {
@@ -148,6 +154,8 @@ pub fn regions(
             })
             .unwrap_or(region.top);
     }
+    // (Every active cell holds a sample; this keeps the promise if not.)
+    out.retain(|r| !r.members.is_empty());
     out.sort_by(|x, y| y.weight.total_cmp(&x.weight).then(x.top.cmp(&y.top)));
     out
 }
