@@ -90,7 +90,7 @@ pub fn regions(
     let mut slot = vec![UNSEEN; n];
     let mut region_of_cell = vec![INACTIVE; n];
     let mut out: Vec<Region> = Vec::new();
-    for c in 0..n {
+    for (c, region) in region_of_cell.iter_mut().enumerate() {
         if !active(c) {
             continue;
         }
@@ -106,7 +106,7 @@ pub fn regions(
                 members: Vec::new(),
             });
         }
-        region_of_cell[c] = slot[r];
+        *region = slot[r];
     }
     // Per region: weight, weighted position sum, members and the top, in
     // the order the samples are given.
