@@ -861,6 +861,36 @@ fn a_session_streamed_over_udp_is_estimated_live() {
     assert_eq!(lines[1]["verdict"], "no_contact");
 }
 
+/// `bench --session`: each estimator's per-frame times also split by the
+/// truth (frames without contact, frames with one), beside the errors.
+#[test]
+fn bench_on_a_session_splits_its_times_by_the_truth() {
+    let session = temp("thesis-bench.session.json", SESSION);
+    let (ok, stdout, stderr) = run(&[
+        "bench",
+        "--sessions-only",
+        "--seeds",
+        "0",
+        "--session",
+        session.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(
+        stdout.contains("| without contact p50 / p99 [µs] | with a contact p50 / p99 [µs] |"),
+        "{stdout}"
+    );
+    let refined = stdout
+        .lines()
+        .find(|l| l.starts_with("| refined (patches) |"))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    // One frame of each kind: each split is its one time, p50 = p99.
+    let cells: Vec<&str> = refined.split('|').map(str::trim).collect();
+    for cell in [cells[6], cells[7]] {
+        let parts: Vec<u64> = cell.split(" / ").map(|v| v.parse().unwrap()).collect();
+        assert!(parts.len() == 2 && parts[0] > 0 && parts[0] == parts[1], "{refined}");
+    }
+}
+
 /// The README's bench table and plot are committed: a quick run refuses
 /// to replace them, and leaves both files as they were.
 #[test]

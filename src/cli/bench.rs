@@ -315,6 +315,9 @@ struct SessionRun {
     label: &'static str,
     points: usize,
     times_us: Vec<f64>,
+    /// The times of frames whose truth says no contact, and of those with one.
+    quiet_times_us: Vec<f64>,
+    contact_times_us: Vec<f64>,
     medians_m: Vec<f64>,
     poor_fit: usize,
     frames: usize,
@@ -344,6 +347,8 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
             label,
             points,
             times_us: Vec::new(),
+            quiet_times_us: Vec::new(),
+            contact_times_us: Vec::new(),
             medians_m: Vec::new(),
             poor_fit: 0,
             frames: 0,
@@ -413,8 +418,8 @@ fn session_text(
         proprioscope::core::simd::vector_unit(),
         args.seeds
     );
-    out.push_str("| estimator | points | p50 [µs] | p99 [µs] | max [µs] | median pos. error per seed [mm] | spread [mm] | poorly explained | contact frames called | false alarms |\n");
-    out.push_str("|---|---:|---:|---:|---:|---|---:|---:|---:|---:|\n");
+    out.push_str("| estimator | points | p50 [µs] | p99 [µs] | max [µs] | without contact p50 / p99 [µs] | with a contact p50 / p99 [µs] | median pos. error per seed [mm] | spread [mm] | poorly explained | contact frames called | false alarms |\n");
+    out.push_str("|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|\n");
     for r in runs {
         let (lo, hi) = r
             .medians_m
@@ -425,12 +430,14 @@ fn session_text(
         let per_seed: Vec<String> = r.medians_m.iter().map(|m| format!("{:.1}", m * 1e3)).collect();
         let _ = writeln!(
             out,
-            "| {} | {} | {:.0} | {:.0} | {:.0} | {} | {:.1} | {:.1} % | {:.1} % | {:.1} % |",
+            "| {} | {} | {:.0} | {:.0} | {:.0} | {} | {} | {} | {:.1} | {:.1} % | {:.1} % | {:.1} % |",
             r.label,
             r.points,
             percentile(&r.times_us, 0.5),
             percentile(&r.times_us, 0.99),
             r.times_us.iter().copied().fold(0.0, f64::max),
+            p50_p99(&r.quiet_times_us),
+            p50_p99(&r.contact_times_us),
             per_seed.join(", "),
             (hi - lo) * 1e3,
             100.0 * r.poor_fit as f64 / r.frames.max(1) as f64,
@@ -439,6 +446,15 @@ fn session_text(
         );
     }
     out
+}
+
+/// `p50 / p99` of `times_us`, or a dash without any.
+fn p50_p99(times_us: &[f64]) -> String {
+    if times_us.is_empty() {
+        "–".to_owned()
+    } else {
+        format!("{:.0} / {:.0}", percentile(times_us, 0.5), percentile(times_us, 0.99))
+    }
 }
 
 /// One estimator configuration on a session at one surface seed.
@@ -494,6 +510,11 @@ fn seed_run(
             sequence,
             |i, update, ms| {
                 run.times_us.push(ms * 1e3);
+                match truth.get(i).copied().flatten() {
+                    Some(true) => run.contact_times_us.push(ms * 1e3),
+                    Some(false) => run.quiet_times_us.push(ms * 1e3),
+                    None => {}
+                }
                 run.frames += 1;
                 run.poor_fit += usize::from(update.summary.verdict == Verdict::PoorFit);
                 called.push(update.summary.verdict != Verdict::NoContact);
