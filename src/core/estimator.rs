@@ -361,7 +361,13 @@ impl Quadratic<'_> {
     fn exact_scores(&self, points: &[usize], surface_points: usize) -> Scores {
         let (force, mut mass, profile_best) = self.profiles(points, surface_points);
         let slots_from = |low: f64, high: f64| -> Vec<usize> {
-            let slots_in = |start: usize, mass: &[f64]| -> Vec<usize> { slots_within(start, mass, low, high) };
+            let slots_in = |start: usize, mass: &[f64]| -> Vec<usize> {
+                let mut slots = lanes::positions_where(mass, |m| m >= low && m < high);
+                for slot in &mut slots {
+                    *slot += start;
+                }
+                slots
+            };
             if mass.len() >= PARALLEL_MIN_POINTS {
                 const CHUNK: usize = 8192;
                 mass.par_chunks(CHUNK)
@@ -1326,23 +1332,6 @@ fn evaluate(
             (scores, report)
         }
     }
-}
-
-/// The positions (from `start`) of the values of `mass` in `[low, high)`,
-/// in order. Each position is written, and kept where it is in range: no
-/// branch that depends on the data (in a broad posterior a filter's
-/// branch misses often).
-fn slots_within(start: usize, mass: &[f64], low: f64, high: f64) -> Vec<usize> {
-    let mut out = vec![0; mass.len()];
-    let mut count = 0;
-    for (i, &m) in (start..).zip(mass) {
-        if let Some(slot) = out.get_mut(count) {
-            *slot = i;
-        }
-        count += usize::from(m >= low && m < high);
-    }
-    out.truncate(count);
-    out
 }
 
 /// `ln(e^x + e^y)` without overflow.

@@ -6,58 +6,49 @@
 //! element (`f64::max` is a compare and a blend, an addition four cycles):
 //! over a broad posterior's thousands of points such folds cost more than
 //! the arithmetic around them. Eight running values let the compiler use
-//! vector instructions and keep several steps in flight. `max` and
-//! `min_positive` are exact whatever the order; `sum` adds in another
+//! vector instructions and keep several steps in flight. The largest and
+//! the least are exact whatever the order; `sum` adds in another
 //! order than a plain fold (eight partial sums), so its last bits may
 //! differ from one.
 
 /// Running values per reduction: two AVX2 vectors of four.
 const LANES: usize = 8;
 
+/// `step` folded over `values` from `start` in [`LANES`] running values,
+/// then the running values and the remainder's fold joined by `join`.
+#[inline(always)]
+fn fold_lanes(values: &[f64], start: f64, step: impl Fn(f64, f64) -> f64, join: impl Fn(f64, f64) -> f64) -> f64 {
+    let mut acc = [start; LANES];
+    let mut chunks = values.chunks_exact(LANES);
+    for chunk in &mut chunks {
+        for (a, &v) in acc.iter_mut().zip(chunk) {
+            *a = step(*a, v);
+        }
+    }
+    let rest = chunks.remainder().iter().fold(start, |m, &v| step(m, v));
+    acc.iter().fold(rest, |m, &v| join(m, v))
+}
+
 /// The largest of `values` and `floor` (NaN ignored, as `f64::max` does).
 #[inline(always)]
 #[must_use]
 pub fn max_or(values: &[f64], floor: f64) -> f64 {
-    let mut acc = [floor; LANES];
-    let mut chunks = values.chunks_exact(LANES);
-    for chunk in &mut chunks {
-        for (a, &v) in acc.iter_mut().zip(chunk) {
-            *a = a.max(v);
-        }
-    }
-    let rest = chunks.remainder().iter().fold(floor, |m, &v| m.max(v));
-    acc.iter().fold(rest, |m, &v| m.max(v))
+    fold_lanes(values, floor, f64::max, f64::max)
 }
 
 /// The least of `values` and `ceiling` (NaN ignored, as `f64::min` does).
 #[inline(always)]
 #[must_use]
 pub fn min_or(values: &[f64], ceiling: f64) -> f64 {
-    let mut acc = [ceiling; LANES];
-    let mut chunks = values.chunks_exact(LANES);
-    for chunk in &mut chunks {
-        for (a, &v) in acc.iter_mut().zip(chunk) {
-            *a = a.min(v);
-        }
-    }
-    let rest = chunks.remainder().iter().fold(ceiling, |m, &v| m.min(v));
-    acc.iter().fold(rest, |m, &v| m.min(v))
+    fold_lanes(values, ceiling, f64::min, f64::min)
 }
 
 /// The least positive of `values` (∞ where none is).
 #[inline(always)]
 #[must_use]
 pub fn min_positive(values: &[f64]) -> f64 {
-    let keep = |v: f64| if v > 0.0 { v } else { f64::INFINITY };
-    let mut acc = [f64::INFINITY; LANES];
-    let mut chunks = values.chunks_exact(LANES);
-    for chunk in &mut chunks {
-        for (a, &v) in acc.iter_mut().zip(chunk) {
-            *a = a.min(keep(v));
-        }
-    }
-    let rest = chunks.remainder().iter().fold(f64::INFINITY, |m, &v| m.min(keep(v)));
-    acc.iter().fold(rest, |m, &v| m.min(v))
+    let least_positive = |m: f64, v: f64| if v > 0.0 { m.min(v) } else { m };
+    fold_lanes(values, f64::INFINITY, least_positive, f64::min)
 }
 
 /// The sum of `values`, in eight partial sums (see the module's note on
