@@ -227,3 +227,63 @@ fn example_sessions_are_estimated_alike_at_every_surface_seed() {
         assert!(poor <= 0.05, "{name}: {:.1} % poorly explained", 100.0 * poor);
     }
 }
+
+/// Each candidate link's share of a posterior.
+fn link_shares(estimator: &Estimator, update: &Update) -> Vec<f64> {
+    let surface = &estimator.surface;
+    estimator
+        .links
+        .iter()
+        .map(|&link| {
+            (0..surface.len())
+                .filter(|&k| surface.link[k] == link)
+                .map(|k| update.posterior.probability[k])
+                .sum()
+        })
+        .collect()
+}
+
+#[test]
+fn quiet_frames_take_the_coarse_level_and_frames_with_a_contact_do_not() {
+    let scene = load("lwr-collision-3");
+    let (estimator, pushed) = estimate_scene(&scene, Some(0.05), 5000);
+    let quiet = estimator.quiet.as_ref().expect("5000 points have a quiet level");
+    let full = Estimator {
+        quiet: None,
+        ..estimator.clone()
+    };
+    // A push: the quiet level is not used, the answer is the full one bit for bit.
+    let alone = full
+        .update(&scene.robot, &scene.joint_positions, &scene.measured_torques())
+        .unwrap();
+    assert_eq!(pushed.posterior.probability, alone.posterior.probability);
+    assert_eq!(pushed.summary.map, alone.summary.map);
+    assert_eq!(pushed.posterior.phases[0].points, estimator.surface.len());
+
+    // Torques within noise of zero (σ = 0.05 N·m), in a few patterns.
+    let joints = scene.robot.sensed().len();
+    for pattern in 0..4 {
+        let tau: Vec<f64> = (0..joints)
+            .map(|j| 0.05 * (((j * 7 + pattern * 3) % 5) as f64 - 2.0) * 0.4)
+            .collect();
+        let coarse = estimator.update(&scene.robot, &scene.joint_positions, &tau).unwrap();
+        let exact = full.update(&scene.robot, &scene.joint_positions, &tau).unwrap();
+        assert_eq!(coarse.summary.verdict, Verdict::NoContact);
+        assert_eq!(exact.summary.verdict, Verdict::NoContact);
+        assert_eq!(coarse.posterior.phases[0].points, quiet.surface.len());
+        let total: f64 = coarse.posterior.probability.iter().sum();
+        assert!((total - 1.0).abs() < 1e-9, "{total}");
+        assert!(coarse.posterior.log_likelihood.iter().all(|l| !l.is_nan()));
+        for (a, b) in link_shares(&estimator, &coarse).iter().zip(link_shares(&full, &exact)) {
+            assert!((a - b).abs() < 0.06, "pattern {pattern}: link share {a} against {b}");
+        }
+        let (a, b) = (
+            coarse.summary.credible90.points.len() as f64,
+            exact.summary.credible90.points.len() as f64,
+        );
+        assert!(
+            (a / b - 1.0).abs() < 0.15,
+            "pattern {pattern}: credible set of {a} against {b} samples"
+        );
+    }
+}
