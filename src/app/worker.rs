@@ -126,7 +126,6 @@ fn failed(request: &Request, message: String) -> Outcome {
             links: Vec::new(),
             hierarchy: None,
             settings: request.settings.clone(),
-            quiet: None,
         }),
         nearest: Arc::new(Vec::new()),
         update: Err(message),

@@ -19,7 +19,6 @@ pub mod picking;
 pub mod pipeline;
 pub mod press;
 pub mod primitives;
-pub mod quiet;
 pub mod refine;
 pub mod regions;
 pub mod rng;

@@ -11,7 +11,6 @@ use crate::core::kinematics::RobotPose;
 use crate::core::lanes;
 use crate::core::phases::PhaseHierarchy;
 use crate::core::press::{FRICTION_GAIN, PressAnswer, PressFrame, PressSettings, explain_press, locate};
-use crate::core::quiet::QuietLevel;
 use crate::core::refine::{Measurement, contact_at_offsets, refine};
 use crate::core::robot::{LinkId, Robot};
 use crate::core::special::chi_square_survival;
@@ -36,9 +35,6 @@ pub struct Estimator {
     pub hierarchy: Option<PhaseHierarchy>,
     /// Noise model, force range, mode.
     pub settings: EstimatorSettings,
-    /// A coarser sampling for frames whose torques are within noise of
-    /// zero ([`Estimator::update`]; `None` on small surfaces).
-    pub quiet: Option<QuietLevel>,
 }
 
 /// A measurement's posterior awaiting a temporal model's belief (see
@@ -76,59 +72,24 @@ impl Estimator {
         // first update (a few milliseconds that would be that frame's).
         let _ = crate::core::fastmath::ErfTable::get();
         let hierarchy = phase_sizes.map(|sizes| PhaseHierarchy::new(&surface, sizes, request.seed));
-        let quiet = QuietLevel::new(robot, request, &surface);
         Ok(Self {
             surface,
             links: request.links.clone(),
             hierarchy,
             settings,
-            quiet,
         })
     }
 
     /// The posterior for torques `tau` measured at `joint_positions`
     /// (every joint's, see [`Robot::joint_positions`]).
-    ///
-    /// A frame whose torques are within noise of zero (its verdict is *no
-    /// contact* by the χ² test alone, and nothing is refined) is
-    /// estimated on the quiet level when there is one and the settings
-    /// are exact mode with patches over every sample
-    /// ([`crate::core::quiet`]).
     pub fn update(&self, robot: &Robot, joint_positions: &[f64], tau: &[f64]) -> Result<Update, EstimateError> {
-        let (pose, torque_model, posterior) = match self.quiet_level_for(robot, tau) {
-            Some(quiet) => {
-                let pose = RobotPose::new(robot, joint_positions);
-                let torque_model = TorqueModel::new(robot, &pose, &self.links);
-                let posed = PosedSurface {
-                    torque_model: &torque_model,
-                    surface: &quiet.surface,
-                };
-                let coarse = estimate_keeping_forms(&posed, tau, &self.settings, None, None)?;
-                (pose, torque_model, quiet.lift(&coarse))
-            }
-            None => self.posterior_at(robot, joint_positions, tau, None)?,
-        };
+        let (pose, torque_model, posterior) = self.posterior_at(robot, joint_positions, tau, None)?;
         let summary = self.conclude_alone(&torque_model, &pose, &posterior, tau);
         Ok(Update {
             pose,
             posterior,
             summary,
         })
-    }
-
-    /// The quiet level, where `tau` is within noise of zero and the
-    /// settings allow it (see [`Estimator::update`]).
-    fn quiet_level_for(&self, robot: &Robot, tau: &[f64]) -> Option<&QuietLevel> {
-        let quiet = self.quiet.as_ref()?;
-        let weights = self.settings.weights();
-        let joints = robot.sensed().len();
-        let usable = self.uses_patches()
-            && self.settings.phase_alpha.is_none()
-            && tau.len() == joints
-            && weights.len() == joints;
-        // The χ² that `conclude_alone` tests, summed in the same order.
-        let no_contact_chi2: f64 = weights.iter().zip(tau).map(|(w, t)| w * t * t).sum();
-        (usable && chi_square_survival(no_contact_chi2, joints) > NO_CONTACT_P).then_some(quiet)
     }
 
     /// The posterior of an update and what a temporal model needs of it
