@@ -352,6 +352,8 @@ impl Estimator {
             }
         }
         groups.sort_by(|a, b| b.members.len().cmp(&a.members.len()).then(a.members.cmp(&b.members)));
+        // A group on another link places every member elsewhere: its size says how many agree.
+        let many = press.len().div_ceil(LINK_SWITCH_SHARE).max(ALTERNATIVE_MIN_FRAMES);
         for group in groups
             .iter()
             .filter(|g| g.members.len() >= ALTERNATIVE_MIN_FRAMES && g.apart >= ALTERNATIVE_MIN_FRAMES)
@@ -363,8 +365,7 @@ impl Estimator {
                     *start = *map;
                 }
             }
-            let many = press.len().div_ceil(LINK_SWITCH_SHARE).max(ALTERNATIVE_MIN_FRAMES);
-            let gain = if group.link == link || (group.members.len() >= many && group.apart >= many) {
+            let gain = if group.link == link || group.members.len() >= many {
                 FRICTION_GAIN
             } else {
                 LINK_SWITCH_GAIN
