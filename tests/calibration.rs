@@ -121,14 +121,7 @@ fn run(frames: usize, points: usize, seed: u64) -> Tally {
             Verdict::Contact => {}
         }
         // The sample whose patch holds the true contact: the nearest on its link.
-        let owner = (0..s.len())
-            .filter(|&k| s.link[k] == g.link)
-            .min_by(|&a, &b| {
-                s.point_in_link[a]
-                    .distance(g.point_in_link)
-                    .total_cmp(&s.point_in_link[b].distance(g.point_in_link))
-            })
-            .unwrap();
+        let owner = s.owner(g.link, g.point_in_link).unwrap();
         tally.covered += usize::from(update.summary.credible90.points.contains(&owner));
         let truth = update.pose.point_to_world(g.link, g.point_in_link);
         tally.errors_m.push(update.summary.map.point_world.distance(truth));

@@ -325,6 +325,10 @@ struct SessionRun {
     contact_frames: usize,
     false_alarms: usize,
     quiet_frames: usize,
+    /// Contact frames whose 90 % credible set holds the push (the sample
+    /// whose patch holds it), and those where that could be told.
+    held: usize,
+    owned: usize,
 }
 
 /// Per-frame p50/p99 and the spread of the median error over surface
@@ -356,6 +360,8 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
             contact_frames: 0,
             false_alarms: 0,
             quiet_frames: 0,
+            held: 0,
+            owned: 0,
         };
         let positions = session
             .frames
@@ -418,8 +424,8 @@ fn session_text(
         proprioscope::core::simd::vector_unit(),
         args.seeds
     );
-    out.push_str("| estimator | points | p50 [µs] | p99 [µs] | max [µs] | without contact p50 / p99 [µs] | with a contact p50 / p99 [µs] | median pos. error per seed [mm] | spread [mm] | poorly explained | contact frames called | false alarms |\n");
-    out.push_str("|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|\n");
+    out.push_str("| estimator | points | p50 [µs] | p99 [µs] | max [µs] | without contact p50 / p99 [µs] | with a contact p50 / p99 [µs] | median pos. error per seed [mm] | spread [mm] | poorly explained | contact frames called | false alarms | 90 % set holds the push |\n");
+    out.push_str("|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|\n");
     for r in runs {
         let (lo, hi) = r
             .medians_m
@@ -430,7 +436,7 @@ fn session_text(
         let per_seed: Vec<String> = r.medians_m.iter().map(|m| format!("{:.1}", m * 1e3)).collect();
         let _ = writeln!(
             out,
-            "| {} | {} | {:.0} | {:.0} | {:.0} | {} | {} | {} | {:.1} | {:.1} % | {:.1} % | {:.1} % |",
+            "| {} | {} | {:.0} | {:.0} | {:.0} | {} | {} | {} | {:.1} | {:.1} % | {:.1} % | {:.1} % | {:.1} % |",
             r.label,
             r.points,
             percentile(&r.times_us, 0.5),
@@ -442,7 +448,8 @@ fn session_text(
             (hi - lo) * 1e3,
             100.0 * r.poor_fit as f64 / r.frames.max(1) as f64,
             100.0 * r.detected as f64 / r.contact_frames.max(1) as f64,
-            100.0 * r.false_alarms as f64 / r.quiet_frames.max(1) as f64
+            100.0 * r.false_alarms as f64 / r.quiet_frames.max(1) as f64,
+            100.0 * r.held as f64 / r.owned.max(1) as f64
         );
     }
     out
@@ -518,8 +525,22 @@ fn seed_run(
                 run.frames += 1;
                 run.poor_fit += usize::from(update.summary.verdict == Verdict::PoorFit);
                 called.push(update.summary.verdict != Verdict::NoContact);
-                if let Some(Truth::Contact { point, .. }) = session.frames.get(i).map(|f| &f.truth) {
-                    errors.push(update.summary.map.point_world.distance(DVec3::from_array(*point)));
+                if let Some(Truth::Contact { point, link, .. }) = session.frames.get(i).map(|f| &f.truth) {
+                    let point_world = DVec3::from_array(*point);
+                    errors.push(update.summary.map.point_world.distance(point_world));
+                    let owner = robot.link_id(link).ok().and_then(|link| {
+                        let point_in_link = update
+                            .pose
+                            .world_from_link
+                            .get(link)?
+                            .inverse()
+                            .transform_point3(point_world);
+                        estimator.surface.owner(link, point_in_link)
+                    });
+                    if let Some(owner) = owner {
+                        run.owned += 1;
+                        run.held += usize::from(update.summary.credible90.points.contains(&owner));
+                    }
                 }
             },
         )?;

@@ -116,6 +116,44 @@ pub struct PressContact {
     /// `Σ (τ - f (u + C γ))² / σ²` of this frame (χ² with one degree of
     /// freedom per sensed joint less the three the place and push fit).
     pub residual_chi2: f64,
+    /// How far the whole press leaves this frame's place undetermined
+    /// (see [`PlaceSpread`]); `None` where it cannot be computed.
+    pub spread: Option<PlaceSpread>,
+}
+
+/// The uncertainty of one frame's place given the whole press: the
+/// Laplace approximation of the posterior at the fit, with γ free under
+/// its prior (spread μ per direction) even where the frictionless fit is
+/// reported. A press that drags while the arm is still cannot tell a
+/// tangential force from a shifted place (on the LWR's link 4, three
+/// joints see a push: a place 50–70 mm off explains a drag of 17 % of the
+/// push as well as the truth does); the place's spread along that
+/// direction is then what μ allows, and the credible region says so
+/// instead of shrinking with every frame of the press.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlaceSpread {
+    /// The surface's two unit tangents at the place, link frame.
+    pub tangents_in_link: [DVec3; 2],
+    /// Covariance of the place along the two tangents, m².
+    pub covariance_m2: DMat2,
+}
+
+impl PlaceSpread {
+    /// `dᵀ (Σ + ρ² I)⁻¹ d` for `offset_in_link` projected on the tangents:
+    /// how many standard deviations squared a point lies from the place,
+    /// a patch of radius `rho_m` around it counted in. `∞` where the
+    /// matrix is singular.
+    #[must_use]
+    pub fn mahalanobis_squared(&self, offset_in_link: DVec3, rho_m: f64) -> f64 {
+        let [t0, t1] = self.tangents_in_link;
+        let d = DVec2::new(t0.dot(offset_in_link), t1.dot(offset_in_link));
+        let widened = self.covariance_m2 + DMat2::IDENTITY * (rho_m * rho_m);
+        let det = widened.determinant();
+        if !(det.is_finite() && det > 0.0) {
+            return f64::INFINITY;
+        }
+        d.dot(widened.inverse() * d)
+    }
 }
 
 /// A press explained with a tangential force fixed in the link's frame.
@@ -210,20 +248,29 @@ pub fn explain_press(
     let friction = kept.is_some();
     let found = kept.unwrap_or(frictionless);
     let ratio = found.ratio;
+    let spreads = problem.spreads(&found.locations, ratio, with_friction);
     let contacts = found
         .locations
         .iter()
         .zip(&found.normal.surface)
         .zip(&found.normal.magnitudes)
         .zip(&found.normal.residuals)
+        .enumerate()
         .map(
-            |(((&location, surface), &force_newtons), &residual_chi2)| PressContact {
+            |(t, (((&location, surface), &force_newtons), &residual_chi2))| PressContact {
                 location,
                 point_in_link: surface.point,
                 inward_normal_in_link: surface.inward_normal,
                 force_newtons,
                 tangential_in_link: along_surface(ratio, surface.inward_normal) * force_newtons,
                 residual_chi2,
+                spread: spreads
+                    .as_ref()
+                    .and_then(|all| all.get(t))
+                    .map(|&covariance_m2| PlaceSpread {
+                        tangents_in_link: surface.tangents,
+                        covariance_m2,
+                    }),
             },
         )
         .collect();
@@ -396,6 +443,15 @@ impl Problem<'_> {
         })
     }
 
+    /// Each frame's place covariance (tangent coordinates, m²) at
+    /// `locations` and γ = `ratio`: the inverse of the Gauss–Newton
+    /// matrix (the cost is `-2 ln` posterior and the matrix half its
+    /// Hessian, so the inverse is the Laplace covariance) with γ
+    /// marginalised where `ratio_free`. `None` where it is singular.
+    fn spreads(&self, locations: &[MeshPoint], ratio: DVec3, ratio_free: bool) -> Option<Vec<DMat2>> {
+        covariances(&self.normal_at(locations, ratio, ratio_free)?, ratio_free)
+    }
+
     /// The cost at `locations` with γ = `ratio`, and its normal equations
     /// (γ's rows only when `ratio_free`). `None` where the surface cannot
     /// be evaluated or a number is not finite.
@@ -501,6 +557,36 @@ impl Problem<'_> {
     }
 }
 
+/// Each frame's place covariance from `normal` (see
+/// [`Problem::spreads`]): the diagonal blocks of the inverse of its
+/// matrix, γ marginalised where `ratio_free`.
+fn covariances(normal: &Normal, ratio_free: bool) -> Option<Vec<DMat2>> {
+    let chain = Chain::factor(&normal.diagonal, &normal.lower)?;
+    let mut covariances = chain.inverse_diagonal()?;
+    if ratio_free {
+        // (A - B C⁻¹ Bᵀ)⁻¹ = A⁻¹ + (A⁻¹B) S⁻¹ (A⁻¹B)ᵀ, S the Schur complement.
+        let bordered = Bordered::of(normal, &chain)?;
+        let schur_inverse = bordered.schur_inverse;
+        for (t, covariance) in covariances.iter_mut().enumerate() {
+            let columns: [DVec2; 3] = std::array::from_fn(|k| {
+                bordered
+                    .by_axis
+                    .get(k)
+                    .and_then(|column| column.get(t))
+                    .copied()
+                    .unwrap_or(DVec2::ZERO)
+            });
+            for (k, &x) in columns.iter().enumerate() {
+                for (l, &y) in columns.iter().enumerate() {
+                    let weight = schur_inverse.col(l)[k];
+                    *covariance += DMat2::from_cols(x * y.x, x * y.y) * weight;
+                }
+            }
+        }
+    }
+    covariances.iter().all(DMat2::is_finite).then_some(covariances)
+}
+
 /// The Gauss–Newton step of `normal`: each frame's move (tangent
 /// coordinates, m) and γ's (zero unless `ratio_free`). `None` when the
 /// system is singular.
@@ -511,47 +597,65 @@ fn step(normal: &Normal, ratio_free: bool) -> Option<(Vec<DVec2>, DVec3)> {
         return Some((places, DVec3::ZERO));
     }
     // γ by the Schur complement of the chain: (C - Bᵀ A⁻¹ B) dγ = r_γ - Bᵀ A⁻¹ r_p.
-    let by_axis: Vec<Vec<DVec2>> = (0..3)
-        .map(|k| {
-            let column: Vec<DVec2> = normal.border.iter().map(|b| b[k]).collect();
-            chain.solve(&column)
-        })
-        .collect();
-    let mut schur = normal.corner.to_cols_array_2d();
-    let mut rhs = normal.rhs_ratio.to_array();
+    let bordered = Bordered::of(normal, &chain)?;
+    let mut rhs = normal.rhs_ratio;
     for (t, border) in normal.border.iter().enumerate() {
         let place = places.get(t).copied().unwrap_or(DVec2::ZERO);
-        for (k, b) in border.iter().enumerate() {
-            if let Some(r) = rhs.get_mut(k) {
-                *r -= b.dot(place);
-            }
-            for (column, solved) in schur.iter_mut().zip(&by_axis) {
-                let s = solved.get(t).copied().unwrap_or(DVec2::ZERO);
-                if let Some(entry) = column.get_mut(k) {
-                    *entry -= b.dot(s);
-                }
-            }
-        }
+        rhs -= DVec3::new(border[0].dot(place), border[1].dot(place), border[2].dot(place));
     }
-    let schur = DMat3::from_cols_array_2d(&schur);
-    let rhs = DVec3::from_array(rhs);
-    let det = schur.determinant();
-    if !(det.is_finite() && det.abs() > f64::MIN_POSITIVE) {
-        return None;
-    }
-    let ratio_step = schur.inverse() * rhs;
+    let ratio_step = bordered.schur_inverse * rhs;
     let moves = places
         .iter()
         .enumerate()
         .map(|(t, &p)| {
             let mut d = p;
-            for (column, amount) in by_axis.iter().zip(ratio_step.to_array()) {
+            for (column, amount) in bordered.by_axis.iter().zip(ratio_step.to_array()) {
                 d -= column.get(t).copied().unwrap_or(DVec2::ZERO) * amount;
             }
             d
         })
         .collect();
     ratio_step.is_finite().then_some((moves, ratio_step))
+}
+
+/// The border's part of the Gauss–Newton system: `A⁻¹ B` (one column of
+/// 2-vectors per axis of γ) and the inverse of the Schur complement
+/// `S = C - Bᵀ A⁻¹ B`.
+struct Bordered {
+    by_axis: Vec<Vec<DVec2>>,
+    schur_inverse: DMat3,
+}
+
+impl Bordered {
+    /// `None` where the Schur complement is singular.
+    fn of(normal: &Normal, chain: &Chain) -> Option<Self> {
+        let by_axis: Vec<Vec<DVec2>> = (0..3)
+            .map(|k| {
+                let column: Vec<DVec2> = normal.border.iter().map(|b| b[k]).collect();
+                chain.solve(&column)
+            })
+            .collect();
+        let mut schur = normal.corner.to_cols_array_2d();
+        for (t, border) in normal.border.iter().enumerate() {
+            for (k, b) in border.iter().enumerate() {
+                for (column, solved) in schur.iter_mut().zip(&by_axis) {
+                    let s = solved.get(t).copied().unwrap_or(DVec2::ZERO);
+                    if let Some(entry) = column.get_mut(k) {
+                        *entry -= b.dot(s);
+                    }
+                }
+            }
+        }
+        let schur = DMat3::from_cols_array_2d(&schur);
+        let det = schur.determinant();
+        if !(det.is_finite() && det.abs() > f64::MIN_POSITIVE) {
+            return None;
+        }
+        Some(Self {
+            by_axis,
+            schur_inverse: schur.inverse(),
+        })
+    }
 }
 
 /// A block tridiagonal symmetric matrix (2×2 blocks) factored for
@@ -593,6 +697,27 @@ impl Chain {
             gain,
             lower: lower.to_vec(),
         })
+    }
+
+    /// The diagonal blocks of the matrix's inverse, from the last frame
+    /// back: `X_t = P_t⁻¹ + G_t X_{t+1} G_tᵀ` with `G_t = P_t⁻¹ L_{t+1}ᵀ`
+    /// (`P`: the pivots, `L`: the sub-diagonal blocks).
+    fn inverse_diagonal(&self) -> Option<Vec<DMat2>> {
+        let mut out = vec![DMat2::ZERO; self.pivot_inverse.len()];
+        let mut after: Option<DMat2> = None;
+        for (t, slot) in out.iter_mut().enumerate().rev() {
+            let pivot_inverse = *self.pivot_inverse.get(t)?;
+            let here = match after {
+                None => pivot_inverse,
+                Some(next) => {
+                    let g = pivot_inverse * self.lower.get(t + 1)?.transpose();
+                    pivot_inverse + g * next * g.transpose()
+                }
+            };
+            *slot = here;
+            after = Some(here);
+        }
+        Some(out)
     }
 
     /// The solution for the right-hand side `rhs` (one 2-vector a frame).
@@ -973,42 +1098,80 @@ mod tests {
             .collect();
         let rhs: Vec<DVec2> = (0..n).map(|_| DVec2::new(rng.normal(), rng.normal())).collect();
         let x = Chain::factor(&diagonal, &lower).unwrap().solve(&rhs);
-        // Dense: row 2t+i, column 2s+j.
-        let size = 2 * n;
-        let mut a = vec![vec![0.0; size + 1]; size];
+        let inverse = inverted(dense(&diagonal, &lower, None));
         for t in 0..n {
             for i in 0..2 {
-                for j in 0..2 {
-                    a[2 * t + i][2 * t + j] = diagonal[t].col(j)[i];
-                    if t > 0 {
-                        a[2 * t + i][2 * (t - 1) + j] = lower[t].col(j)[i];
-                        a[2 * (t - 1) + j][2 * t + i] = lower[t].col(j)[i];
-                    }
-                }
-                a[2 * t + i][size] = rhs[t][i];
-            }
-        }
-        for c in 0..size {
-            let pivot = (c..size)
-                .max_by(|&x, &y| a[x][c].abs().total_cmp(&a[y][c].abs()))
-                .unwrap();
-            a.swap(c, pivot);
-            for r in 0..size {
-                if r != c {
-                    let factor = a[r][c] / a[c][c];
-                    let pivot_row = a[c].clone();
-                    for (value, p) in a[r].iter_mut().zip(&pivot_row).skip(c) {
-                        *value -= factor * p;
-                    }
-                }
-            }
-        }
-        for t in 0..n {
-            for i in 0..2 {
-                let dense = a[2 * t + i][size] / a[2 * t + i][2 * t + i];
+                let dense: f64 = (0..n)
+                    .map(|s| inverse[2 * t + i][2 * s] * rhs[s].x + inverse[2 * t + i][2 * s + 1] * rhs[s].y)
+                    .sum();
                 assert!((x[t][i] - dense).abs() < 1e-10, "{t} {i}: {} vs {dense}", x[t][i]);
             }
         }
+    }
+
+    /// The symmetric matrix of diagonal blocks `diagonal`, sub-diagonal
+    /// blocks `lower` and, when given, the border `(B, C)` (γ's rows and
+    /// columns last), as dense rows: row `2t + i` is frame t's tangent i.
+    fn dense(diagonal: &[DMat2], lower: &[DMat2], border: Option<(&[[DVec2; 3]], DMat3)>) -> Vec<Vec<f64>> {
+        let frames = diagonal.len();
+        let size = 2 * frames + if border.is_some() { 3 } else { 0 };
+        let mut m = vec![vec![0.0; size]; size];
+        for t in 0..frames {
+            for (i, j) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                m[2 * t + i][2 * t + j] = diagonal[t].col(j)[i];
+                if t > 0 {
+                    m[2 * t + i][2 * (t - 1) + j] = lower[t].col(j)[i];
+                    m[2 * (t - 1) + j][2 * t + i] = lower[t].col(j)[i];
+                }
+            }
+        }
+        if let Some((columns, corner)) = border {
+            for (t, b) in columns.iter().enumerate() {
+                for (k, b) in b.iter().enumerate() {
+                    for i in 0..2 {
+                        m[2 * t + i][2 * frames + k] = b[i];
+                        m[2 * frames + k][2 * t + i] = b[i];
+                    }
+                }
+            }
+            for k in 0..3 {
+                for l in 0..3 {
+                    m[2 * frames + k][2 * frames + l] = corner.col(l)[k];
+                }
+            }
+        }
+        m
+    }
+
+    /// The inverse of `m` by Gauss–Jordan elimination with partial pivoting.
+    fn inverted(mut m: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
+        let size = m.len();
+        let mut inverse: Vec<Vec<f64>> = (0..size)
+            .map(|i| (0..size).map(|j| if i == j { 1.0 } else { 0.0 }).collect())
+            .collect();
+        for c in 0..size {
+            let pivot = (c..size)
+                .max_by(|&x, &y| m[x][c].abs().total_cmp(&m[y][c].abs()))
+                .unwrap();
+            m.swap(c, pivot);
+            inverse.swap(c, pivot);
+            let p = m[c][c];
+            assert!(p.abs() > 1e-12, "singular");
+            for j in 0..size {
+                m[c][j] /= p;
+                inverse[c][j] /= p;
+            }
+            for r in 0..size {
+                if r != c {
+                    let factor = m[r][c];
+                    for j in 0..size {
+                        m[r][j] -= factor * m[c][j];
+                        inverse[r][j] -= factor * inverse[c][j];
+                    }
+                }
+            }
+        }
+        inverse
     }
 
     /// Nothing to fit, or nothing to fit with: no fit and no panic. Torques
@@ -1036,5 +1199,61 @@ mod tests {
             f.tau = &zeros;
         }
         assert_eq!(fit_press(shape, p.link, &frames, &settings(0.1)), None);
+    }
+
+    /// The place covariances are the diagonal blocks of the inverse of
+    /// the whole bordered system (checked against a dense inverse by
+    /// Gauss–Jordan elimination), with γ marginalised and without.
+    #[test]
+    fn place_covariances_are_the_inverse_s_diagonal_blocks() {
+        let mut rng = Rng::new(3);
+        let frames = 7;
+        let mut sym = |scale: f64| {
+            let (a, b, c) = (
+                rng.uniform_in(-1.0, 1.0),
+                rng.uniform_in(-1.0, 1.0),
+                rng.uniform_in(-1.0, 1.0),
+            );
+            DMat2::from_cols(DVec2::new(a, b), DVec2::new(b, c)) * scale
+        };
+        let diagonal: Vec<DMat2> = (0..frames).map(|_| sym(1.0) + DMat2::IDENTITY * 6.0).collect();
+        let lower: Vec<DMat2> = (0..frames)
+            .map(|t| if t == 0 { DMat2::ZERO } else { sym(1.5) })
+            .collect();
+        let border: Vec<[DVec2; 3]> = (0..frames)
+            .map(|_| std::array::from_fn(|_| DVec2::new(rng.uniform_in(-0.5, 0.5), rng.uniform_in(-0.5, 0.5))))
+            .collect();
+        let corner = DMat3::IDENTITY * 9.0 + DMat3::from_cols(DVec3::X, DVec3::Y, DVec3::ONE) * 0.1;
+        let corner = (corner + corner.transpose()) * 0.5;
+        let normal = Normal {
+            cost: 0.0,
+            surface: Vec::new(),
+            magnitudes: Vec::new(),
+            residuals: Vec::new(),
+            diagonal: diagonal.clone(),
+            lower: lower.clone(),
+            border: border.clone(),
+            corner,
+            rhs_places: vec![DVec2::ZERO; frames],
+            rhs_ratio: DVec3::ZERO,
+        };
+        for ratio_free in [false, true] {
+            let inverse = inverted(dense(
+                &diagonal,
+                &lower,
+                ratio_free.then_some((border.as_slice(), corner)),
+            ));
+            let covariances = covariances(&normal, ratio_free).unwrap();
+            for (t, c) in covariances.iter().enumerate() {
+                for (i, j) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                    let expected = inverse[2 * t + i][2 * t + j];
+                    assert!(
+                        (c.col(j)[i] - expected).abs() < 1e-12,
+                        "frame {t} ({i},{j}): {} vs {expected}",
+                        c.col(j)[i]
+                    );
+                }
+            }
+        }
     }
 }

@@ -415,17 +415,37 @@ pub fn credible_set(posterior: &Posterior, world: impl Fn(usize) -> DVec3, level
     // Points below 1e-18 of the largest hold less than 1e-12 together for
     // any surface we sample: they never enter a 90 % set.
     let (points, mass) = most_probable_holding(&posterior.support, &posterior.probability, 1e-18, level);
-    let positions: Vec<DVec3> = points.iter().map(|&k| world(k)).collect();
-    let mean = points
-        .iter()
-        .zip(&positions)
-        .map(|(&k, p)| *p * posterior.probability[k])
-        .sum::<DVec3>()
-        / mass.max(f64::MIN_POSITIVE);
-    // `sqrt` is monotone: the largest distance is the root of the largest square.
-    let squared: Vec<f64> = positions.iter().map(|p| p.distance_squared(mean)).collect();
-    let radius_m = lanes::max_or(&squared, 0.0).sqrt();
-    CredibleSet { points, mass, radius_m }
+    CredibleSet::holding(points, mass, &posterior.probability, world)
+}
+
+impl CredibleSet {
+    /// The set of `points` (in index order) holding `mass` of
+    /// `probability`, its radius measured with `world` (a point's
+    /// position).
+    fn holding(points: Vec<usize>, mass: f64, probability: &[f64], world: impl Fn(usize) -> DVec3) -> Self {
+        let positions: Vec<DVec3> = points.iter().map(|&k| world(k)).collect();
+        let mean = points
+            .iter()
+            .zip(&positions)
+            .map(|(&k, p)| *p * probability.get(k).copied().unwrap_or(0.0))
+            .sum::<DVec3>()
+            / mass.max(f64::MIN_POSITIVE);
+        // `sqrt` is monotone: the largest distance is the root of the largest square.
+        let squared: Vec<f64> = positions.iter().map(|p| p.distance_squared(mean)).collect();
+        let radius_m = lanes::max_or(&squared, 0.0).sqrt();
+        Self { points, mass, radius_m }
+    }
+
+    /// This set with `more` points added (any order, repeats allowed),
+    /// its mass and radius measured again.
+    #[must_use]
+    pub fn with_points(&self, more: &[usize], probability: &[f64], world: impl Fn(usize) -> DVec3) -> Self {
+        let mut points: Vec<usize> = self.points.iter().chain(more).copied().collect();
+        points.sort_unstable();
+        points.dedup();
+        let mass = points.iter().map(|&k| probability.get(k).copied().unwrap_or(0.0)).sum();
+        Self::holding(points, mass, probability, world)
+    }
 }
 
 /// The fewest of the points `indices` (probabilities `probability[k]`)

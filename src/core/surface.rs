@@ -330,6 +330,20 @@ impl Surface {
         self.shapes.get(i).map(AsRef::as_ref)
     }
 
+    /// The sample whose patch holds `point_in_link` on `link`: the nearest
+    /// of that link's samples (`None` where the link has none). What a
+    /// credible set must hold to hold a contact there.
+    #[must_use]
+    pub fn owner(&self, link: LinkId, point_in_link: DVec3) -> Option<usize> {
+        self.link
+            .iter()
+            .zip(&self.point_in_link)
+            .enumerate()
+            .filter(|&(_, (&on, _))| on == link)
+            .min_by(|(_, (_, a)), (_, (_, b))| a.distance(point_in_link).total_cmp(&b.distance(point_in_link)))
+            .map(|(k, _)| k)
+    }
+
     /// Sample `i`'s position in the world for a pose.
     #[must_use]
     pub fn point_world(&self, pose: &RobotPose, i: usize) -> Option<DVec3> {
