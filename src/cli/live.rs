@@ -251,8 +251,13 @@ fn estimate_frame(
                 .update_for_sequence(&live.robot, &positions, &frame.tau)?;
             let belief = live.filter.step(model, frame.t, &likelihood)?;
             let mut update = live.estimator.with_belief(&live.robot, pending, &frame.tau, belief);
-            live.estimator
-                .gate_friction(&live.robot, &mut update, (number, &frame.tau), &mut live.friction_gate);
+            live.estimator.gate_friction(
+                &live.robot,
+                &mut update,
+                (number, frame.t, &frame.tau),
+                model.settings().slide_m_per_sqrt_s,
+                &mut live.friction_gate,
+            );
             update
         }
     };

@@ -10,9 +10,12 @@ use crate::core::friction::friction_evidence;
 use crate::core::kinematics::RobotPose;
 use crate::core::lanes;
 use crate::core::phases::PhaseHierarchy;
-use crate::core::press::{FRICTION_GAIN, PlaceSpread, PressAnswer, PressFrame, PressSettings, explain_press, locate};
+use crate::core::press::{
+    FRICTION_GAIN, PlaceSpread, PressAnswer, PressFrame, PressSettings, explain_press, locate, press_spreads,
+};
 use crate::core::refine::{Measurement, contact_at_offsets, refine};
 use crate::core::robot::{LinkId, Robot};
+use crate::core::smooth::MeshPoint;
 use crate::core::special::chi_square_survival;
 use crate::core::summary::{
     ContactEstimate, NO_CONTACT_P, PlacedContact, Refinement, Summary, Verdict, summarize_refined,
@@ -531,7 +534,8 @@ impl Estimator {
         &self,
         robot: &Robot,
         update: &mut Update,
-        (i, tau): (usize, &[f64]),
+        (i, t_secs, tau): (usize, f64, &[f64]),
+        slide_m_per_sqrt_s: f64,
         gate: &mut FrictionGate,
     ) {
         if !self.fits_presses() || !is_pressed(update) {
@@ -541,11 +545,14 @@ impl Estimator {
         let link = update.summary.map.link;
         if gate.last != Some((i.wrapping_sub(1), link)) {
             gate.gain = 0.0;
+            gate.window.clear();
         }
         gate.last = Some((i, link));
         let Some(from_world) = update.pose.world_from_link.get(link).map(glam::DAffine3::inverse) else {
             return;
         };
+        let model = TorqueModel::new(robot, &update.pose, &self.links);
+        self.widen_by_press_so_far(update, (t_secs, tau), &model, slide_m_per_sqrt_s, gate);
         let map = &update.summary.map;
         let place = (
             from_world.transform_point3(map.point_world),
@@ -558,7 +565,6 @@ impl Estimator {
             force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
             friction: self.settings.friction,
         };
-        let model = TorqueModel::new(robot, &update.pose, &self.links);
         let Some((frictionless, gain)) = friction_evidence(&model, link, place, &measurement, self.settings.friction)
         else {
             return;
@@ -577,6 +583,60 @@ impl Estimator {
             residual_chi2: frictionless.residual_chi2,
         };
         self.place(update, &placed, &model);
+    }
+
+    /// Filtering with friction: `update`'s credible set widened as a
+    /// smoothed press's is ([`Estimator::widen_credible`]), by the spread
+    /// that the press's latest frames (at most [`PRESS_WINDOW`], this one
+    /// last, at the places the filter chose) leave this frame's place.
+    /// The frame joins `gate`'s window.
+    fn widen_by_press_so_far(
+        &self,
+        update: &mut Update,
+        (t_secs, tau): (f64, &[f64]),
+        model: &TorqueModel,
+        slide_m_per_sqrt_s: f64,
+        gate: &mut FrictionGate,
+    ) {
+        let map = &update.summary.map;
+        let link = map.link;
+        let (Some(shape), Some(&sample), Some(world_from_link)) = (
+            self.surface.shape(link),
+            self.surface.location.get(map.point),
+            update.pose.world_from_link.get(link),
+        ) else {
+            return;
+        };
+        let point_in_link = world_from_link.inverse().transform_point3(map.point_world);
+        if gate.window.len() >= PRESS_WINDOW {
+            gate.window.pop_front();
+        }
+        gate.window.push_back(WindowFrame {
+            t_secs,
+            torque_model: model.clone(),
+            tau: tau.to_vec(),
+            at: locate(shape, sample, point_in_link),
+        });
+        let weights = self.settings.weights();
+        let settings = PressSettings {
+            weights: &weights,
+            force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
+            friction: self.settings.friction,
+            slide_m_per_sqrt_s: slide_m_per_sqrt_s * PRESS_SLIDE_FRACTION,
+        };
+        let frames: Vec<PressFrame> = gate
+            .window
+            .iter()
+            .map(|w| PressFrame {
+                t_secs: w.t_secs,
+                torque_model: &w.torque_model,
+                tau: &w.tau,
+                start: w.at,
+            })
+            .collect();
+        if let Some(spread) = press_spreads(shape, link, &frames, &settings).and_then(|s| s.last().copied()) {
+            self.widen_credible(update, link, &spread);
+        }
     }
 
     /// Whether posteriors integrate each sample's patch (exact mode with
@@ -821,7 +881,7 @@ pub fn estimate_sequence_while(
         }
         (Some(model), Temporal::Filter) => {
             let mut filter = Filter::new(model);
-            let mut gate = FrictionGate::default();
+            let (mut gate, slide) = (FrictionGate::default(), model.settings().slide_m_per_sqrt_s);
             for (i, f) in frames.iter().enumerate() {
                 if !keep_going() {
                     return Ok(false);
@@ -837,7 +897,7 @@ pub fn estimate_sequence_while(
                 };
                 let belief = filter.step(f.t_secs, &likelihood)?;
                 let mut update = estimator.with_belief(robot, update, f.tau, belief);
-                estimator.gate_friction(robot, &mut update, (i, f.tau), &mut gate);
+                estimator.gate_friction(robot, &mut update, (i, f.t_secs, f.tau), slide, &mut gate);
                 each(i, update, ms(t0));
             }
         }
@@ -901,13 +961,32 @@ pub fn estimate_sequence_while(
 
 /// What filtering with friction knows of the press so far
 /// ([`Estimator::gate_friction`]).
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Default)]
 pub struct FrictionGate {
     /// The last frame and its link, while a press goes on.
     last: Option<(usize, LinkId)>,
     /// Its frames' evidence for friction, summed.
     gain: f64,
+    /// Its latest frames, oldest first: what the place's spread is
+    /// measured over.
+    window: std::collections::VecDeque<WindowFrame>,
 }
+
+/// A frame of a filtered press, as [`PressFrame`] needs it.
+#[derive(Debug, Clone)]
+struct WindowFrame {
+    t_secs: f64,
+    torque_model: TorqueModel,
+    tau: Vec<f64>,
+    /// The filter's place.
+    at: MeshPoint,
+}
+
+/// Frames of a filtered press whose places measure the spread of the
+/// latest's ([`FrictionGate`]): the press so far, up to about the shortest
+/// press the temporal model expects (0.1 s at 200 Hz, 0.4 s at 50 Hz),
+/// so that a frame costs a bounded amount.
+pub const PRESS_WINDOW: usize = 20;
 
 /// While smoothing with contacts placed on the continuous surface, a
 /// press's frames wait for its end: the press is fitted as a whole (with

@@ -283,6 +283,43 @@ pub fn explain_press(
     })
 }
 
+/// Each frame's [`PlaceSpread`] at the frames' `start` places with no
+/// tangential force, γ marginalised under its prior where μ > 0: what
+/// the frames leave undetermined of places already chosen (a filter's
+/// press so far), without a search. `None` without frames, without a
+/// positive finite slide length, or where the surface or the matrix
+/// cannot be evaluated.
+#[must_use]
+pub fn press_spreads(
+    shape: &LinkShape,
+    link: LinkId,
+    frames: &[PressFrame],
+    settings: &PressSettings,
+) -> Option<Vec<PlaceSpread>> {
+    if frames.is_empty() || !(settings.slide_m_per_sqrt_s > 0.0 && settings.slide_m_per_sqrt_s.is_finite()) {
+        return None;
+    }
+    let problem = Problem {
+        shape,
+        link,
+        frames,
+        settings,
+    };
+    let locations: Vec<MeshPoint> = frames.iter().map(|f| f.start).collect();
+    let with_friction = settings.friction > 0.0 && settings.friction.is_finite();
+    let covariances = problem.spreads(&locations, DVec3::ZERO, with_friction)?;
+    locations
+        .iter()
+        .zip(covariances)
+        .map(|(&at, covariance_m2)| {
+            Some(PlaceSpread {
+                tangents_in_link: shape.frame(at)?.tangents,
+                covariance_m2,
+            })
+        })
+        .collect()
+}
+
 /// The place on `shape` of `point_in_link` (a point on or next to the
 /// surface), found by walking from `from` (a sample near it) along the
 /// surface: a few steps, each the offset's part along the surface there.
