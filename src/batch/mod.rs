@@ -61,6 +61,30 @@ pub fn session_robot(
     Ok(robot)
 }
 
+/// Whether `update`'s 90 % credible set holds a frame's true contact: the
+/// sample whose patch holds it, the nearest of its link's samples on
+/// `surface` (`None` without a known contact on a sampled link).
+#[must_use]
+pub fn credible_set_holds_truth(
+    robot: &Robot,
+    surface: &crate::core::surface::Surface,
+    update: &crate::core::pipeline::Update,
+    truth: &Truth,
+) -> Option<bool> {
+    let Truth::Contact { link, point, .. } = truth else {
+        return None;
+    };
+    let link = robot.link_id(link).ok()?;
+    let point_in_link = update
+        .pose
+        .world_from_link
+        .get(link)?
+        .inverse()
+        .transform_point3(DVec3::from_array(*point));
+    let owner = surface.owner(link, point_in_link)?;
+    Some(update.summary.credible90.points.contains(&owner))
+}
+
 /// The errors of an estimate against a frame's truth (`None` without a
 /// known contact).
 #[must_use]

@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use anyhow::{Context as _, Result, anyhow};
 use glam::DVec3;
+use proprioscope::batch::credible_set_holds_truth;
 use proprioscope::core::estimator::{EstimatorSettings, Mode, ParticleSettings, Sampling};
 use proprioscope::core::kinematics::RobotPose;
 use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, percentile};
@@ -525,21 +526,11 @@ fn seed_run(
                 run.frames += 1;
                 run.poor_fit += usize::from(update.summary.verdict == Verdict::PoorFit);
                 called.push(update.summary.verdict != Verdict::NoContact);
-                if let Some(Truth::Contact { point, link, .. }) = session.frames.get(i).map(|f| &f.truth) {
-                    let point_world = DVec3::from_array(*point);
-                    errors.push(update.summary.map.point_world.distance(point_world));
-                    let owner = robot.link_id(link).ok().and_then(|link| {
-                        let point_in_link = update
-                            .pose
-                            .world_from_link
-                            .get(link)?
-                            .inverse()
-                            .transform_point3(point_world);
-                        estimator.surface.owner(link, point_in_link)
-                    });
-                    if let Some(owner) = owner {
+                if let Some(truth @ Truth::Contact { point, .. }) = session.frames.get(i).map(|f| &f.truth) {
+                    errors.push(update.summary.map.point_world.distance(DVec3::from_array(*point)));
+                    if let Some(held) = credible_set_holds_truth(robot, &estimator.surface, &update, truth) {
                         run.owned += 1;
-                        run.held += usize::from(update.summary.credible90.points.contains(&owner));
+                        run.held += usize::from(held);
                     }
                 }
             },

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::{Context as _, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot};
+use proprioscope::batch::{FrameEstimate, credible_set_holds_truth, frame_outcome, session_robot};
 use proprioscope::core::bias::{estimate_drifting_bias, without_drifting_bias};
 use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, metrics_by_sensing_joints, percentile};
 use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, Update, automatic_temporal, estimate_sequence};
@@ -160,7 +160,8 @@ impl Out {
     ) -> Result<()> {
         match self {
             Self::Json(w) => {
-                let line = frame_json(robot, number, frame.t, update, ms, &frame.truth, outcome);
+                let held = credible_set_holds_truth(robot, &estimator.surface, update, &frame.truth);
+                let line = frame_json(robot, (number, frame.t), update, ms, &frame.truth, (outcome, held));
                 writeln!(w, "{line}").context("writing --out")
             }
             Self::Mcap(w) => w
@@ -354,6 +355,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     let mut times_ms = Vec::new();
     let mut verdicts = [0usize; 3];
     let mut called = Vec::with_capacity(session.frames.len());
+    let mut in_set = Vec::new();
     let mut written: Result<()> = Ok(());
     args.estimator.with_threads(|| {
         estimate_sequence(
@@ -374,9 +376,9 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
                 }] += 1;
                 called.push(update.summary.verdict != Verdict::NoContact);
                 let outcome = frame_outcome(&robot, &FrameEstimate::of(&update, ms), &frame.truth);
-                if let Some(o) = outcome {
-                    outcomes.push(o);
-                }
+                outcomes.extend(outcome);
+                let held = credible_set_holds_truth(&robot, &estimator.surface, &update, &frame.truth);
+                in_set.extend(held);
                 if let (Some(w), Ok(())) = (out.as_mut(), &written) {
                     written = w.write(&estimator, &robot, (i, frame), &update, ms, outcome.as_ref(), origin_ns);
                 }
@@ -393,6 +395,21 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     report(&session, &verdicts, &times_ms, &called)?;
     if !outcomes.is_empty() {
         print_metrics(&outcomes)?;
+    }
+    report_credible(&in_set)?;
+    Ok(())
+}
+
+/// How often the 90 % credible set held the push (`in_set`: one entry a
+/// contact frame whose truth can be told).
+fn report_credible(in_set: &[bool]) -> Result<()> {
+    if !in_set.is_empty() {
+        let held = in_set.iter().filter(|&&h| h).count();
+        outln!(
+            "90 % credible set holds the push: {held}/{} contact frames ({:.1} %)",
+            in_set.len(),
+            100.0 * held as f64 / in_set.len() as f64
+        );
     }
     Ok(())
 }
@@ -442,12 +459,11 @@ pub fn onset_text(delays: &[Option<usize>]) -> String {
 
 pub(super) fn frame_json(
     robot: &Robot,
-    frame: usize,
-    t: f64,
+    (frame, t): (usize, f64),
     update: &Update,
     ms: f64,
     truth: &Truth,
-    outcome: Option<&FrameOutcome>,
+    (outcome, held): (Option<&FrameOutcome>, Option<bool>),
 ) -> serde_json::Value {
     let s = &update.summary;
     let verdict = match s.verdict {
@@ -486,6 +502,7 @@ pub(super) fn frame_json(
             "position_error_m": o.true_point.distance(o.estimated_point),
             "force_error_n": o.true_force.distance(o.estimated_force),
             "link_correct": o.link_correct,
+            "in_credible90": held,
         });
     } else if *truth == Truth::NoContact {
         v["truth"] = serde_json::Value::Null;

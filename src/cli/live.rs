@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
-use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot};
+use proprioscope::batch::{FrameEstimate, credible_set_holds_truth, frame_outcome, session_robot};
 use proprioscope::core::pipeline::{Estimator, FrictionGate, Temporal};
 use proprioscope::core::surface::SurfaceRequest;
 use proprioscope::core::temporal::{FilterState, TemporalModel};
@@ -263,13 +263,13 @@ fn estimate_frame(
     };
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     let outcome = frame_outcome(&live.robot, &FrameEstimate::of(&update, ms), &frame.truth);
+    let held = credible_set_holds_truth(&live.robot, &live.estimator.surface, &update, &frame.truth);
     Ok(frame_json(
         &live.robot,
-        number,
-        frame.t,
+        (number, frame.t),
         &update,
         ms,
         &frame.truth,
-        outcome.as_ref(),
+        (outcome.as_ref(), held),
     ))
 }
