@@ -612,6 +612,9 @@ fn session_metrics_export_as_json() {
     assert_eq!(json["by_sensing_joints"][0]["sensing_joints"], 5);
     let median = json["all"]["position_error_median_m"].as_f64().unwrap();
     assert!(median.is_finite() && median >= 0.0, "{json}");
+    // How often the 90 % set held the push: every contact frame tells.
+    let held = json["all"]["credible90_held"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&held), "{json}");
 }
 
 #[test]

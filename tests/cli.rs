@@ -222,7 +222,7 @@ fn estimate_writes_one_json_line_per_frame_and_a_summary() {
     assert!(first["truth"]["position_error_m"].as_f64().unwrap() < 0.05, "{first}");
     // Whether the 90 % set holds the push, per frame and in the report.
     assert!(first["truth"]["in_credible90"].is_boolean(), "{first}");
-    assert!(stdout.contains("90 % credible set holds the push"), "{stdout}");
+    assert!(stdout.contains("90 % set holds the push"), "{stdout}");
     // The links' shares of the posterior: at least 1 % each, most
     // probable first, adding up to at most 1, the contact's link among them.
     let links = first["links"].as_array().unwrap();

@@ -7,7 +7,27 @@ use super::{ProprioscopeApp, egui, session};
 use crate::core::metrics::Metrics;
 
 /// How one metric is written in the session panel.
-type MetricText = dyn Fn(&Metrics) -> String;
+type MetricText = fn(&Metrics) -> String;
+
+/// The session panel's metrics, each a name and how it is written.
+const METRIC_ROWS: [(&str, MetricText); 7] = [
+    ("frames", |m: &Metrics| m.frames.to_string()),
+    ("position median / p90 [mm]", |m: &Metrics| {
+        format!("{:.1} / {:.1}", m.position_median_m * 1e3, m.position_p90_m * 1e3)
+    }),
+    ("force median / p90 [N]", |m: &Metrics| {
+        format!("{:.2} / {:.2}", m.force_median_newtons, m.force_p90_newtons)
+    }),
+    ("link right", |m: &Metrics| format!("{:.0} %", m.link_accuracy * 100.0)),
+    ("ε_r [mm], ε_F [N]", |m: &Metrics| {
+        format!("{:.1}, {:.2}", m.eps_r_m * 1e3, m.eps_f_newtons)
+    }),
+    ("σ_r [mm]", |m: &Metrics| format!("{:.1}", m.sigma_r_m * 1e3)),
+    ("90 % set holds the push", |m: &Metrics| {
+        m.credible90_held
+            .map_or_else(|| "–".to_owned(), |h| format!("{:.0} %", h * 100.0))
+    }),
+];
 
 /// Metrics over all frames, and by the number of sensing joints.
 pub(super) type SessionMetrics = (
@@ -72,20 +92,7 @@ impl ProprioscopeApp {
         // The metrics of all frames as a table; by how many joints sense the
         // contact as lines that wrap (a column per group grew the side
         // panel past the window on sessions with contacts on every link).
-        let rows: [(&str, &MetricText); 6] = [
-            ("frames", &|m| m.frames.to_string()),
-            ("position median / p90 [mm]", &|m| {
-                format!("{:.1} / {:.1}", m.position_median_m * 1e3, m.position_p90_m * 1e3)
-            }),
-            ("force median / p90 [N]", &|m| {
-                format!("{:.2} / {:.2}", m.force_median_newtons, m.force_p90_newtons)
-            }),
-            ("link right", &|m| format!("{:.0} %", m.link_accuracy * 100.0)),
-            ("ε_r [mm], ε_F [N]", &|m| {
-                format!("{:.1}, {:.2}", m.eps_r_m * 1e3, m.eps_f_newtons)
-            }),
-            ("σ_r [mm]", &|m| format!("{:.1}", m.sigma_r_m * 1e3)),
-        ];
+        let rows = METRIC_ROWS;
         egui::Grid::new("session-metrics").striped(true).show(ui, |ui| {
             ui.label("frames with a contact");
             ui.strong("all");

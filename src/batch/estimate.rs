@@ -126,10 +126,17 @@ fn serve(job: &EstimateJob, serving: &Serving<'_, EstimateJob, Estimated>) {
                     let positions = job.robot.joint_positions(&frame.q, &[]).map_err(|e| e.to_string())?;
                     let tau = job.tau(index).unwrap_or_default();
                     let t0 = Instant::now();
-                    estimator
+                    let update = estimator
                         .update(&job.robot, &positions, &tau)
-                        .map(|u| FrameEstimate::of(&u, t0.elapsed().as_secs_f64() * 1e3))
-                        .map_err(|e| e.to_string())
+                        .map_err(|e| e.to_string())?;
+                    let ms = t0.elapsed().as_secs_f64() * 1e3;
+                    Ok(FrameEstimate::of_frame(
+                        &job.robot,
+                        &estimator.surface,
+                        &update,
+                        ms,
+                        &frame.truth,
+                    ))
                 },
             )
         })
@@ -197,7 +204,10 @@ fn estimate_together(job: &EstimateJob, estimator: &Estimator, serving: &Serving
                 serving.send(Estimated {
                     generation: job.generation,
                     frame,
-                    estimate: Ok(FrameEstimate::of(&update, ms)),
+                    estimate: Ok(match frames.get(frame) {
+                        Some(f) => FrameEstimate::of_frame(&job.robot, &estimator.surface, &update, ms, &f.truth),
+                        None => FrameEstimate::of(&update, ms),
+                    }),
                 });
                 if let Some(s) = sent.borrow_mut().get_mut(frame) {
                     *s = true;

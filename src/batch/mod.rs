@@ -104,6 +104,7 @@ pub fn frame_outcome(robot: &Robot, estimate: &FrameEstimate, truth: &Truth) -> 
         true_point: DVec3::from_array(*point),
         true_force: DVec3::from_array(*force),
         link_correct: robot.links.get(estimate.link).is_some_and(|l| l.name == *link),
+        in_credible90: estimate.truth_in_credible90,
     })
 }
 
@@ -127,6 +128,9 @@ pub struct FrameEstimate {
     /// The chance of a contact from the frames estimated together (none
     /// for a frame alone).
     pub contact_probability: Option<f64>,
+    /// Whether the 90 % credible set holds the frame's true contact (see
+    /// [`credible_set_holds_truth`]; `None` without a known contact).
+    pub truth_in_credible90: Option<bool>,
 }
 
 impl FrameEstimate {
@@ -143,6 +147,23 @@ impl FrameEstimate {
             p_max: update.posterior.display.get(map.point).copied().unwrap_or(0.0),
             update_ms,
             contact_probability: update.summary.contact_probability,
+            truth_in_credible90: None,
+        }
+    }
+
+    /// [`FrameEstimate::of`], with whether the 90 % credible set holds the
+    /// frame's `truth` (its samples on `surface`).
+    #[must_use]
+    pub fn of_frame(
+        robot: &Robot,
+        surface: &crate::core::surface::Surface,
+        update: &Update,
+        update_ms: f64,
+        truth: &Truth,
+    ) -> Self {
+        Self {
+            truth_in_credible90: credible_set_holds_truth(robot, surface, update, truth),
+            ..Self::of(update, update_ms)
         }
     }
 }
@@ -402,6 +423,7 @@ pub fn metrics_json(all: &Metrics, by_joints: &[(usize, Metrics)]) -> serde_json
             "eps_r_m": m.eps_r_m,
             "eps_f_newtons": m.eps_f_newtons,
             "sigma_r_m": m.sigma_r_m,
+            "credible90_held": m.credible90_held,
         })
     };
     serde_json::json!({

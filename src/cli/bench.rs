@@ -234,6 +234,7 @@ fn run_config(robot: &Robot, config: &Config, contacts: &[Contact], seed: u64) -
                 true_point: c.point_world,
                 true_force: c.force_world,
                 link_correct: map.link == c.link,
+                in_credible90: None,
             });
         }
         Ok((percentile(&times, 0.5), metrics(&outcomes)))

@@ -355,7 +355,6 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     let mut times_ms = Vec::new();
     let mut verdicts = [0usize; 3];
     let mut called = Vec::with_capacity(session.frames.len());
-    let mut in_set = Vec::new();
     let mut written: Result<()> = Ok(());
     args.estimator.with_threads(|| {
         estimate_sequence(
@@ -375,10 +374,9 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
                     Verdict::PoorFit => 2,
                 }] += 1;
                 called.push(update.summary.verdict != Verdict::NoContact);
-                let outcome = frame_outcome(&robot, &FrameEstimate::of(&update, ms), &frame.truth);
+                let estimate = FrameEstimate::of_frame(&robot, &estimator.surface, &update, ms, &frame.truth);
+                let outcome = frame_outcome(&robot, &estimate, &frame.truth);
                 outcomes.extend(outcome);
-                let held = credible_set_holds_truth(&robot, &estimator.surface, &update, &frame.truth);
-                in_set.extend(held);
                 if let (Some(w), Ok(())) = (out.as_mut(), &written) {
                     written = w.write(&estimator, &robot, (i, frame), &update, ms, outcome.as_ref(), origin_ns);
                 }
@@ -395,21 +393,6 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     report(&session, &verdicts, &times_ms, &called)?;
     if !outcomes.is_empty() {
         print_metrics(&outcomes)?;
-    }
-    report_credible(&in_set)?;
-    Ok(())
-}
-
-/// How often the 90 % credible set held the push (`in_set`: one entry a
-/// contact frame whose truth can be told).
-fn report_credible(in_set: &[bool]) -> Result<()> {
-    if !in_set.is_empty() {
-        let held = in_set.iter().filter(|&&h| h).count();
-        outln!(
-            "90 % credible set holds the push: {held}/{} contact frames ({:.1} %)",
-            in_set.len(),
-            100.0 * held as f64 / in_set.len() as f64
-        );
     }
     Ok(())
 }
@@ -535,12 +518,15 @@ fn link_shares_json(robot: &Robot, s: &proprioscope::core::summary::Summary) -> 
 pub fn print_metrics(outcomes: &[FrameOutcome]) -> Result<()> {
     outln!();
     outln!(
-        "| frames | sensing joints | median pos. error [mm] | p90 [mm] | median force error [N] | p90 [N] | link right | ε_r [mm] | ε_F [N] | σ_r [mm] |"
+        "| frames | sensing joints | median pos. error [mm] | p90 [mm] | median force error [N] | p90 [N] | link right | ε_r [mm] | ε_F [N] | σ_r [mm] | 90 % set holds the push |"
     );
-    outln!("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    outln!("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let row = |label: &str, m: &Metrics| -> Result<()> {
+        let held = m
+            .credible90_held
+            .map_or_else(|| "–".to_owned(), |h| format!("{:.1} %", h * 100.0));
         outln!(
-            "| {} | {label} | {:.1} | {:.1} | {:.2} | {:.2} | {:.0} % | {:.1} | {:.2} | {:.1} |",
+            "| {} | {label} | {:.1} | {:.1} | {:.2} | {:.2} | {:.0} % | {:.1} | {:.2} | {:.1} | {held} |",
             m.frames,
             m.position_median_m * 1e3,
             m.position_p90_m * 1e3,

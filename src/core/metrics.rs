@@ -20,6 +20,9 @@ pub struct FrameOutcome {
     pub true_force: DVec3,
     /// The estimate is on the true link.
     pub link_correct: bool,
+    /// Whether the 90 % credible set holds the true contact's sample
+    /// (`None` where that was not told).
+    pub in_credible90: Option<bool>,
 }
 
 /// Errors over a set of frames.
@@ -43,6 +46,9 @@ pub struct Metrics {
     pub force_p90_newtons: f64,
     /// Share of frames whose estimate is on the true link.
     pub link_accuracy: f64,
+    /// Share of the frames that told it whose 90 % credible set held the
+    /// true contact (`None` where none told it).
+    pub credible90_held: Option<f64>,
 }
 
 /// Nearest-rank percentile of unsorted values (`fraction` in [0, 1]).
@@ -101,7 +107,15 @@ pub fn metrics(outcomes: &[FrameOutcome]) -> Metrics {
         force_median_newtons: percentile(&force, 0.5),
         force_p90_newtons: percentile(&force, 0.9),
         link_accuracy: outcomes.iter().filter(|o| o.link_correct).count() as f64 / n,
+        credible90_held: share_held(outcomes),
     }
+}
+
+/// The share of `outcomes` telling whether their credible set held the
+/// truth that say it did (`None` where none tells).
+fn share_held(outcomes: &[FrameOutcome]) -> Option<f64> {
+    let told: Vec<bool> = outcomes.iter().filter_map(|o| o.in_credible90).collect();
+    (!told.is_empty()).then(|| told.iter().filter(|&&h| h).count() as f64 / told.len() as f64)
 }
 
 /// Metrics per number of sensing joints, in increasing order.
@@ -210,7 +224,20 @@ mod tests {
             true_point: DVec3::ZERO,
             true_force: DVec3::new(0.0, 10.0, 0.0),
             link_correct: ok,
+            in_credible90: None,
         }
+    }
+
+    /// The share counts only the frames that tell, and is `None` without any.
+    #[test]
+    fn credible_share_counts_the_frames_that_tell() {
+        let mut o = [outcome(0.1, 0.0, 0.0, true); 4];
+        assert_eq!(metrics(&o).credible90_held, None);
+        o[0].in_credible90 = Some(true);
+        o[1].in_credible90 = Some(false);
+        o[2].in_credible90 = Some(true);
+        let share = metrics(&o).credible90_held.unwrap();
+        assert!((share - 2.0 / 3.0).abs() < 1e-15, "{share}");
     }
 
     #[test]
