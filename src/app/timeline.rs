@@ -364,8 +364,13 @@ impl ProprioscopeApp {
                     let link = self.model.robot.links.get(e.link).map_or("?", |l| l.name.as_str());
                     format!("over time: {link}, {:.1} N (p = {p:.2})", e.force_world.length())
                 };
+                let hover = format!(
+                    "the white arrow: where the frames together place the contact; their 90 % credible set \
+                     lies within {:.0} mm of its centre (a press's own uncertainty included)",
+                    e.credible90_radius_m * 1e3
+                );
                 ui.colored_label(egui::Color32::from_rgb(90, 155, 255), text)
-                    .on_hover_text("the blue arrow: where the frames together place the contact");
+                    .on_hover_text(hover);
             }
         });
         let mut frame = replay.frame;

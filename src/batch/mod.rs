@@ -131,6 +131,8 @@ pub struct FrameEstimate {
     /// Whether the 90 % credible set holds the frame's true contact (see
     /// [`credible_set_holds_truth`]; `None` without a known contact).
     pub truth_in_credible90: Option<bool>,
+    /// The 90 % credible set's radius, m.
+    pub credible90_radius_m: f64,
 }
 
 impl FrameEstimate {
@@ -148,6 +150,7 @@ impl FrameEstimate {
             update_ms,
             contact_probability: update.summary.contact_probability,
             truth_in_credible90: None,
+            credible90_radius_m: update.summary.credible90.radius_m,
         }
     }
 
