@@ -309,12 +309,7 @@ impl Estimator {
             .map(|(_, update, _)| TorqueModel::new(robot, &update.pose, &self.links))
             .collect();
         let weights = self.settings.weights();
-        let settings = PressSettings {
-            weights: &weights,
-            force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
-            friction: self.settings.friction,
-            slide_m_per_sqrt_s: slide_m_per_sqrt_s * PRESS_SLIDE_FRACTION,
-        };
+        let settings = self.press_settings(&weights, slide_m_per_sqrt_s);
         let recording: Vec<Option<&ContactEstimate>> = press.iter().map(|(_, u, _)| Some(&u.summary.map)).collect();
         let here = self.explain_on(link, press, &recording, frames, &models, &settings)?;
         let (mut best_link, mut best) = (link, here);
@@ -618,12 +613,7 @@ impl Estimator {
             at: locate(shape, sample, point_in_link),
         });
         let weights = self.settings.weights();
-        let settings = PressSettings {
-            weights: &weights,
-            force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
-            friction: self.settings.friction,
-            slide_m_per_sqrt_s: slide_m_per_sqrt_s * PRESS_SLIDE_FRACTION,
-        };
+        let settings = self.press_settings(&weights, slide_m_per_sqrt_s);
         let frames: Vec<PressFrame> = gate
             .window
             .iter()
@@ -636,6 +626,18 @@ impl Estimator {
             .collect();
         if let Some(spread) = press_spreads(shape, link, &frames, &settings).and_then(|s| s.last().copied()) {
             self.widen_credible(update, link, &spread);
+        }
+    }
+
+    /// How presses are fitted under these settings: the noise `weights`
+    /// (`1/σ²`, [`EstimatorSettings::weights`]) and a fraction
+    /// ([`PRESS_SLIDE_FRACTION`]) of the temporal model's slide length.
+    fn press_settings<'w>(&self, weights: &'w [f64], slide_m_per_sqrt_s: f64) -> PressSettings<'w> {
+        PressSettings {
+            weights,
+            force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
+            friction: self.settings.friction,
+            slide_m_per_sqrt_s: slide_m_per_sqrt_s * PRESS_SLIDE_FRACTION,
         }
     }
 

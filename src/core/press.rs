@@ -216,15 +216,7 @@ pub fn explain_press(
     frames: &[PressFrame],
     settings: &PressSettings,
 ) -> Option<PressAnswer> {
-    if frames.is_empty() || !(settings.slide_m_per_sqrt_s > 0.0 && settings.slide_m_per_sqrt_s.is_finite()) {
-        return None;
-    }
-    let problem = Problem {
-        shape,
-        link,
-        frames,
-        settings,
-    };
+    let problem = Problem::new(shape, link, frames, settings)?;
     let start: Vec<MeshPoint> = frames.iter().map(|f| f.start).collect();
     let frictionless = problem.descend(start.clone(), false)?;
     let with_friction = settings.friction > 0.0 && settings.friction.is_finite();
@@ -296,15 +288,7 @@ pub fn press_spreads(
     frames: &[PressFrame],
     settings: &PressSettings,
 ) -> Option<Vec<PlaceSpread>> {
-    if frames.is_empty() || !(settings.slide_m_per_sqrt_s > 0.0 && settings.slide_m_per_sqrt_s.is_finite()) {
-        return None;
-    }
-    let problem = Problem {
-        shape,
-        link,
-        frames,
-        settings,
-    };
+    let problem = Problem::new(shape, link, frames, settings)?;
     let locations: Vec<MeshPoint> = frames.iter().map(|f| f.start).collect();
     let with_friction = settings.friction > 0.0 && settings.friction.is_finite();
     let covariances = problem.spreads(&locations, DVec3::ZERO, with_friction)?;
@@ -370,6 +354,25 @@ struct Problem<'a> {
     link: LinkId,
     frames: &'a [PressFrame<'a>],
     settings: &'a PressSettings<'a>,
+}
+
+impl<'a> Problem<'a> {
+    /// The press `frames` on `link`; `None` without frames or without a
+    /// positive finite slide length (the slide prior divides by it).
+    fn new(
+        shape: &'a LinkShape,
+        link: LinkId,
+        frames: &'a [PressFrame<'a>],
+        settings: &'a PressSettings<'a>,
+    ) -> Option<Self> {
+        let slide = settings.slide_m_per_sqrt_s;
+        (!frames.is_empty() && slide > 0.0 && slide.is_finite()).then_some(Self {
+            shape,
+            link,
+            frames,
+            settings,
+        })
+    }
 }
 
 /// The cost at a trajectory and its Gauss–Newton normal equations.
