@@ -894,6 +894,49 @@ fn bench_on_a_session_splits_its_times_by_the_truth() {
     }
 }
 
+/// `bench --repeat K` times each frame by the fastest of K runs in a row
+/// and says so; the estimates are counted once, so every column but the
+/// times is what one run gives.
+#[test]
+fn bench_repeats_count_the_estimates_once() {
+    let session = temp("thesis-bench-repeat.session.json", SESSION);
+    let table = |repeat: &str| {
+        let (ok, stdout, stderr) = run(&[
+            "bench",
+            "--sessions-only",
+            "--seeds",
+            "0",
+            "--repeat",
+            repeat,
+            "--session",
+            session.to_str().unwrap(),
+        ]);
+        assert!(ok, "{stderr}");
+        stdout
+    };
+    let (once, thrice) = (table("1"), table("3"));
+    assert!(!once.contains("fastest of"), "{once}");
+    assert!(
+        thrice.contains("surface seeds [0], each frame timed by the fastest of 3 runs in a row."),
+        "{thrice}"
+    );
+    // Columns 8 on: median error per seed (one each), spread, poorly
+    // explained, detection, false alarms, credible sets.
+    let estimates = |text: &str| -> Vec<String> {
+        text.lines()
+            .filter(|l| l.starts_with("| refined (patches) |") || l.starts_with("| grid of points |"))
+            .map(|l| l.split('|').skip(8).collect::<Vec<_>>().join("|"))
+            .collect()
+    };
+    let counted = estimates(&thrice);
+    assert_eq!(counted.len(), 3, "{thrice}");
+    assert_eq!(counted, estimates(&once));
+    for row in &counted {
+        let per_seed = row.split('|').next().unwrap_or_default();
+        assert_eq!(per_seed.split(',').count(), 1, "{row}");
+    }
+}
+
 /// The README's bench table and plot are committed: a quick run refuses
 /// to replace them, and leaves both files as they were.
 #[test]
