@@ -202,7 +202,19 @@ fn main() -> std::process::ExitCode {
         }
         Err(e) => {
             use std::io::Write as _;
-            let _ = writeln!(std::io::stderr(), "Error: {e:?}");
+            // The message and its causes, not `{e:?}`: with RUST_BACKTRACE
+            // set (as many Rust users keep it) that adds a stack trace of
+            // our own code under every bad file name or field.
+            let mut text = format!("Error: {e}");
+            let causes: Vec<String> = e.chain().skip(1).map(ToString::to_string).collect();
+            if !causes.is_empty() {
+                text.push_str("\n\nCaused by:");
+                for cause in causes {
+                    text.push_str("\n    ");
+                    text.push_str(&cause);
+                }
+            }
+            let _ = writeln!(std::io::stderr(), "{text}");
             std::process::ExitCode::FAILURE
         }
     }

@@ -951,6 +951,25 @@ fn a_quick_bench_never_writes_the_readme_or_its_plot() {
     assert_eq!(std::fs::read_to_string(&readme).unwrap(), text);
 }
 
+/// A bad input is reported by its message, also where the user keeps
+/// `RUST_BACKTRACE` set: no stack trace of the program under it.
+#[test]
+fn errors_are_reported_without_a_stack_trace() {
+    let out = Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .args(["estimate", "no-such-dir/missing.session.json"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.starts_with("Error: no-such-dir/missing.session.json: cannot read the session"),
+        "{err}"
+    );
+    assert!(!err.contains("backtrace") && !err.contains("proprioscope::"), "{err}");
+}
+
 /// A CSV session names no robot: `screenshot` (as `view`) refuses without
 /// `--robot`, saying so.
 #[test]
