@@ -89,7 +89,9 @@ struct Tally {
     errors_m: Vec<f64>,
 }
 
-fn run(frames: usize, points: usize, seed: u64) -> Tally {
+/// The estimator at `points` samples drawn with `surface_seed` on
+/// `frames` frames generated with `seed`.
+fn run(frames: usize, points: usize, seed: u64, surface_seed: u64) -> Tally {
     let robot = builtin::lwr4plus_generated().unwrap();
     let links = robot.default_candidate_links();
     let (sigma, force) = (0.05, (1.0, 30.0));
@@ -106,7 +108,7 @@ fn run(frames: usize, points: usize, seed: u64) -> Tally {
     let request = SurfaceRequest {
         links,
         total_points: points,
-        seed: 0,
+        seed: surface_seed,
     };
     let estimator = Estimator::new(&robot, &request, settings, None).unwrap();
     let s = &estimator.surface;
@@ -136,7 +138,7 @@ fn run(frames: usize, points: usize, seed: u64) -> Tally {
 fn generated_frames_are_explained_and_credible_sets_are_calibrated() {
     let frames: usize = std::env::var("CALIBRATION_FRAMES").map_or(500, |v| v.parse().unwrap());
     let points: usize = std::env::var("CALIBRATION_POINTS").map_or(5000, |v| v.parse().unwrap());
-    let t = run(frames, points, 11);
+    let t = run(frames, points, 11, 0);
     let mut e = t.errors_m.clone();
     e.sort_by(f64::total_cmp);
     let coverage = t.covered as f64 / t.frames as f64;
@@ -155,4 +157,42 @@ fn generated_frames_are_explained_and_credible_sets_are_calibrated() {
         t.frames
     );
     assert!((0.85..=0.95).contains(&coverage), "coverage {coverage}");
+}
+
+/// Issue 10's principle (the answer is a property of the arm and the
+/// data, not of the sampling) where the truth is exact and the frames
+/// many: over surface seeds 0–4, on 500 generated frames, the share of
+/// frames placed within 20 mm of the push moves by at most 3 points, and
+/// the quartiles of the position error by at most 10 % (or 0.5 mm).
+/// Measured: within 20 mm 45.0–47.0 %, quartiles 3.6–3.9 and 105.4–109.1
+/// mm. The median is printed, not held: it lies where the errors jump
+/// from placed (p40 12–13 mm) to ambiguous (p60 59–67 mm), so ten frames
+/// of 500 that tie either way move it 27–33 mm (README, *The
+/// estimator*).
+#[test]
+fn generated_frames_are_placed_alike_at_every_surface_seed() {
+    let frames: usize = std::env::var("CALIBRATION_FRAMES").map_or(500, |v| v.parse().unwrap());
+    let (mut within, mut quartiles, mut medians) = (Vec::new(), Vec::new(), Vec::new());
+    for surface_seed in 0..5 {
+        let mut e = run(frames, 5000, 11, surface_seed).errors_m;
+        e.sort_by(f64::total_cmp);
+        let at = |f: f64| e[((e.len() as f64 * f) as usize).min(e.len() - 1)];
+        within.push(e.iter().filter(|&&x| x < 0.02).count() as f64 / e.len() as f64);
+        quartiles.push([at(0.25), at(0.75)]);
+        medians.push(at(0.5));
+    }
+    println!("surface seeds 0-4: within 20 mm {within:?}, quartiles {quartiles:?} m, medians {medians:?} m");
+    let spread = |v: &[f64]| {
+        let (lo, hi) = v.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+            (lo.min(*x), hi.max(*x))
+        });
+        (lo, hi - lo)
+    };
+    let (_, share_spread) = spread(&within);
+    assert!(share_spread <= 0.03, "within 20 mm: {within:?}");
+    for q in 0..2 {
+        let values: Vec<f64> = quartiles.iter().map(|pair| pair[q]).collect();
+        let (lo, width) = spread(&values);
+        assert!(width <= (0.1 * lo).max(5e-4), "quartile {}: {values:?} m", q + 1);
+    }
 }
