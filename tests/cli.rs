@@ -916,6 +916,45 @@ fn bench_repeats_count_the_estimates_once() {
     };
     let (once, thrice) = (table("1"), table("3"));
     assert!(!once.contains("fastest of"), "{once}");
+    // Below the estimates, where the time of a frame alone goes: a row
+    // per estimator of frames alone (not over time), each part timed.
+    let split = |text: &str| -> (String, String) {
+        let (estimates, stages) = text
+            .split_once("Where the time of a frame alone goes")
+            .unwrap_or((text, ""));
+        (estimates.to_owned(), stages.to_owned())
+    };
+    let ((once, once_stages), (thrice, thrice_stages)) = (split(&once), split(&thrice));
+    for stages in [&once_stages, &thrice_stages] {
+        let rows: Vec<&str> = stages
+            .lines()
+            .filter(|l| l.starts_with("| ") && !l.starts_with("| estimator"))
+            .collect();
+        let labels: Vec<&str> = rows.iter().filter_map(|l| l.split('|').nth(1)).map(str::trim).collect();
+        assert_eq!(
+            labels,
+            ["refined (patches)", "grid of points", "grid of points"],
+            "{stages}"
+        );
+        for row in rows {
+            // Three parts, each "p50 / p99" in µs, p50 ≤ p99.
+            let parts: Vec<Vec<f64>> = row
+                .split('|')
+                .skip(3)
+                .take(3)
+                .map(|cell| cell.split('/').map(|x| x.trim().parse::<f64>().unwrap()).collect())
+                .collect();
+            assert_eq!(parts.len(), 3, "{row}");
+            assert!(
+                parts.iter().all(|p| p.len() == 2 && p[0] >= 0.0 && p[0] <= p[1]),
+                "{row}"
+            );
+        }
+    }
+    assert!(
+        thrice_stages.contains("each part timed by its fastest run"),
+        "{thrice_stages}"
+    );
     assert!(
         thrice.contains("surface seeds [0], each frame timed by the fastest of 3 runs in a row."),
         "{thrice}"

@@ -166,6 +166,30 @@ fn torques_within_noise_are_not_refined_or_clustered() {
     assert!(update.summary.clusters.is_empty());
     assert!(update.posterior.probability.iter().all(|p| p.is_finite()));
 }
+/// An update alone says where its time went: disjoint parts of the
+/// call, so they add up to no more than the call's own time, and a
+/// refined contact's search took some of it.
+#[test]
+fn an_update_alone_reports_its_parts_within_its_time() {
+    let scene = load("lwr-collision-3");
+    let (estimator, _) = estimate_scene(&scene, Some(0.05), 3000);
+    let started = std::time::Instant::now();
+    let update = estimator
+        .update(&scene.robot, &scene.joint_positions, &scene.measured_torques())
+        .unwrap();
+    let total_ms = started.elapsed().as_secs_f64() * 1e3;
+    let stages = update.stages.unwrap();
+    let parts = [stages.posterior_ms, stages.refine_ms, stages.summary_ms];
+    assert!(parts.iter().all(|p| p.is_finite() && *p >= 0.0), "{stages:?}");
+    assert!(parts.iter().sum::<f64>() <= total_ms, "{stages:?} > {total_ms} ms");
+    assert!(update.summary.refined && stages.refine_ms > 0.0, "{stages:?}");
+    // Torques within noise: nothing to refine, and no time for it.
+    let silent = vec![0.0; scene.robot.sensed().len()];
+    let quiet = estimator.update(&scene.robot, &scene.joint_positions, &silent).unwrap();
+    assert!(!quiet.summary.refined);
+    assert_eq!(quiet.stages.map(|s| s.refine_ms), Some(0.0));
+}
+
 /// Per surface seed, the median position error on a shared session
 /// (σ = 0.05 N·m, 5000 points), and the share of frames called poorly
 /// explained over all seeds.

@@ -11,7 +11,7 @@ use proprioscope::batch::credible_set_holds_truth;
 use proprioscope::core::estimator::{EstimatorSettings, Mode, ParticleSettings, Sampling};
 use proprioscope::core::kinematics::RobotPose;
 use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, percentile};
-use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, estimate_sequence};
+use proprioscope::core::pipeline::{Estimator, SequenceFrame, StageTimes, Temporal, estimate_sequence};
 use proprioscope::core::rng::Rng;
 use proprioscope::core::robot::{JointKind, Robot};
 use proprioscope::core::surface::{Surface, SurfaceRequest};
@@ -337,6 +337,9 @@ struct SessionRun {
     /// whose patch holds it), and those where that could be told.
     held: usize,
     owned: usize,
+    /// Frames alone: each frame's posterior, refinement and summary
+    /// times, µs (empty over time, where the stages interleave).
+    stage_times_us: Vec<[f64; 3]>,
 }
 
 /// Per-frame p50/p99 and the spread of the median error over surface
@@ -370,6 +373,7 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
             quiet_frames: 0,
             held: 0,
             owned: 0,
+            stage_times_us: Vec::new(),
         };
         let positions = session
             .frames
@@ -466,7 +470,36 @@ fn session_text(
             100.0 * r.held as f64 / r.owned.max(1) as f64
         );
     }
+    stage_text(runs, &mut out);
     out
+}
+
+/// Where the time of frames estimated alone goes, per stage: the table
+/// under a session's (nothing without such runs).
+fn stage_text(runs: &[SessionRun], out: &mut String) {
+    let staged: Vec<&SessionRun> = runs.iter().filter(|r| !r.stage_times_us.is_empty()).collect();
+    if staged.is_empty() {
+        return;
+    }
+    out.push_str(
+        "\nWhere the time of a frame alone goes: the parts of `Estimator::update` over every frame (with `--repeat`, each part timed by its fastest run). They add up to a little less than the total above, which also counts handing the frame over.\n\n",
+    );
+    out.push_str(
+        "| estimator | points | posterior p50 / p99 [µs] | refinement p50 / p99 [µs] | summary p50 / p99 [µs] |\n",
+    );
+    out.push_str("|---|---:|---:|---:|---:|\n");
+    for r in staged {
+        let stage = |k: usize| -> Vec<f64> { r.stage_times_us.iter().filter_map(|s| s.get(k).copied()).collect() };
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} |",
+            r.label,
+            r.points,
+            p50_p99(&stage(0)),
+            p50_p99(&stage(1)),
+            p50_p99(&stage(2))
+        );
+    }
 }
 
 /// `p50 / p99` of `times_us`, or a dash without any.
@@ -526,11 +559,20 @@ fn seed_run(
     // Every run estimates the frames alike: the runs before the last one
     // only time them, and each frame keeps its fastest time.
     let mut fastest_us: Vec<Option<f64>> = vec![None; sequence.len()];
+    let mut fastest_stages_us: Vec<Option<[f64; 3]>> = vec![None; sequence.len()];
     for _ in 1..how.repeat {
         pool.install(|| {
-            estimate_sequence(&estimator, robot, model.as_ref(), how.temporal, sequence, |i, _, ms| {
-                keep_fastest(&mut fastest_us, i, ms * 1e3);
-            })
+            estimate_sequence(
+                &estimator,
+                robot,
+                model.as_ref(),
+                how.temporal,
+                sequence,
+                |i, update, ms| {
+                    keep_fastest(&mut fastest_us, i, ms * 1e3);
+                    keep_fastest_stages(&mut fastest_stages_us, i, update.stages.as_ref());
+                },
+            )
         })?;
     }
     let (errors, called) = pool.install(|| -> Result<(Vec<f64>, Vec<bool>)> {
@@ -544,6 +586,9 @@ fn seed_run(
             |i, update, ms| {
                 let us = keep_fastest(&mut fastest_us, i, ms * 1e3);
                 run.times_us.push(us);
+                if let Some(stages) = keep_fastest_stages(&mut fastest_stages_us, i, update.stages.as_ref()) {
+                    run.stage_times_us.push(stages);
+                }
                 match truth.get(i).copied().flatten() {
                     Some(true) => run.contact_times_us.push(us),
                     Some(false) => run.quiet_times_us.push(us),
@@ -578,6 +623,17 @@ fn keep_fastest(fastest_us: &mut [Option<f64>], i: usize, us: f64) -> f64 {
         Some(slot) => *slot.insert(slot.map_or(us, |t| t.min(us))),
         None => us,
     }
+}
+
+/// Frame `i`'s fastest time of each stage, µs, as [`keep_fastest`]
+/// (`None` where the update has no stages).
+fn keep_fastest_stages(fastest_us: &mut [Option<[f64; 3]>], i: usize, stages: Option<&StageTimes>) -> Option<[f64; 3]> {
+    let s = stages?;
+    let us = [s.posterior_ms, s.refine_ms, s.summary_ms].map(|ms| ms * 1e3);
+    Some(match fastest_us.get_mut(i) {
+        Some(slot) => *slot.insert(slot.map_or(us, |t| std::array::from_fn(|k| t[k].min(us[k])))),
+        None => us,
+    })
 }
 
 /// N as the thesis counts it: surface points in exact mode, particles otherwise.

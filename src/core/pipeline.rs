@@ -2,6 +2,8 @@
 //! built once (they live in link frames), then each measurement is an
 //! update at its own configuration.
 
+use std::time::Instant;
+
 use glam::DVec3;
 
 use crate::core::contact::{PatchForms, PosedSurface};
@@ -59,6 +61,25 @@ pub struct Update {
     pub posterior: Posterior,
     /// What it says.
     pub summary: Summary,
+    /// Where the time of a frame estimated alone ([`Estimator::update`])
+    /// went; `None` for frames combined over time, whose stages
+    /// interleave with the temporal model's.
+    pub stages: Option<StageTimes>,
+}
+
+/// The wall time of one frame's stages, ms: disjoint parts of
+/// [`Estimator::update`], so they add up to at most its time. What
+/// `bench` reports to show where a frame's 99th percentile comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StageTimes {
+    /// The posterior over the samples (the pose, the torque model, the
+    /// likelihood of every sample and the posterior's masses).
+    pub posterior_ms: f64,
+    /// The search for the contact on the continuous surface (0 where the
+    /// frame is not refined: no contact, or grid mode).
+    pub refine_ms: f64,
+    /// The summary: fit test, verdict, shares, credible set, clusters.
+    pub summary_ms: f64,
 }
 
 impl Estimator {
@@ -86,12 +107,21 @@ impl Estimator {
     /// The posterior for torques `tau` measured at `joint_positions`
     /// (every joint's, see [`Robot::joint_positions`]).
     pub fn update(&self, robot: &Robot, joint_positions: &[f64], tau: &[f64]) -> Result<Update, EstimateError> {
+        let started = Instant::now();
         let (pose, torque_model, posterior) = self.posterior_at(robot, joint_positions, tau, None)?;
-        let summary = self.conclude_alone(&torque_model, &pose, &posterior, tau);
+        let posterior_ms = elapsed_ms(started);
+        let concluding = Instant::now();
+        let (summary, refine_ms) = self.conclude_alone(&torque_model, &pose, &posterior, tau);
+        let summary_ms = (elapsed_ms(concluding) - refine_ms).max(0.0);
         Ok(Update {
             pose,
             posterior,
             summary,
+            stages: Some(StageTimes {
+                posterior_ms,
+                refine_ms,
+                summary_ms,
+            }),
         })
     }
 
@@ -151,25 +181,28 @@ impl Estimator {
         (belief.contact_probability() >= 0.5 && self.uses_patches()).then(|| {
             let torque_model = TorqueModel::new(robot, &update.pose, &self.links);
             self.conclude_alone(&torque_model, &update.pose, &update.posterior, tau)
+                .0
         })
     }
 
     /// A frame's summary from its own posterior: the contact refined
     /// unless the torques are within noise of zero (there is no contact
-    /// to place; the summary reports the most probable sample).
+    /// to place; the summary reports the most probable sample); and the
+    /// refinement's time, ms.
     fn conclude_alone(
         &self,
         torque_model: &TorqueModel,
         pose: &RobotPose,
         posterior: &Posterior,
         tau: &[f64],
-    ) -> Summary {
+    ) -> (Summary, f64) {
         let no_contact = chi_square_survival(posterior.no_contact_chi2, torque_model.sensed_count()) > NO_CONTACT_P;
         self.conclude(torque_model, pose, posterior, tau, !no_contact, None)
     }
 
     /// Refines (when asked and the settings allow) and summarises a
-    /// posterior of the torques `tau` at `pose`.
+    /// posterior of the torques `tau` at `pose`; also the refinement's
+    /// time, ms.
     fn conclude(
         &self,
         torque_model: &TorqueModel,
@@ -178,7 +211,7 @@ impl Estimator {
         tau: &[f64],
         refine_contact: bool,
         belief: Option<BeliefAtFrame>,
-    ) -> Summary {
+    ) -> (Summary, f64) {
         let (contact_probability, offsets, friction) = match belief {
             Some(b) => (
                 Some(b.contact_probability),
@@ -191,7 +224,9 @@ impl Estimator {
             ),
             None => (None, None, self.settings.friction),
         };
-        let refined = (self.settings.patches && self.settings.mode == Mode::Exact && refine_contact)
+        let refines = self.settings.patches && self.settings.mode == Mode::Exact && refine_contact;
+        let refining = Instant::now();
+        let refined = refines
             .then(|| {
                 let weights = self.settings.weights();
                 let measurement = Measurement {
@@ -217,7 +252,8 @@ impl Estimator {
                 }
             })
             .flatten();
-        summarize_refined(
+        let refine_ms = if refines { elapsed_ms(refining) } else { 0.0 };
+        let summary = summarize_refined(
             posterior,
             &self.surface,
             pose,
@@ -227,7 +263,8 @@ impl Estimator {
                 sensing_joints: torque_model.twists(contact.link).len(),
             }),
             contact_probability,
-        )
+        );
+        (summary, refine_ms)
     }
 
     /// What the temporal model needs of a frame's posterior: its
@@ -271,12 +308,12 @@ impl Estimator {
             alone.clear();
             return;
         }
-        let t0 = std::time::Instant::now();
+        let t0 = Instant::now();
         if self.fits_presses() {
             self.fit_press_of(robot, frames, slide_m_per_sqrt_s, press, alone);
         }
         check_press(press, alone);
-        let share_ms = t0.elapsed().as_secs_f64() * 1e3 / press.len() as f64;
+        let share_ms = elapsed_ms(t0) / press.len() as f64;
         for (i, update, cost_ms) in press.drain(..) {
             each(i, update, cost_ms + share_ms);
         }
@@ -674,11 +711,12 @@ impl Estimator {
             .where_given_contact()
             .filter(|p| p.len() == update.posterior.probability.len());
         let Some(probability) = probability else {
-            let summary = self.conclude_alone(&torque_model, &update.pose, &update.posterior, tau);
+            let (summary, _) = self.conclude_alone(&torque_model, &update.pose, &update.posterior, tau);
             return Update {
                 pose: update.pose,
                 posterior: update.posterior,
                 summary,
+                stages: None,
             };
         };
         let contact_probability = belief.contact_probability();
@@ -699,7 +737,7 @@ impl Estimator {
         // own refinement would wander along that frame's valley.
         let offsets = (belief.offsets.len() == probability_len && self.surface.window_m.len() == probability_len)
             .then_some((belief.offsets.as_slice(), self.surface.window_m.as_slice()));
-        let summary = self.conclude(
+        let (summary, _) = self.conclude(
             &torque_model,
             &update.pose,
             &posterior,
@@ -715,8 +753,14 @@ impl Estimator {
             pose: update.pose,
             posterior,
             summary,
+            stages: None,
         }
     }
+}
+
+/// Milliseconds since `since`.
+fn elapsed_ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
 }
 
 /// What a temporal model believes at a frame, as a summary needs it.
@@ -868,14 +912,14 @@ pub fn estimate_sequence_while(
             Err(source) => Err(SequenceError::Frame { frame: i, source }),
         }
     }
-    let ms = |t0: std::time::Instant| t0.elapsed().as_secs_f64() * 1e3;
+    let ms = elapsed_ms;
     match (model, temporal) {
         (None, _) | (_, Temporal::None) => {
             for (i, f) in frames.iter().enumerate() {
                 if !keep_going() {
                     return Ok(false);
                 }
-                let t0 = std::time::Instant::now();
+                let t0 = Instant::now();
                 if let Some(update) = checked(i, estimator.update(robot, f.joint_positions, f.tau), &mut failed)? {
                     each(i, update, ms(t0));
                 }
@@ -888,7 +932,7 @@ pub fn estimate_sequence_while(
                 if !keep_going() {
                     return Ok(false);
                 }
-                let t0 = std::time::Instant::now();
+                let t0 = Instant::now();
                 let Some((update, likelihood)) = checked(
                     i,
                     estimator.update_for_sequence(robot, f.joint_positions, f.tau),
@@ -911,7 +955,7 @@ pub fn estimate_sequence_while(
                 if !keep_going() {
                     return Ok(false);
                 }
-                let t0 = std::time::Instant::now();
+                let t0 = Instant::now();
                 let Some((_, likelihood)) = checked(
                     i,
                     estimator.update_for_sequence(robot, f.joint_positions, f.tau),
@@ -923,7 +967,7 @@ pub fn estimate_sequence_while(
                 smoother.push(f.t_secs, &likelihood)?;
                 pushed.push((i, ms(t0)));
             }
-            let t0 = std::time::Instant::now();
+            let t0 = Instant::now();
             let beliefs = smoother.finish();
             let backward_ms = ms(t0) / pushed.len().max(1) as f64;
             let mut presses = PressQueue {
@@ -941,7 +985,7 @@ pub fn estimate_sequence_while(
                 let Some(f) = frames.get(i) else {
                     continue;
                 };
-                let t0 = std::time::Instant::now();
+                let t0 = Instant::now();
                 // It succeeded in the first pass; the same inputs again.
                 let Some(update) = checked(
                     i,
