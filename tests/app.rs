@@ -1030,3 +1030,24 @@ fn a_live_session_fills_the_timeline_and_follows_the_newest_frame() {
     assert!(app.live_address().is_none());
     assert_eq!(app.model.replay.as_ref().unwrap().session.frames.len(), 12);
 }
+
+/// The update time's tooltip tells where that time went (the parts of a
+/// frame estimated alone).
+#[test]
+fn hovering_the_update_time_shows_its_parts() {
+    let mut harness = app_harness();
+    settle(&mut harness);
+    assert!(harness.query_by_label_contains("posterior over the samples").is_none());
+    harness.get_by_label_contains("update: ").hover();
+    // Tooltips open after a short delay, counted in frames' time.
+    for _ in 0..60 {
+        harness.step();
+        if harness.query_by_label_contains("posterior over the samples").is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let tip = harness.get_by_label_contains("posterior over the samples");
+    let text = format!("{tip:?}");
+    assert!(text.contains("refinement") && text.contains("summary"), "{text}");
+}

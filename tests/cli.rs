@@ -219,6 +219,8 @@ fn estimate_writes_one_json_line_per_frame_and_a_summary() {
         assert!(first.get(key).is_some(), "missing {key}: {first}");
     }
     assert_eq!(first["verdict"], "contact");
+    // A recording is smoothed: its frames' parts interleave, none told.
+    assert!(first["update_parts_ms"].is_null(), "{first}");
     assert!(first["truth"]["position_error_m"].as_f64().unwrap() < 0.05, "{first}");
     // Whether the 90 % set holds the push, per frame and in the report.
     assert!(first["truth"]["in_credible90"].is_boolean(), "{first}");
@@ -564,7 +566,9 @@ fn json_and_csv_sessions_give_the_same_estimates() {
             .lines()
             .map(|l| {
                 let mut v: serde_json::Value = serde_json::from_str(l).unwrap();
-                v.as_object_mut().unwrap().remove("update_ms");
+                let fields = v.as_object_mut().unwrap();
+                fields.remove("update_ms");
+                fields.remove("update_parts_ms");
                 v
             })
             .collect()
@@ -973,6 +977,36 @@ fn bench_repeats_count_the_estimates_once() {
     for row in &counted {
         let per_seed = row.split('|').next().unwrap_or_default();
         assert_eq!(per_seed.split(',').count(), 1, "{row}");
+    }
+}
+
+/// Frames estimated alone tell where each update's time went: the
+/// posterior, the refinement and the summary, within the update's time.
+#[test]
+fn frames_alone_report_the_parts_of_their_update_time() {
+    let session = temp("thesis-parts.session.json", SESSION);
+    let out = session.with_extension("jsonl");
+    let (ok, _, stderr) = run(&[
+        "estimate",
+        session.to_str().unwrap(),
+        "--temporal",
+        "none",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    for line in text.lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        let parts: Vec<f64> = ["posterior", "refinement", "summary"]
+            .iter()
+            .map(|k| v["update_parts_ms"][k].as_f64().unwrap())
+            .collect();
+        assert!(parts.iter().all(|p| *p >= 0.0), "{v}");
+        let sum: f64 = parts.iter().sum();
+        assert!(sum > 0.0 && sum <= v["update_ms"].as_f64().unwrap(), "{v}");
+        // Only a refined contact spends time refining.
+        assert_eq!(parts[1] > 0.0, v["refined"] == true, "{v}");
     }
 }
 

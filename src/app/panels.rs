@@ -114,11 +114,17 @@ impl ProprioscopeApp {
             Some(o) => match &o.update {
                 Ok(u) => {
                     let s = &u.summary;
-                    ui.label(format!(
+                    let update = ui.label(format!(
                         "update: {:.2} ms ({:.0} Hz)",
                         o.update_ms,
                         1e3 / o.update_ms.max(1e-3)
                     ));
+                    if let Some(p) = u.stages {
+                        update.on_hover_text(format!(
+                            "posterior over the samples {:.2} ms, refinement {:.2} ms, summary {:.2} ms",
+                            p.posterior_ms, p.refine_ms, p.summary_ms
+                        ));
+                    }
                     ui.label(phase_report(&u.posterior.phases));
                     ui.label(match s.verdict {
                         Verdict::Contact => "contact".to_owned(),

@@ -11,7 +11,7 @@ use proprioscope::batch::credible_set_holds_truth;
 use proprioscope::core::estimator::{EstimatorSettings, Mode, ParticleSettings, Sampling};
 use proprioscope::core::kinematics::RobotPose;
 use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, percentile};
-use proprioscope::core::pipeline::{Estimator, SequenceFrame, StageTimes, Temporal, estimate_sequence};
+use proprioscope::core::pipeline::{Estimator, SequenceFrame, StageTimes, Temporal, Update, estimate_sequence};
 use proprioscope::core::rng::Rng;
 use proprioscope::core::robot::{JointKind, Robot};
 use proprioscope::core::surface::{Surface, SurfaceRequest};
@@ -560,53 +560,38 @@ fn seed_run(
     // only time them, and each frame keeps its fastest time.
     let mut fastest_us: Vec<Option<f64>> = vec![None; sequence.len()];
     let mut fastest_stages_us: Vec<Option<[f64; 3]>> = vec![None; sequence.len()];
+    // One run over the session on the one thread, each frame handed to `each`.
+    let run_once = |each: &mut (dyn FnMut(usize, Update, f64) + Send)| {
+        pool.install(|| estimate_sequence(&estimator, robot, model.as_ref(), how.temporal, sequence, each))
+    };
     for _ in 1..how.repeat {
-        pool.install(|| {
-            estimate_sequence(
-                &estimator,
-                robot,
-                model.as_ref(),
-                how.temporal,
-                sequence,
-                |i, update, ms| {
-                    keep_fastest(&mut fastest_us, i, ms * 1e3);
-                    keep_fastest_stages(&mut fastest_stages_us, i, update.stages.as_ref());
-                },
-            )
+        run_once(&mut |i, update, ms| {
+            keep_fastest(&mut fastest_us, i, ms * 1e3);
+            keep_fastest_stages(&mut fastest_stages_us, i, update.stages.as_ref());
         })?;
     }
-    let (errors, called) = pool.install(|| -> Result<(Vec<f64>, Vec<bool>)> {
-        let (mut errors, mut called) = (Vec::new(), Vec::new());
-        estimate_sequence(
-            &estimator,
-            robot,
-            model.as_ref(),
-            how.temporal,
-            sequence,
-            |i, update, ms| {
-                let us = keep_fastest(&mut fastest_us, i, ms * 1e3);
-                run.times_us.push(us);
-                if let Some(stages) = keep_fastest_stages(&mut fastest_stages_us, i, update.stages.as_ref()) {
-                    run.stage_times_us.push(stages);
-                }
-                match truth.get(i).copied().flatten() {
-                    Some(true) => run.contact_times_us.push(us),
-                    Some(false) => run.quiet_times_us.push(us),
-                    None => {}
-                }
-                run.frames += 1;
-                run.poor_fit += usize::from(update.summary.verdict == Verdict::PoorFit);
-                called.push(update.summary.verdict != Verdict::NoContact);
-                if let Some(truth @ Truth::Contact { point, .. }) = session.frames.get(i).map(|f| &f.truth) {
-                    errors.push(update.summary.map.point_world.distance(DVec3::from_array(*point)));
-                    if let Some(held) = credible_set_holds_truth(robot, &estimator.surface, &update, truth) {
-                        run.owned += 1;
-                        run.held += usize::from(held);
-                    }
-                }
-            },
-        )?;
-        Ok((errors, called))
+    let (mut errors, mut called) = (Vec::new(), Vec::new());
+    run_once(&mut |i, update, ms| {
+        let us = keep_fastest(&mut fastest_us, i, ms * 1e3);
+        run.times_us.push(us);
+        if let Some(stages) = keep_fastest_stages(&mut fastest_stages_us, i, update.stages.as_ref()) {
+            run.stage_times_us.push(stages);
+        }
+        match truth.get(i).copied().flatten() {
+            Some(true) => run.contact_times_us.push(us),
+            Some(false) => run.quiet_times_us.push(us),
+            None => {}
+        }
+        run.frames += 1;
+        run.poor_fit += usize::from(update.summary.verdict == Verdict::PoorFit);
+        called.push(update.summary.verdict != Verdict::NoContact);
+        if let Some(truth @ Truth::Contact { point, .. }) = session.frames.get(i).map(|f| &f.truth) {
+            errors.push(update.summary.map.point_world.distance(DVec3::from_array(*point)));
+            if let Some(held) = credible_set_holds_truth(robot, &estimator.surface, &update, truth) {
+                run.owned += 1;
+                run.held += usize::from(held);
+            }
+        }
     })?;
     let found = detection(truth, &called);
     run.detected += found.detected;

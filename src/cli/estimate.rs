@@ -478,6 +478,11 @@ pub(super) fn frame_json(
         "no_contact_p": s.fit.no_contact_p,
         "evaluated": update.posterior.phases.iter().map(|p| [p.points, p.particles]).collect::<Vec<_>>(),
         "update_ms": ms,
+        "update_parts_ms": update.stages.map(|p| serde_json::json!({
+            "posterior": p.posterior_ms,
+            "refinement": p.refine_ms,
+            "summary": p.summary_ms,
+        })),
     });
     if let (Some(o), Truth::Contact { link, .. }) = (outcome, truth) {
         v["truth"] = serde_json::json!({
