@@ -482,7 +482,7 @@ fn stage_text(runs: &[SessionRun], out: &mut String) {
         return;
     }
     out.push_str(
-        "\nWhere the time of a frame alone goes: the parts of `Estimator::update` over every frame (with `--repeat`, each part timed by its fastest run). They add up to a little less than the total above, which also counts handing the frame over.\n\n",
+        "\nWhere the time of a frame alone goes: the parts of `Estimator::update` over every frame (with `--repeat`, each part timed by its fastest run). A frame's parts add up to a little less than its time above, which also counts handing the frame over; their percentiles do not add up.\n\n",
     );
     out.push_str(
         "| estimator | points | posterior p50 / p99 [µs] | refinement p50 / p99 [µs] | summary p50 / p99 [µs] |\n",
