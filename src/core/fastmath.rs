@@ -123,6 +123,34 @@ pub fn ln_erfcx_parts(x: f64, coefficients: &[f64; ERFCX_DEGREE]) -> (f64, f64) 
     (t, u * b1 - b2 + coefficients[0])
 }
 
+/// [`ln_erfcx_parts`] of `L` values at once, lane by lane: the same
+/// operations in the same order for each lane (so the same bits), but
+/// `L` independent Clenshaw chains in flight, which a loop of one value
+/// per step leaves waiting on each step's latency.
+#[inline(always)]
+#[must_use]
+pub fn ln_erfcx_parts_lanes<const L: usize>(x: &[f64; L], coefficients: &[f64; ERFCX_DEGREE]) -> ([f64; L], [f64; L]) {
+    let mut t = [0.0; L];
+    let mut u = [0.0; L];
+    for l in 0..L {
+        t[l] = ERFCX_K / (ERFCX_K + x[l]);
+        u[l] = 2.0 * t[l] - 1.0;
+    }
+    let (mut b1, mut b2) = ([0.0; L], [0.0; L]);
+    for &c in coefficients.iter().skip(1).rev() {
+        for l in 0..L {
+            let b0 = 2.0 * u[l] * b1[l] - b2[l] + c;
+            b2[l] = b1[l];
+            b1[l] = b0;
+        }
+    }
+    let mut p = [0.0; L];
+    for l in 0..L {
+        p[l] = u[l] * b1[l] - b2[l] + coefficients[0];
+    }
+    (t, p)
+}
+
 /// What [`ln_erf_difference_many`] needs, fetched once.
 #[derive(Debug, Clone, Copy)]
 pub struct ErfTable {
@@ -145,6 +173,13 @@ impl ErfTable {
         ln_erfcx_parts(x, self.coefficients)
     }
 
+    /// [`Self::parts`] of `L` values at once (see [`ln_erfcx_parts_lanes`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn parts_lanes<const L: usize>(&self, x: &[f64; L]) -> ([f64; L], [f64; L]) {
+        ln_erfcx_parts_lanes(x, self.coefficients)
+    }
+
     /// `ln(erf(hi) - erf(lo))` for `lo < hi` with `hi - lo ≥ 0.05`, branch
     /// free: absolute error below 1e-10 (tested against
     /// [`crate::core::special::ln_erf_difference`]). Narrower intervals
@@ -165,6 +200,30 @@ impl ErfTable {
         let both = 2.0 - tn * exp(-yn * yn + pn) - tf * exp(-yf * yf + pf);
         let opposite = ln(both);
         if lo < 0.0 && hi > 0.0 { opposite } else { same }
+    }
+
+    /// [`Self::ln_erf_difference`] of `L` intervals at once, lane by lane
+    /// (the same bits as one at a time; see [`ln_erfcx_parts_lanes`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn ln_erf_difference_lanes<const L: usize>(&self, lo: &[f64; L], hi: &[f64; L]) -> [f64; L] {
+        let (mut yn, mut yf) = ([0.0; L], [0.0; L]);
+        for l in 0..L {
+            let (y_lo, y_hi) = (lo[l].abs(), hi[l].abs());
+            let near_is_lo = y_lo < y_hi;
+            (yn[l], yf[l]) = if near_is_lo { (y_lo, y_hi) } else { (y_hi, y_lo) };
+        }
+        let (tn, pn) = self.parts_lanes(&yn);
+        let (tf, pf) = self.parts_lanes(&yf);
+        let mut out = [0.0; L];
+        for l in 0..L {
+            let ratio = exp((yn[l] - yf[l]) * (yn[l] + yf[l]) + pf[l] - pn[l]);
+            let same = -yn[l] * yn[l] + pn[l] + ln(tn[l] - tf[l] * ratio);
+            let both = 2.0 - tn[l] * exp(-yn[l] * yn[l] + pn[l]) - tf[l] * exp(-yf[l] * yf[l] + pf[l]);
+            let opposite = ln(both);
+            out[l] = if lo[l] < 0.0 && hi[l] > 0.0 { opposite } else { same };
+        }
+        out
     }
 }
 
@@ -194,6 +253,33 @@ mod tests {
             worst = worst.max((fast - exact).abs() / exact.abs().max(1.0));
         }
         assert!(worst < 1e-15, "{worst}");
+    }
+
+    /// The lane versions compute each lane as the scalar functions do,
+    /// bit for bit, whatever the lane's neighbours: intervals on one
+    /// side, across 0, far in the tails and narrow, shuffled.
+    #[test]
+    fn lanes_give_the_same_bits_as_one_at_a_time() {
+        let table = ErfTable::get();
+        let mut rng = crate::core::rng::Rng::new(5);
+        for _ in 0..500 {
+            let lo: [f64; 16] = std::array::from_fn(|_| rng.uniform_in(-12.0, 12.0));
+            let hi: [f64; 16] = std::array::from_fn(|l| lo[l] + rng.uniform_in(0.05, 20.0));
+            let y: [f64; 16] = std::array::from_fn(|l| lo[l].abs());
+            let (t, p) = table.parts_lanes(&y);
+            let many = table.ln_erf_difference_lanes(&lo, &hi);
+            for l in 0..16 {
+                let (t1, p1) = table.parts(y[l]);
+                assert_eq!(
+                    (t[l].to_bits(), p[l].to_bits()),
+                    (t1.to_bits(), p1.to_bits()),
+                    "{}",
+                    y[l]
+                );
+                let one = table.ln_erf_difference(lo[l], hi[l]);
+                assert_eq!(many[l].to_bits(), one.to_bits(), "[{}, {}]", lo[l], hi[l]);
+            }
+        }
     }
 
     #[test]
