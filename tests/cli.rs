@@ -980,6 +980,77 @@ fn bench_repeats_count_the_estimates_once() {
     }
 }
 
+/// `bench --session-points` adds a refined row per surface resolution,
+/// in both tables, without changing the others; each row estimates as
+/// `estimate --n` does (its median error is that of `estimate`'s frames).
+#[test]
+fn bench_session_points_add_a_refined_row_per_resolution() {
+    let session = temp("thesis-bench-points.session.json", SESSION);
+    let bench = |extra: &[&str]| {
+        let mut args = vec![
+            "bench",
+            "--sessions-only",
+            "--seeds",
+            "0",
+            "--session",
+            session.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let (ok, stdout, stderr) = run(&args);
+        assert!(ok, "{stderr}");
+        stdout
+    };
+    let (plain, coarser) = (bench(&[]), bench(&["--session-points", "300,1000"]));
+    // (estimator, points, the columns from the median error on) per row.
+    let rows = |text: &str| -> Vec<(String, String, String)> {
+        let estimates = text.split("Where the time").next().unwrap_or_default();
+        estimates
+            .lines()
+            .filter(|l| l.starts_with("| refined (patches) |") || l.starts_with("| grid of points |"))
+            .map(|l| {
+                let cells: Vec<&str> = l.split('|').map(str::trim).collect();
+                (cells[1].to_owned(), cells[2].to_owned(), cells[8..].join("|"))
+            })
+            .collect()
+    };
+    let (plain_rows, coarser_rows) = (rows(&plain), rows(&coarser));
+    assert_eq!(plain_rows.len(), 3, "{plain}");
+    assert_eq!(coarser_rows[..3], plain_rows[..], "{coarser}");
+    let added: Vec<(&str, &str)> = coarser_rows[3..]
+        .iter()
+        .map(|(label, points, _)| (label.as_str(), points.as_str()))
+        .collect();
+    assert_eq!(added, [("refined (patches)", "300"), ("refined (patches)", "1000")]);
+    let stage_rows: Vec<&str> = coarser
+        .split("Where the time")
+        .nth(1)
+        .unwrap_or_default()
+        .lines()
+        .filter(|l| l.starts_with("| refined (patches) |"))
+        .collect();
+    assert_eq!(stage_rows.len(), 3, "{coarser}");
+    // The one contact frame's error as `estimate --n 1000` reports it.
+    let out = session.with_extension("points.jsonl");
+    let (ok, _, stderr) = run(&[
+        "estimate",
+        session.to_str().unwrap(),
+        "--n",
+        "1000",
+        "--seed",
+        "0",
+        "--temporal",
+        "none",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    let first: serde_json::Value =
+        serde_json::from_str(std::fs::read_to_string(&out).unwrap().lines().next().unwrap()).unwrap();
+    let error_mm = first["truth"]["position_error_m"].as_f64().unwrap() * 1e3;
+    let bench_mm: f64 = coarser_rows[4].2.split('|').next().unwrap().trim().parse().unwrap();
+    assert_eq!(format!("{error_mm:.1}"), format!("{bench_mm:.1}"), "{coarser}");
+}
+
 /// Frames estimated alone tell where each update's time went: the
 /// posterior, the refinement and the summary, within the update's time.
 #[test]

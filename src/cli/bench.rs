@@ -49,6 +49,11 @@ pub struct BenchArgs {
     /// Surface seeds for the sessions.
     #[arg(long, value_delimiter = ',', default_value = "0,1,2,3,4")]
     pub seeds: Vec<u64>,
+    /// Sessions: also run the refined estimator (frames alone) at these
+    /// numbers of surface points, a row each, to show what a coarser
+    /// surface saves and costs (e.g. `500,1000,2000`).
+    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u64).range(10..=1_000_000))]
+    pub session_points: Vec<u64>,
     /// Only the sessions (no random contacts).
     #[arg(long)]
     pub sessions_only: bool,
@@ -351,13 +356,21 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
     let session = Session::read(path)?;
     let robot = session_robot(&session, None, &args.package_paths, &[])?;
     let mut runs = Vec::new();
-    for (label, points, patches, temporal) in [
+    let coarser = args
+        .session_points
+        .iter()
+        .filter_map(|&n| usize::try_from(n).ok())
+        .map(|n| ("refined (patches)", n, true, Temporal::None));
+    let estimators = [
         ("refined (patches)", 5000, true, Temporal::None),
         ("filtered over time", 5000, true, Temporal::Filter),
         ("smoothed over time", 5000, true, Temporal::Smooth),
         ("grid of points", 5000, false, Temporal::None),
         ("grid of points", 35_000, false, Temporal::None),
-    ] {
+    ]
+    .into_iter()
+    .chain(coarser);
+    for (label, points, patches, temporal) in estimators {
         let mut run = SessionRun {
             label,
             points,
