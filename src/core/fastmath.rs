@@ -111,22 +111,15 @@ fn erfcx_coefficients() -> &'static [f64; ERFCX_DEGREE] {
 #[inline(always)]
 #[must_use]
 pub fn ln_erfcx_parts(x: f64, coefficients: &[f64; ERFCX_DEGREE]) -> (f64, f64) {
-    let t = ERFCX_K / (ERFCX_K + x);
-    let u = 2.0 * t - 1.0;
-    // Clenshaw.
-    let (mut b1, mut b2) = (0.0, 0.0);
-    for &c in coefficients.iter().skip(1).rev() {
-        let b0 = 2.0 * u * b1 - b2 + c;
-        b2 = b1;
-        b1 = b0;
-    }
-    (t, u * b1 - b2 + coefficients[0])
+    let ([t], [p]) = ln_erfcx_parts_lanes(&[x], coefficients);
+    (t, p)
 }
 
 /// [`ln_erfcx_parts`] of `L` values at once, lane by lane: the same
-/// operations in the same order for each lane (so the same bits), but
-/// `L` independent Clenshaw chains in flight, which a loop of one value
-/// per step leaves waiting on each step's latency.
+/// operations in the same order for each lane (so the same bits as `L`
+/// of 1, which is what [`ln_erfcx_parts`] is), but `L` independent
+/// Clenshaw chains in flight, which a loop of one value per step leaves
+/// waiting on each step's latency.
 #[inline(always)]
 #[must_use]
 pub fn ln_erfcx_parts_lanes<const L: usize>(x: &[f64; L], coefficients: &[f64; ERFCX_DEGREE]) -> ([f64; L], [f64; L]) {
@@ -136,6 +129,7 @@ pub fn ln_erfcx_parts_lanes<const L: usize>(x: &[f64; L], coefficients: &[f64; E
         t[l] = ERFCX_K / (ERFCX_K + x[l]);
         u[l] = 2.0 * t[l] - 1.0;
     }
+    // Clenshaw.
     let (mut b1, mut b2) = ([0.0; L], [0.0; L]);
     for &c in coefficients.iter().skip(1).rev() {
         for l in 0..L {
@@ -187,19 +181,8 @@ impl ErfTable {
     #[inline(always)]
     #[must_use]
     pub fn ln_erf_difference(&self, lo: f64, hi: f64) -> f64 {
-        let (y_lo, y_hi) = (lo.abs(), hi.abs());
-        // Same side of 0: the end nearer 0 ("near") and the other ("far").
-        let near_is_lo = y_lo < y_hi;
-        let (yn, yf) = if near_is_lo { (y_lo, y_hi) } else { (y_hi, y_lo) };
-        let (tn, pn) = ln_erfcx_parts(yn, self.coefficients);
-        let (tf, pf) = ln_erfcx_parts(yf, self.coefficients);
-        // erfc(yn) - erfc(yf) = e^{-yn² + Pn} (tn - tf e^{yn² - yf² + Pf - Pn}).
-        let ratio = exp((yn - yf) * (yn + yf) + pf - pn);
-        let same = -yn * yn + pn + ln(tn - tf * ratio);
-        // Opposite sides: erf(hi) - erf(lo) = 2 - erfc(|lo|) - erfc(|hi|).
-        let both = 2.0 - tn * exp(-yn * yn + pn) - tf * exp(-yf * yf + pf);
-        let opposite = ln(both);
-        if lo < 0.0 && hi > 0.0 { opposite } else { same }
+        let [out] = self.ln_erf_difference_lanes(&[lo], &[hi]);
+        out
     }
 
     /// [`Self::ln_erf_difference`] of `L` intervals at once, lane by lane
@@ -207,6 +190,7 @@ impl ErfTable {
     #[inline(always)]
     #[must_use]
     pub fn ln_erf_difference_lanes<const L: usize>(&self, lo: &[f64; L], hi: &[f64; L]) -> [f64; L] {
+        // Same side of 0: the end nearer 0 ("near") and the other ("far").
         let (mut yn, mut yf) = ([0.0; L], [0.0; L]);
         for l in 0..L {
             let (y_lo, y_hi) = (lo[l].abs(), hi[l].abs());
@@ -217,8 +201,10 @@ impl ErfTable {
         let (tf, pf) = self.parts_lanes(&yf);
         let mut out = [0.0; L];
         for l in 0..L {
+            // erfc(yn) - erfc(yf) = e^{-yn² + Pn} (tn - tf e^{yn² - yf² + Pf - Pn}).
             let ratio = exp((yn[l] - yf[l]) * (yn[l] + yf[l]) + pf[l] - pn[l]);
             let same = -yn[l] * yn[l] + pn[l] + ln(tn[l] - tf[l] * ratio);
+            // Opposite sides: erf(hi) - erf(lo) = 2 - erfc(|lo|) - erfc(|hi|).
             let both = 2.0 - tn[l] * exp(-yn[l] * yn[l] + pn[l]) - tf[l] * exp(-yf[l] * yf[l] + pf[l]);
             let opposite = ln(both);
             out[l] = if lo[l] < 0.0 && hi[l] > 0.0 { opposite } else { same };
