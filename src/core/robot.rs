@@ -208,10 +208,12 @@ pub enum RobotError {
         leader: String,
     },
     /// A joint name was asked for and not found.
-    #[error("the robot has no joint named '{name}'")]
+    #[error("the robot has no joint named '{name}' (joints: {known}; was the file made on another robot?)")]
     UnknownJoint {
         /// The name.
         name: String,
+        /// The robot's joint names, comma separated.
+        known: String,
     },
     /// A link name was asked for and not found.
     #[error("the robot has no link named '{name}' (links: {known})")]
@@ -462,7 +464,15 @@ impl Robot {
         self.joints
             .iter()
             .position(|j| j.name == name)
-            .ok_or_else(|| RobotError::UnknownJoint { name: name.to_owned() })
+            .ok_or_else(|| RobotError::UnknownJoint {
+                name: name.to_owned(),
+                known: self
+                    .joints
+                    .iter()
+                    .map(|j| j.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })
     }
 
     /// The link called `name`.
@@ -616,6 +626,25 @@ mod tests {
         assert_eq!(robot.path_joints(f2), vec![0, 3]);
         let q = robot.joint_positions(&[0.3], &[("f1".to_owned(), 0.02)]);
         assert_eq!(q, Ok(vec![0.3, 0.0, 0.02, 0.02]));
+    }
+
+    #[test]
+    fn an_unknown_joint_is_named_beside_the_robots_joints() {
+        let robot = Robot::new(
+            "r",
+            &["base", "l1", "l2"].iter().map(|n| link(n)).collect::<Vec<_>>(),
+            &[
+                joint("j1", JointKind::Revolute, "base", "l1"),
+                joint("j2", JointKind::Revolute, "l1", "l2"),
+            ],
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+        let e = robot
+            .joint_id("lwr_a1_joint")
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(e.contains("'lwr_a1_joint'") && e.contains("joints: j1, j2"), "{e}");
     }
 
     #[test]
