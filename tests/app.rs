@@ -1031,6 +1031,79 @@ fn a_live_session_fills_the_timeline_and_follows_the_newest_frame() {
     assert_eq!(app.model.replay.as_ref().unwrap().session.frames.len(), 12);
 }
 
+/// Live, every frame is filtered as it arrives, with the frames before it
+/// (as `estimate --live`): the timeline shows where the frames so far
+/// place the contact, and each frame's estimate is
+/// the one the whole session gets, filtered, once the stream stops.
+#[test]
+fn a_live_session_is_filtered_as_its_frames_arrive() {
+    use std::io::Write as _;
+    let json = demo_session("live-filtered.session.json", 2.0);
+    let session = proprioscope::io::session::Session::read(&json).unwrap();
+    let frames = session.frames.len();
+    let mut harness = app_harness();
+    harness.state_mut().start_live("127.0.0.1:0");
+    let address = harness.state().live_address().unwrap().to_owned();
+    let mut sender = std::net::TcpStream::connect(&address).unwrap();
+    let header = serde_json::json!({"format": "contact-session", "version": 1, "joints": session.joints});
+    writeln!(sender, "{header}").unwrap();
+    for (i, f) in session.frames.iter().enumerate() {
+        writeln!(sender, "{}", f.to_json()).unwrap();
+        if i % 10 == 9 {
+            // In pieces, so that frames arrive while others are filtered.
+            sender.flush().unwrap();
+            for _ in 0..3 {
+                harness.step();
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+        }
+    }
+    sender.flush().unwrap();
+    let mut filtered = Vec::new();
+    for _ in 0..6000 {
+        harness.step();
+        let app = harness.state();
+        if app
+            .model
+            .replay
+            .as_ref()
+            .is_some_and(|r| r.session.frames.len() == frames)
+            && app.session_estimates.len() == frames
+            && app.session_estimates.iter().all(Option::is_some)
+        {
+            filtered = app.session_estimates.iter().flatten().copied().collect();
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    assert_eq!(
+        filtered.len(),
+        frames,
+        "the live frames were not all filtered: {:?}",
+        harness.state().error
+    );
+    assert_eq!(
+        harness.state().model.replay.as_ref().unwrap().over_time,
+        proprioscope::core::pipeline::Temporal::Filter
+    );
+    harness.run_steps(2);
+    // The row above the timeline reads the filtered contact of the frame shown.
+    assert!(harness.query_by_label_contains("over time: ").is_some());
+    let contacts = filtered.iter().filter(|e| e.contact_probability > Some(0.5)).count();
+    assert!(contacts >= frames / 2, "{contacts} of {frames} frames with a contact");
+    harness.get_by_label("Stop live").click();
+    settle(&mut harness);
+    let whole = &harness.state().session_estimates;
+    assert_eq!(whole.len(), frames);
+    for (i, (live, whole)) in filtered.iter().zip(whole).enumerate() {
+        let whole = whole.as_ref().unwrap();
+        assert_eq!(live.point_world, whole.point_world, "frame {i}");
+        assert_eq!(live.force_world, whole.force_world, "frame {i}");
+        assert_eq!(live.contact_probability, whole.contact_probability, "frame {i}");
+        assert_eq!(live.verdict, whole.verdict, "frame {i}");
+    }
+}
+
 /// The update time's tooltip tells where that time went (the parts of a
 /// frame estimated alone).
 #[test]

@@ -2,9 +2,12 @@
 //! timeline, and the view follows the newest frame unless the user has
 //! moved back (then it stays, and *Follow newest* catches up).
 //!
-//! While live, frames are estimated one at a time as they are shown (the
-//! view's own estimate); the whole-session estimates over time start when
-//! the stream is stopped and the frames become an ordinary session.
+//! While live, the frame shown is estimated alone (the view's own
+//! estimate) and, unless the user chose *each frame alone*, every frame is
+//! also filtered as it arrives, with the frames before it, on a thread of
+//! its own (what `estimate --live` writes; smoothing needs the frames
+//! after, so it waits for the stream to stop). Once stopped, the frames
+//! are an ordinary session, estimated as a whole.
 
 use std::sync::Arc;
 
@@ -34,6 +37,11 @@ pub struct LiveView {
     pending: Vec<Frame>,
     /// The next frames start a new session (a new sender).
     fresh: bool,
+    /// Counts the sessions this source started (a new sender starts one):
+    /// what the filtered estimates are keyed on while the session grows.
+    pub(super) epoch: u64,
+    /// Frames of the current session handed to the filter so far.
+    pub(super) filtered_sent: usize,
 }
 
 impl ProprioscopeApp {
@@ -54,7 +62,10 @@ impl ProprioscopeApp {
                     last_note: note,
                     pending: Vec::new(),
                     fresh: true,
+                    epoch: 0,
+                    filtered_sent: 0,
                 });
+                self.live_filter = None;
             }
             Err(e) => self.error = Some(format!("could not listen: {e}")),
         }
@@ -63,6 +74,8 @@ impl ProprioscopeApp {
     /// Stops listening; the frames received stay as a session.
     pub fn stop_live(&mut self) {
         self.live = None;
+        // Its thread ends with the handle; the frames are estimated anew.
+        self.live_filter = None;
         // Estimated as a whole from now on.
         self.session_key = None;
     }
@@ -119,6 +132,8 @@ impl ProprioscopeApp {
         let name = format!("live {}", live.source.address);
         let joints = live.joints.clone();
         if fresh {
+            live.epoch += 1;
+            live.filtered_sent = 0;
             let mut robot = (*self.model.robot).clone();
             if !joints.is_empty()
                 && let Err(e) = robot.set_sensed(&joints)
@@ -135,10 +150,10 @@ impl ProprioscopeApp {
             let spec = self.robot_spec.clone();
             self.first_frame = Some(data.frames.len().saturating_sub(1));
             self.install_session(data, robot, spec);
-            // Live, a frame is estimated alone as it is shown; the choice
-            // over time is the user's once the stream stops.
+            // Live, only the frames before can be used (as `estimate
+            // --live`): filtered, unless the user picks each frame alone.
             if let Some(replay) = self.model.replay.as_mut() {
-                replay.over_time = crate::core::pipeline::Temporal::None;
+                replay.over_time = crate::core::pipeline::Temporal::Filter;
             }
             return;
         }
@@ -146,8 +161,9 @@ impl ProprioscopeApp {
             return;
         };
         let shown_last = replay.frame + 1 >= replay.session.frames.len();
-        // Nothing else holds the live session (it is estimated frame by
-        // frame), so the frames are appended in place, not copied.
+        // Usually nothing else holds the live session, so the frames are
+        // appended in place (else the session is copied once; its
+        // filtered estimates are keyed on the live epoch, not the copy).
         let data = Arc::make_mut(&mut replay.session);
         let start = data.frames.len();
         data.file_frames.extend(start..start + frames.len());
@@ -160,6 +176,27 @@ impl ProprioscopeApp {
                 self.apply(Command::SetFrame(last));
             }
         }
+    }
+
+    /// How far the live filter has got, while frames are estimated over time.
+    fn live_filter_note(&self) -> Option<String> {
+        use crate::core::pipeline::Temporal;
+        let replay = self.model.replay.as_ref()?;
+        let pending = replay
+            .session
+            .frames
+            .len()
+            .saturating_sub(self.session_done + self.session_failures.len());
+        let what = match replay.over_time {
+            Temporal::None => return None,
+            Temporal::Filter => "filtered as they arrive",
+            Temporal::Smooth => "filtered as they arrive, smoothed once stopped",
+        };
+        Some(if pending > 0 {
+            format!("{what} ({pending} to go)")
+        } else {
+            what.to_owned()
+        })
     }
 
     /// The live row above the timeline: where from, how many, follow.
@@ -185,6 +222,9 @@ impl ProprioscopeApp {
                 }
             ));
             ui.label(egui::RichText::new(&live.last_note).weak());
+            if let Some(note) = self.live_filter_note() {
+                ui.label(note);
+            }
             if live.follow {
                 ui.label("following the newest frame");
             } else if ui.button("Follow newest").clicked() {

@@ -141,6 +141,9 @@ pub struct ProprioscopeApp {
     loader: Option<session::Loader>,
     /// A live source being listened to.
     live: Option<live::LiveView>,
+    /// The thread filtering a live session's frames as they arrive
+    /// (started on first use).
+    live_filter: Option<crate::batch::LiveFilterWorker>,
     /// The address typed in the Session menu for listening.
     live_address_input: String,
     /// A recording whose topics the user is asked to choose.
@@ -230,6 +233,7 @@ impl ProprioscopeApp {
             loader: None,
             topic_prompt: None,
             live: None,
+            live_filter: None,
             live_address_input: "127.0.0.1:7878".to_owned(),
             topic_choices: std::collections::HashMap::new(),
             last_topic_choice: None,

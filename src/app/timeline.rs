@@ -30,6 +30,9 @@ const PLOT_POINTS: usize = 1500;
 #[derive(Debug, Clone, PartialEq)]
 pub(super) struct SessionKey {
     session: usize,
+    /// While live: the live session's epoch (it grows in place, so its
+    /// address says nothing).
+    live_epoch: Option<u64>,
     sigma: Vec<f64>,
     surface_points: usize,
     candidate_links: Vec<LinkId>,
@@ -163,9 +166,10 @@ impl ProprioscopeApp {
         let Some(replay) = &self.model.replay else {
             return;
         };
-        // A live session grows every frame: its frames are estimated as
-        // they are shown, and as a whole once the stream stops.
+        // A live session grows every frame: filtered as its frames arrive
+        // (or each alone as it is shown), as a whole once the stream stops.
         if self.live.is_some() {
+            self.update_live_estimates();
             return;
         }
         let m = &self.model;
@@ -203,7 +207,69 @@ impl ProprioscopeApp {
             });
             self.session_key = Some(key);
         }
-        for done in self.session_worker.drain() {
+        let done: Vec<session::Estimated> = self.session_worker.drain().collect();
+        self.record_estimates(done);
+    }
+
+    /// While live and not *each frame alone*: hands the frames that
+    /// arrived to the live filter (all of them again when the settings
+    /// changed or a new sender began), and collects what it has done.
+    fn update_live_estimates(&mut self) {
+        let Some(replay) = &self.model.replay else {
+            return;
+        };
+        if replay.over_time == Temporal::None {
+            // Each frame alone, as it is shown.
+            self.session_key = None;
+            return;
+        }
+        let Some(key) = self.current_session_key() else {
+            return;
+        };
+        let Some(live) = self.live.as_mut() else {
+            return;
+        };
+        let m = &self.model;
+        let frames = &replay.session.frames;
+        let ctx = self.ctx.clone();
+        let worker = self
+            .live_filter
+            .get_or_insert_with(|| crate::batch::LiveFilterWorker::spawn(move || ctx.request_repaint()));
+        if self.session_key.as_ref() != Some(&key) {
+            self.session_generation += 1;
+            self.session_estimates = vec![None; frames.len()];
+            self.session_done = 0;
+            self.session_failures.clear();
+            worker.start(crate::batch::LiveJob {
+                generation: self.session_generation,
+                robot: m.robot.clone(),
+                frames: frames.clone(),
+                surface: SurfaceRequest {
+                    links: m.candidate_links.clone(),
+                    total_points: m.surface_points,
+                    seed: m.surface_seed,
+                },
+                settings: m.estimator_settings_for(Temporal::Filter),
+                phase_sizes: m.estimator.phases.then_some(m.estimator.phase_sizes),
+                temporal: TemporalSettings {
+                    slide_m_per_sqrt_s: replay.slide_m_per_sqrt_s,
+                    ..TemporalSettings::default()
+                },
+            });
+            live.filtered_sent = frames.len();
+            self.session_key = Some(key);
+        } else if let Some(new) = frames.get(live.filtered_sent..).filter(|f| !f.is_empty()) {
+            worker.append(new.to_vec());
+            live.filtered_sent = frames.len();
+            self.session_estimates.resize(frames.len(), None);
+        }
+        let done: Vec<session::Estimated> = worker.drain().collect();
+        self.record_estimates(done);
+    }
+
+    /// Files estimates of session frames (those of the current generation).
+    fn record_estimates(&mut self, estimated: Vec<session::Estimated>) {
+        for done in estimated {
             if done.generation != self.session_generation {
                 continue;
             }
@@ -236,8 +302,14 @@ impl ProprioscopeApp {
     fn current_session_key(&self) -> Option<SessionKey> {
         let m = &self.model;
         let replay = m.replay.as_ref()?;
+        let live_epoch = self.live.as_ref().map(|l| l.epoch);
         Some(SessionKey {
-            session: Arc::as_ptr(&replay.session) as usize,
+            session: if live_epoch.is_some() {
+                0
+            } else {
+                Arc::as_ptr(&replay.session) as usize
+            },
+            live_epoch,
             sigma: m.sigma.clone(),
             surface_points: m.surface_points,
             candidate_links: m.candidate_links.clone(),
@@ -246,8 +318,10 @@ impl ProprioscopeApp {
             surface_seed: m.surface_seed,
             over_time: replay.over_time,
             slide_m_per_sqrt_s: replay.slide_m_per_sqrt_s,
-            bias_auto: replay.bias_auto,
-            bias_known: self.session_bias().is_some(),
+            // Live frames are filtered as they come, bias and all; the
+            // bias is taken off once the stream stops.
+            bias_auto: replay.bias_auto && live_epoch.is_none(),
+            bias_known: self.session_bias().is_some() && live_epoch.is_none(),
         })
     }
 

@@ -9,9 +9,11 @@ use std::time::Instant;
 
 mod estimate;
 mod latest;
+mod live;
 
 pub use estimate::{EVERY_FRAME, EstimateJob, Estimated, SessionWorker};
 pub use latest::{Background, Latest, Serving};
+pub use live::{LiveFilterWorker, LiveJob};
 
 use anyhow::{Context as _, Result, bail};
 use glam::DVec3;

@@ -9,9 +9,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
 use proprioscope::batch::{FrameEstimate, credible_set_holds_truth, frame_outcome, session_robot};
-use proprioscope::core::pipeline::{Estimator, FrictionGate, Temporal};
+use proprioscope::core::pipeline::{Estimator, StreamFilter, Temporal};
 use proprioscope::core::surface::SurfaceRequest;
-use proprioscope::core::temporal::{FilterState, TemporalModel};
+use proprioscope::core::temporal::TemporalModel;
 use proprioscope::io::live::{LiveEvent, LiveSource};
 use proprioscope::io::session::Session;
 
@@ -133,9 +133,8 @@ struct Live {
     robot: proprioscope::core::robot::Robot,
     estimator: Estimator,
     model: Option<TemporalModel>,
-    filter: FilterState,
-    /// With friction: what the press so far says for it.
-    friction_gate: FrictionGate,
+    /// The belief and friction gate carried between frames.
+    filter: StreamFilter,
 }
 
 /// `estimate --live ADDR`.
@@ -166,7 +165,7 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
                 eprintln!("{from}: connected");
                 // A new sender starts a new recording: nothing carries over.
                 if let Some(l) = live.as_mut() {
-                    l.filter = FilterState::default();
+                    l.filter = StreamFilter::default();
                 }
             }
             LiveEvent::Header { robot, .. } => {
@@ -228,8 +227,7 @@ fn start(args: &EstimateArgs, robot: Option<&str>, temporal: Temporal) -> Result
         robot,
         estimator,
         model,
-        filter: FilterState::default(),
-        friction_gate: FrictionGate::default(),
+        filter: StreamFilter::default(),
     })
 }
 
@@ -245,21 +243,14 @@ fn estimate_frame(
     let t0 = Instant::now();
     let update = match (temporal, live.model.as_ref()) {
         (Temporal::None, _) | (_, None) => live.estimator.update(&live.robot, &positions, &frame.tau)?,
-        (_, Some(model)) => {
-            let (pending, likelihood) = live
-                .estimator
-                .update_for_sequence(&live.robot, &positions, &frame.tau)?;
-            let belief = live.filter.step(model, frame.t, &likelihood)?;
-            let mut update = live.estimator.with_belief(&live.robot, pending, &frame.tau, belief);
-            live.estimator.gate_friction(
-                &live.robot,
-                &mut update,
-                (number, frame.t, &frame.tau),
-                model.settings().slide_m_per_sqrt_s,
-                &mut live.friction_gate,
-            );
-            update
-        }
+        (_, Some(model)) => live.filter.update(
+            &live.estimator,
+            model,
+            &live.robot,
+            (number, frame.t),
+            &positions,
+            &frame.tau,
+        )?,
     };
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     let outcome = frame_outcome(&live.robot, &FrameEstimate::of(&update, ms), &frame.truth);

@@ -24,7 +24,7 @@ use crate::core::summary::{
 };
 use crate::core::surface::{Surface, SurfaceError, SurfaceRequest};
 use crate::core::temporal::{
-    Belief, Filter, FrameLikelihood, MAX_SMOOTHER_BYTES, Offset, PatchInformation, Smoother, TemporalError,
+    Belief, FilterState, FrameLikelihood, MAX_SMOOTHER_BYTES, Offset, PatchInformation, Smoother, TemporalError,
     TemporalModel, TemporalSettings, is_continuous_recording, smoother_bytes,
 };
 use crate::core::torque::TorqueModel;
@@ -861,6 +861,46 @@ pub enum SequenceError {
     Temporal(#[from] TemporalError),
 }
 
+/// A stream filtered as it arrives ([`Temporal::Filter`]: each frame
+/// with the frames before it) by a caller that keeps the temporal model
+/// beside it, e.g. a live source: what is carried from frame to frame (the
+/// belief, and what the press so far says for friction).
+#[derive(Debug, Clone, Default)]
+pub struct StreamFilter {
+    state: FilterState,
+    gate: FrictionGate,
+}
+
+impl StreamFilter {
+    /// Frame `number` of the stream, at `t_secs`, given the frames before
+    /// it: the frame's own likelihoods through `model`'s filter, the
+    /// contact at the believed place, friction where the press so far
+    /// asks for it. The frames after it see it only if this succeeds.
+    ///
+    /// # Errors
+    /// [`SequenceError::Frame`] when the frame's own estimate fails (the
+    /// stream can go on without it), [`SequenceError::Temporal`] when the
+    /// model refuses it (e.g. a time before the last frame's).
+    pub fn update(
+        &mut self,
+        estimator: &Estimator,
+        model: &TemporalModel,
+        robot: &Robot,
+        (number, t_secs): (usize, f64),
+        joint_positions: &[f64],
+        tau: &[f64],
+    ) -> Result<Update, SequenceError> {
+        let (pending, likelihood) = estimator
+            .update_for_sequence(robot, joint_positions, tau)
+            .map_err(|source| SequenceError::Frame { frame: number, source })?;
+        let belief = self.state.step(model, t_secs, &likelihood)?;
+        let mut update = estimator.with_belief(robot, pending, tau, belief);
+        let slide = model.settings().slide_m_per_sqrt_s;
+        estimator.gate_friction(robot, &mut update, (number, t_secs, tau), slide, &mut self.gate);
+        Ok(update)
+    }
+}
+
 /// Estimates `frames` in order, each alone or through `model`, and hands
 /// each frame's update, in order, with the milliseconds it cost, to
 /// `each`. Smoothing runs the per-frame estimate twice (once for the
@@ -926,25 +966,17 @@ pub fn estimate_sequence_while(
             }
         }
         (Some(model), Temporal::Filter) => {
-            let mut filter = Filter::new(model);
-            let (mut gate, slide) = (FrictionGate::default(), model.settings().slide_m_per_sqrt_s);
+            let mut stream = StreamFilter::default();
             for (i, f) in frames.iter().enumerate() {
                 if !keep_going() {
                     return Ok(false);
                 }
                 let t0 = Instant::now();
-                let Some((update, likelihood)) = checked(
-                    i,
-                    estimator.update_for_sequence(robot, f.joint_positions, f.tau),
-                    &mut failed,
-                )?
-                else {
-                    continue;
-                };
-                let belief = filter.step(f.t_secs, &likelihood)?;
-                let mut update = estimator.with_belief(robot, update, f.tau, belief);
-                estimator.gate_friction(robot, &mut update, (i, f.t_secs, f.tau), slide, &mut gate);
-                each(i, update, ms(t0));
+                match stream.update(estimator, model, robot, (i, f.t_secs), f.joint_positions, f.tau) {
+                    Ok(update) => each(i, update, ms(t0)),
+                    Err(SequenceError::Frame { frame, source }) if failed(frame, &source) => {}
+                    Err(e) => return Err(e),
+                }
             }
         }
         (Some(model), Temporal::Smooth) => {

@@ -1,0 +1,321 @@
+//! A live session's frames filtered as they arrive, on a thread of their
+//! own: each frame with the frames before it (what `estimate --live`
+//! writes), for the app's timeline while a stream is listened to.
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, Sender, TryIter, channel};
+use std::time::Instant;
+
+use super::{Estimated, FrameEstimate};
+use crate::core::estimator::EstimatorSettings;
+use crate::core::pipeline::{Estimator, StreamFilter};
+use crate::core::robot::Robot;
+use crate::core::surface::SurfaceRequest;
+use crate::core::temporal::{TemporalModel, TemporalSettings};
+use crate::io::session::Frame;
+
+/// What filtering a live session depends on; a new one starts over from
+/// its first frame.
+#[derive(Debug, Clone)]
+pub struct LiveJob {
+    /// Results carry it back; it supersedes every smaller one.
+    pub generation: u64,
+    /// The robot.
+    pub robot: Arc<Robot>,
+    /// The frames received so far (more follow with [`LiveFilterWorker::append`]).
+    pub frames: Vec<Frame>,
+    /// Candidate surface.
+    pub surface: SurfaceRequest,
+    /// Estimator settings.
+    pub settings: EstimatorSettings,
+    /// Phase sizes, with phases.
+    pub phase_sizes: Option<[usize; 2]>,
+    /// The temporal model's settings.
+    pub temporal: TemporalSettings,
+}
+
+/// What the thread is told.
+enum Message {
+    /// Start over (new settings, a new sender).
+    Start(Box<LiveJob>),
+    /// Frames that arrived after the job's, in order.
+    Append(Vec<Frame>),
+}
+
+/// Handle to the thread that filters a live session: frames are estimated
+/// in order, one at a time, each result sent back as soon as it is done;
+/// a new job replaces the one under way between two frames.
+pub struct LiveFilterWorker {
+    messages: Sender<Message>,
+    results: Receiver<Estimated>,
+}
+
+impl LiveFilterWorker {
+    /// Starts the thread; `wake` is called after each frame estimated.
+    pub fn spawn(wake: impl Fn() + Send + 'static) -> Self {
+        let (messages, inbox) = channel::<Message>();
+        let (outbox, results) = channel::<Estimated>();
+        std::thread::spawn(move || serve(&inbox, &outbox, &wake));
+        Self { messages, results }
+    }
+
+    /// Starts filtering `job`'s frames from the first (superseding the job
+    /// under way).
+    pub fn start(&self, job: LiveJob) {
+        // The thread ends only when this handle is dropped.
+        let _ = self.messages.send(Message::Start(Box::new(job)));
+    }
+
+    /// Frames that arrived after those already given, in order.
+    pub fn append(&self, frames: Vec<Frame>) {
+        let _ = self.messages.send(Message::Append(frames));
+    }
+
+    /// Everything estimated since the last call.
+    #[must_use]
+    pub fn drain(&self) -> TryIter<'_, Estimated> {
+        self.results.try_iter()
+    }
+}
+
+/// The job under way: its estimator and model, the filter's state and
+/// the frames not yet estimated.
+struct Running {
+    job: LiveJob,
+    estimator: Estimator,
+    model: TemporalModel,
+    filter: StreamFilter,
+    queue: VecDeque<Frame>,
+    next: usize,
+}
+
+/// The thread: takes every message waiting, then estimates the next frame
+/// queued (or waits for a message when none is).
+fn serve(inbox: &Receiver<Message>, outbox: &Sender<Estimated>, wake: &dyn Fn()) {
+    let mut running: Option<Running> = None;
+    loop {
+        let idle = running.as_ref().is_none_or(|r| r.queue.is_empty());
+        let first = if idle {
+            match inbox.recv() {
+                Ok(message) => Some(message),
+                Err(_) => return,
+            }
+        } else {
+            None
+        };
+        for message in first.into_iter().chain(inbox.try_iter()) {
+            match message {
+                Message::Start(job) => {
+                    running = match begin(*job) {
+                        Ok(r) => Some(r),
+                        Err((generation, e)) => {
+                            let failed = Estimated {
+                                generation,
+                                frame: super::EVERY_FRAME,
+                                estimate: Err(e),
+                            };
+                            if outbox.send(failed).is_err() {
+                                return;
+                            }
+                            wake();
+                            None
+                        }
+                    };
+                }
+                Message::Append(frames) => {
+                    if let Some(r) = running.as_mut() {
+                        r.queue.extend(frames);
+                    }
+                }
+            }
+        }
+        let Some(r) = running.as_mut() else {
+            continue;
+        };
+        let Some(frame) = r.queue.pop_front() else {
+            continue;
+        };
+        let estimated = step(r, &frame);
+        if outbox.send(estimated).is_err() {
+            return;
+        }
+        wake();
+    }
+}
+
+/// The estimator and temporal model of `job` (or its generation and why
+/// they cannot be made).
+fn begin(job: LiveJob) -> Result<Running, (u64, String)> {
+    let generation = job.generation;
+    let made = crate::io::guard::isolated(|| -> Result<(Estimator, TemporalModel), String> {
+        let estimator = Estimator::new(&job.robot, &job.surface, job.settings.clone(), job.phase_sizes)
+            .map_err(|e| e.to_string())?;
+        let model = TemporalModel::new(&estimator.surface, job.temporal, estimator.uses_patches())
+            .map_err(|e| e.to_string())?;
+        Ok((estimator, model))
+    });
+    let (estimator, model) = made.and_then(|r| r).map_err(|e| (generation, e))?;
+    let queue = job.frames.iter().cloned().collect();
+    Ok(Running {
+        job,
+        estimator,
+        model,
+        filter: StreamFilter::default(),
+        queue,
+        next: 0,
+    })
+}
+
+/// The next frame through the filter. A frame that fails (or panics) is
+/// reported and left out; the frames after it go on from the ones before.
+fn step(r: &mut Running, frame: &Frame) -> Estimated {
+    let index = r.next;
+    r.next += 1;
+    let estimate = crate::io::guard::isolated(|| -> Result<FrameEstimate, String> {
+        let positions = r.job.robot.joint_positions(&frame.q, &[]).map_err(|e| e.to_string())?;
+        let t0 = Instant::now();
+        let update = r
+            .filter
+            .update(
+                &r.estimator,
+                &r.model,
+                &r.job.robot,
+                (index, frame.t),
+                &positions,
+                &frame.tau,
+            )
+            .map_err(|e| e.to_string())?;
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        Ok(FrameEstimate::of_frame(
+            &r.job.robot,
+            &r.estimator.surface,
+            &update,
+            ms,
+            &frame.truth,
+        ))
+    })
+    .map_err(|message| format!("the estimator failed: {message}"))
+    .and_then(|e| e);
+    Estimated {
+        generation: r.job.generation,
+        frame: index,
+        estimate,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::pipeline::{SequenceFrame, Temporal, estimate_sequence_while};
+    use crate::core::synth::{SynthSettings, synthesize};
+    use crate::io::session::Truth;
+
+    /// Frames given in pieces as they "arrive" are estimated as the
+    /// filter estimates the whole recording: the same places, forces and
+    /// contact probabilities, frame by frame.
+    #[test]
+    fn a_stream_in_pieces_is_filtered_as_the_whole_recording() {
+        let robot = Arc::new(crate::core::builtin::lwr4plus_generated().unwrap_or_else(|e| panic!("{e}")));
+        let links: Vec<_> = ["lwr_5_link", "lwr_6_link"]
+            .iter()
+            .filter_map(|l| robot.link_id(l).ok())
+            .collect();
+        let settings = SynthSettings {
+            duration_secs: 2.0,
+            rate_hz: 25.0,
+            press_secs: (0.5, 0.8),
+            gap_secs: (0.2, 0.3),
+            ..SynthSettings::default()
+        };
+        let frames: Vec<Frame> = synthesize(&robot, &links, &settings, 5)
+            .unwrap_or_else(|e| panic!("{e}"))
+            .into_iter()
+            .map(|f| Frame {
+                t: f.t_secs,
+                q: f.q,
+                tau: f.tau,
+                truth: Truth::Unknown,
+            })
+            .collect();
+        assert_eq!(frames.len(), 50);
+        let surface = SurfaceRequest {
+            links: links.clone(),
+            total_points: 600,
+            seed: 0,
+        };
+        let settings = EstimatorSettings::exact(vec![0.05; robot.sensed().len()]);
+        let temporal = TemporalSettings::default();
+
+        // The whole recording at once.
+        let estimator = Estimator::new(&robot, &surface, settings.clone(), None).unwrap_or_else(|e| panic!("{e}"));
+        let model = TemporalModel::new(&estimator.surface, temporal, estimator.uses_patches())
+            .unwrap_or_else(|e| panic!("{e}"));
+        let positions: Vec<Vec<f64>> = frames
+            .iter()
+            .map(|f| robot.joint_positions(&f.q, &[]).unwrap_or_default())
+            .collect();
+        let sequence: Vec<SequenceFrame> = frames
+            .iter()
+            .zip(&positions)
+            .map(|(f, p)| SequenceFrame {
+                t_secs: f.t,
+                joint_positions: p,
+                tau: &f.tau,
+            })
+            .collect();
+        let mut whole = Vec::new();
+        estimate_sequence_while(
+            &estimator,
+            &robot,
+            (Some(&model), Temporal::Filter),
+            &sequence,
+            || true,
+            |_, update, _| whole.push(FrameEstimate::of(&update, 0.0)),
+            |_, _| false,
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+
+        // The same frames arriving in pieces, after a first job that a
+        // second replaces.
+        let worker = LiveFilterWorker::spawn(|| {});
+        let job = |generation: u64, frames: &[Frame]| LiveJob {
+            generation,
+            robot: robot.clone(),
+            frames: frames.to_vec(),
+            surface: surface.clone(),
+            settings: settings.clone(),
+            phase_sizes: None,
+            temporal,
+        };
+        worker.start(job(1, &frames[..5]));
+        worker.start(job(2, &frames[..12]));
+        worker.append(frames[12..30].to_vec());
+        worker.append(frames[30..].to_vec());
+        let mut live: Vec<Option<FrameEstimate>> = vec![None; frames.len()];
+        let started = Instant::now();
+        while live.iter().any(Option::is_none) {
+            assert!(started.elapsed().as_secs() < 120, "the stream was not estimated");
+            for done in worker.drain() {
+                if done.generation == 2 {
+                    let estimate = done.estimate.unwrap_or_else(|e| panic!("frame {}: {e}", done.frame));
+                    live[done.frame] = Some(estimate);
+                }
+            }
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        assert_eq!(whole.len(), frames.len());
+        let contacts = whole.iter().filter(|e| e.contact_probability > Some(0.5)).count();
+        assert!(
+            contacts > 5,
+            "{contacts} contact frames: the comparison would say little"
+        );
+        for (i, (w, l)) in whole.iter().zip(&live).enumerate() {
+            let l = l.as_ref().unwrap_or_else(|| panic!("frame {i}"));
+            assert_eq!(l.point_world, w.point_world, "frame {i}");
+            assert_eq!(l.force_world, w.force_world, "frame {i}");
+            assert_eq!(l.contact_probability, w.contact_probability, "frame {i}");
+            assert_eq!(l.verdict, w.verdict, "frame {i}");
+        }
+    }
+}
