@@ -150,7 +150,11 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
     let temporal = match args.temporal.temporal {
         TemporalArg::None => Temporal::None,
         // Live, only the frames before can be used.
-        TemporalArg::Auto | TemporalArg::Filter | TemporalArg::Smooth => Temporal::Filter,
+        TemporalArg::Auto | TemporalArg::Filter => Temporal::Filter,
+        TemporalArg::Smooth => {
+            eprintln!("live, each frame is filtered (smoothing needs the frames after it)");
+            Temporal::Filter
+        }
     };
     let mut robot_name: Option<String> = args.robot.clone();
     let mut live: Option<Live> = None;
