@@ -54,8 +54,8 @@ enum Command {
         target: Option<String>,
         /// Listen for a live session on this address (`host:port` or
         /// `tcp://host:port`, `udp://host:port`): frames as JSON lines
-        /// fill the timeline and the view follows the newest (see
-        /// `stream`).
+        /// fill the timeline, each filtered with the frames before it as it
+        /// arrives, and the view follows the newest (see `stream`).
         #[arg(long)]
         live: Option<String>,
         /// The robot of a session (overrides the session's; a CSV session
