@@ -1031,6 +1031,24 @@ fn a_live_session_fills_the_timeline_and_follows_the_newest_frame() {
     assert_eq!(app.model.replay.as_ref().unwrap().session.frames.len(), 12);
 }
 
+/// The same estimate frame by frame (place, force, contact probability,
+/// verdict, credible radius), the times aside: bit for bit, hence exact
+/// comparisons.
+#[allow(clippy::float_cmp)]
+fn assert_same_estimates(
+    a: &[proprioscope::app::session::FrameEstimate],
+    b: &[proprioscope::app::session::FrameEstimate],
+) {
+    assert_eq!(a.len(), b.len());
+    for (i, (a, b)) in a.iter().zip(b).enumerate() {
+        assert_eq!(a.point_world, b.point_world, "frame {i}");
+        assert_eq!(a.force_world, b.force_world, "frame {i}");
+        assert_eq!(a.contact_probability, b.contact_probability, "frame {i}");
+        assert_eq!(a.verdict, b.verdict, "frame {i}");
+        assert_eq!(a.credible90_radius_m, b.credible90_radius_m, "frame {i}");
+    }
+}
+
 /// Live, every frame is filtered as it arrives, with the frames before it
 /// (as `estimate --live`): the timeline shows where the frames so far
 /// place the contact, and each frame's estimate is
@@ -1059,29 +1077,25 @@ fn a_live_session_is_filtered_as_its_frames_arrive() {
         }
     }
     sender.flush().unwrap();
-    let mut filtered = Vec::new();
-    for _ in 0..6000 {
-        harness.step();
-        let app = harness.state();
-        if app
-            .model
-            .replay
-            .as_ref()
-            .is_some_and(|r| r.session.frames.len() == frames)
-            && app.session_estimates.len() == frames
-            && app.session_estimates.iter().all(Option::is_some)
-        {
-            filtered = app.session_estimates.iter().flatten().copied().collect();
-            break;
+    let wait_filtered = |harness: &mut Harness<'_, ProprioscopeApp>| {
+        for _ in 0..6000 {
+            harness.step();
+            let app = harness.state();
+            if app
+                .model
+                .replay
+                .as_ref()
+                .is_some_and(|r| r.session.frames.len() == frames)
+                && app.session_estimates.len() == frames
+                && app.session_estimates.iter().all(Option::is_some)
+            {
+                return app.session_estimates.iter().flatten().copied().collect::<Vec<_>>();
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
         }
-        std::thread::sleep(std::time::Duration::from_millis(10));
-    }
-    assert_eq!(
-        filtered.len(),
-        frames,
-        "the live frames were not all filtered: {:?}",
-        harness.state().error
-    );
+        panic!("the live frames were not all filtered: {:?}", harness.state().error);
+    };
+    let filtered = wait_filtered(&mut harness);
     assert_eq!(
         harness.state().model.replay.as_ref().unwrap().over_time,
         proprioscope::core::pipeline::Temporal::Filter
@@ -1091,17 +1105,22 @@ fn a_live_session_is_filtered_as_its_frames_arrive() {
     assert!(harness.query_by_label_contains("over time: ").is_some());
     let contacts = filtered.iter().filter(|e| e.contact_probability > Some(0.5)).count();
     assert!(contacts >= frames / 2, "{contacts} of {frames} frames with a contact");
+    // Each frame alone: nothing filtered stays; filtered again: the same.
+    harness.get_by_label("over time").click();
+    harness.run_steps(2);
+    harness.get_by_label("each frame alone").click();
+    harness.run_steps(3);
+    assert!(harness.state().session_estimates.is_empty());
+    assert!(harness.query_by_label_contains("over time: ").is_none());
+    harness.get_by_label("over time").click();
+    harness.run_steps(2);
+    harness.get_by_label("filtered (frames before)").click();
+    assert_same_estimates(&wait_filtered(&mut harness), &filtered);
     harness.get_by_label("Stop live").click();
     settle(&mut harness);
-    let whole = &harness.state().session_estimates;
+    let whole: Vec<_> = harness.state().session_estimates.iter().flatten().copied().collect();
     assert_eq!(whole.len(), frames);
-    for (i, (live, whole)) in filtered.iter().zip(whole).enumerate() {
-        let whole = whole.as_ref().unwrap();
-        assert_eq!(live.point_world, whole.point_world, "frame {i}");
-        assert_eq!(live.force_world, whole.force_world, "frame {i}");
-        assert_eq!(live.contact_probability, whole.contact_probability, "frame {i}");
-        assert_eq!(live.verdict, whole.verdict, "frame {i}");
-    }
+    assert_same_estimates(&filtered, &whole);
 }
 
 /// The update time's tooltip tells where that time went (the parts of a

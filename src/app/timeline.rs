@@ -219,8 +219,14 @@ impl ProprioscopeApp {
             return;
         };
         if replay.over_time == Temporal::None {
-            // Each frame alone, as it is shown.
-            self.session_key = None;
+            // Each frame alone, as it is shown: nothing filtered is kept
+            // (the plots would show it for the frames it reached).
+            if self.session_key.take().is_some() {
+                self.session_generation += 1;
+                self.session_estimates.clear();
+                self.session_done = 0;
+                self.session_failures.clear();
+            }
             return;
         }
         let Some(key) = self.current_session_key() else {
