@@ -146,7 +146,7 @@ fn serve(inbox: &Receiver<Message>, outbox: &Sender<Estimated>, wake: &dyn Fn())
 
 /// The estimator and temporal model of `job` (or its generation and why
 /// they cannot be made).
-fn begin(job: LiveJob) -> Result<Running, (u64, String)> {
+fn begin(mut job: LiveJob) -> Result<Running, (u64, String)> {
     let generation = job.generation;
     let made = crate::io::guard::isolated(|| -> Result<(Estimator, TemporalModel), String> {
         let estimator = Estimator::new(&job.robot, &job.surface, job.settings.clone(), job.phase_sizes)
@@ -156,7 +156,8 @@ fn begin(job: LiveJob) -> Result<Running, (u64, String)> {
         Ok((estimator, model))
     });
     let (estimator, model) = made.and_then(|r| r).map_err(|e| (generation, e))?;
-    let queue = job.frames.iter().cloned().collect();
+    // The frames move to the queue: a long session is not held twice.
+    let queue = VecDeque::from(std::mem::take(&mut job.frames));
     Ok(Running {
         job,
         estimator,
