@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
 use proprioscope::batch::{FrameEstimate, credible_set_holds_truth, frame_outcome, session_robot};
-use proprioscope::core::pipeline::{Estimator, StreamFilter, Temporal};
+use proprioscope::core::pipeline::{Estimator, SequenceError, StreamFilter, Temporal};
 use proprioscope::core::surface::SurfaceRequest;
 use proprioscope::core::temporal::TemporalModel;
 use proprioscope::io::live::{LiveEvent, LiveSource};
@@ -247,14 +247,21 @@ fn estimate_frame(
     let t0 = Instant::now();
     let update = match (temporal, live.model.as_ref()) {
         (Temporal::None, _) | (_, None) => live.estimator.update(&live.robot, &positions, &frame.tau)?,
-        (_, Some(model)) => live.filter.update(
-            &live.estimator,
-            model,
-            &live.robot,
-            (number, frame.t),
-            &positions,
-            &frame.tau,
-        )?,
+        (_, Some(model)) => live
+            .filter
+            .update(
+                &live.estimator,
+                model,
+                &live.robot,
+                (number, frame.t),
+                &positions,
+                &frame.tau,
+            )
+            // The caller names the frame by its time already.
+            .map_err(|e| match e {
+                SequenceError::Frame { source, .. } => anyhow::Error::from(source),
+                SequenceError::Temporal(source) => anyhow::Error::from(source),
+            })?,
     };
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     let outcome = frame_outcome(&live.robot, &FrameEstimate::of(&update, ms), &frame.truth);
