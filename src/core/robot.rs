@@ -461,25 +461,23 @@ impl Robot {
 
     /// The joint called `name`.
     pub fn joint_id(&self, name: &str) -> Result<JointId, RobotError> {
-        let names = || comma_separated(self.joints.iter().map(|j| j.name.as_str()));
         self.joints
             .iter()
             .position(|j| j.name == name)
             .ok_or_else(|| RobotError::UnknownJoint {
                 name: name.to_owned(),
-                known: names(),
+                known: comma_separated(self.joints.iter().map(|j| j.name.as_str())),
             })
     }
 
     /// The link called `name`.
     pub fn link_id(&self, name: &str) -> Result<LinkId, RobotError> {
-        let names = || comma_separated(self.links.iter().map(|l| l.name.as_str()));
         self.links
             .iter()
             .position(|l| l.name == name)
             .ok_or_else(|| RobotError::NoSuchLink {
                 name: name.to_owned(),
-                known: names(),
+                known: comma_separated(self.links.iter().map(|l| l.name.as_str())),
             })
     }
 
