@@ -11,7 +11,7 @@ use crate::core::estimator::{EstimateError, EstimatorSettings, Mode, Posterior, 
 use crate::core::friction::friction_evidence;
 use crate::core::kinematics::RobotPose;
 use crate::core::lanes;
-use crate::core::phases::PhaseHierarchy;
+use crate::core::phases::{PhaseHierarchy, link_ranges};
 use crate::core::press::{
     FRICTION_GAIN, PlaceSpread, PressAnswer, PressFrame, PressSettings, explain_press, locate, press_spreads,
 };
@@ -502,18 +502,28 @@ impl Estimator {
         }
         let center = link_from_world.transform_point3(map.point_world);
         let normal = link_from_world.transform_vector3(map.inward_normal_world);
-        let rho_m = 0.5 * self.surface.spacing_m();
+        let Some(region) = spread.region(0.5 * self.surface.spacing_m(), CHI2_2_AT_90) else {
+            return;
+        };
         let surface = &self.surface;
-        let more: Vec<usize> = surface
-            .link
-            .iter()
-            .zip(surface.point_in_link.iter().zip(&surface.inward_normal_in_link))
-            .enumerate()
-            .filter(|&(_, (&on, (&point, &inward)))| {
-                on == link
-                    && inward.dot(normal) > 0.0
-                    && spread.mahalanobis_squared(point - center, rho_m) <= CHI2_2_AT_90
-            })
+        // Only the link's own samples (the surface keeps each link's in one
+        // run): a scan of every sample read more memory than the rest of
+        // the widening cost.
+        let Some(range) = link_ranges(&surface.link)
+            .into_iter()
+            .find_map(|(on, range)| (on == link).then_some(range))
+        else {
+            return;
+        };
+        let (Some(points), Some(normals)) = (
+            surface.point_in_link.get(range.clone()),
+            surface.inward_normal_in_link.get(range.clone()),
+        ) else {
+            return;
+        };
+        let more: Vec<usize> = range
+            .zip(points.iter().zip(normals))
+            .filter(|&(_, (&point, &inward))| inward.dot(normal) > 0.0 && region.contains(point - center))
             .map(|(k, _)| k)
             .collect();
         if more.is_empty() {
