@@ -168,6 +168,18 @@ fn presses(
     presses_drawn(robot, &settings, seed)
 }
 
+/// 20 s at 50 Hz of presses on links 4–7 dragging by up to 30 % of the
+/// push (`synth --seconds 20 --rate 50 --friction 0.3 --seed 1`).
+fn dragging_presses(robot: &proprioscope::core::robot::Robot) -> Vec<proprioscope::core::synth::SynthFrame> {
+    let settings = SynthSettings {
+        duration_secs: 20.0,
+        rate_hz: 50.0,
+        friction: 0.3,
+        ..SynthSettings::default()
+    };
+    presses_drawn(robot, &settings, 1)
+}
+
 /// A synthetic session drawn with `settings`, pressing links 4–7.
 fn presses_drawn(
     robot: &proprioscope::core::robot::Robot,
@@ -746,13 +758,7 @@ fn a_smoothed_press_its_frames_contradict_reports_their_own_contacts() {
 #[test]
 fn a_press_stays_on_its_link_unless_another_explains_it_by_far() {
     let robot = builtin::lwr4plus_generated().unwrap();
-    let synth = SynthSettings {
-        duration_secs: 20.0,
-        rate_hz: 50.0,
-        friction: 0.3,
-        ..SynthSettings::default()
-    };
-    let frames = presses_drawn(&robot, &synth, 1);
+    let frames = dragging_presses(&robot);
     let mu = Temporal::Smooth.default_friction();
     let (_, _, maps) = estimated_with(
         &robot,
@@ -829,13 +835,7 @@ fn credible_sets_hold(
 #[test]
 fn smoothed_credible_sets_hold_presses_that_drag() {
     let robot = builtin::lwr4plus_generated().unwrap();
-    let synth = SynthSettings {
-        duration_secs: 20.0,
-        rate_hz: 50.0,
-        friction: 0.3,
-        ..SynthSettings::default()
-    };
-    let frames = presses_drawn(&robot, &synth, 1);
+    let frames = dragging_presses(&robot);
     let (share, count, radius) =
         credible_sets_hold(&robot, &frames, Temporal::Smooth, Temporal::Smooth.default_friction());
     eprintln!(
@@ -888,13 +888,7 @@ fn filtered_credible_sets_hold_the_push() {
 #[test]
 fn per_frame_credible_sets_widen_with_friction() {
     let robot = builtin::lwr4plus_generated().unwrap();
-    let synth = SynthSettings {
-        duration_secs: 20.0,
-        rate_hz: 50.0,
-        friction: 0.3,
-        ..SynthSettings::default()
-    };
-    let frames = presses_drawn(&robot, &synth, 1);
+    let frames = dragging_presses(&robot);
     let [(share_0, count, radius_0), (share_mu, _, radius_mu)] =
         [0.0, 0.2].map(|friction| credible_sets_hold(&robot, &frames, Temporal::None, friction));
     eprintln!(
