@@ -131,10 +131,10 @@ impl Estimator {
     /// A frame alone with friction: `update`'s credible set widened as a
     /// smoothed press's is ([`Estimator::widen_credible`]), by the spread
     /// that the frame's own torques leave its place once a tangential
-    /// force under its prior (spread μ per newton of push) is let in. The
-    /// posterior over samples is the frictionless one, and it is sure of
-    /// a place that a drag has shifted (measured: 34 % of a session's
-    /// 30 % drags in the set).
+    /// force under its prior (spread μ per newton of push) is let in
+    /// ([`Estimator::spread_alone`]). The posterior over samples is the
+    /// frictionless one, and it is sure of a place that a drag has shifted
+    /// (measured: 34 % of a session's 30 % drags in the set).
     fn widen_alone(&self, update: &mut Update, torque_model: &TorqueModel, tau: &[f64]) {
         if !self.fits_presses() || !is_pressed(update) {
             return;
@@ -142,18 +142,24 @@ impl Estimator {
         let Some((link, shape, at)) = self.located_contact(update) else {
             return;
         };
-        let weights = self.settings.weights();
-        // One frame has no slide between frames: any positive length will do.
-        let settings = self.press_settings(&weights, 1.0);
         let frame = PressFrame {
             t_secs: 0.0,
             torque_model,
             tau,
             start: at,
         };
-        if let Some(spread) = press_spreads(shape, link, &[frame], &settings).and_then(|s| s.first().copied()) {
+        if let Some(spread) = self.spread_alone(shape, link, frame) {
             self.widen_credible(update, link, &spread);
         }
+    }
+
+    /// The spread that one frame's torques leave its place (`frame.start`
+    /// on `link`), γ free under its prior: a press of one frame.
+    fn spread_alone(&self, shape: &LinkShape, link: LinkId, frame: PressFrame) -> Option<PlaceSpread> {
+        let weights = self.settings.weights();
+        // One frame has no slide between frames: any positive length will do.
+        let settings = self.press_settings(&weights, 1.0);
+        press_spreads(shape, link, &[frame], &settings)?.first().copied()
     }
 
     /// The posterior of an update and what a temporal model needs of it
@@ -708,6 +714,13 @@ impl Estimator {
             })
             .collect();
         if let Some(spread) = press_spreads(shape, link, &frames, &settings).and_then(|s| s.last().copied()) {
+            self.widen_credible(update, link, &spread);
+        }
+        // The window holds γ fixed around places that the frictionless
+        // filter chose, which a drag shifts, and a drag that grows within
+        // the window (the `../shared` link 4 press: 1 to 17 % of the push)
+        // is not one γ: the frame's own spread, γ free, is added.
+        if let Some(spread) = frames.last().and_then(|&last| self.spread_alone(shape, link, last)) {
             self.widen_credible(update, link, &spread);
         }
     }
