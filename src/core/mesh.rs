@@ -26,6 +26,11 @@ pub struct OrientReport {
     pub flipped: usize,
     /// Triangles dropped as degenerate (zero area, repeated or non-finite vertices).
     pub degenerate: usize,
+    /// Triangles dropped as repeats of an earlier one (the same three
+    /// welded corners, in either winding): CAD exports repeat faces, and a
+    /// repeated face would count its area twice and give every query near
+    /// it one more triangle to test per copy.
+    pub repeated: usize,
     /// Edges used by one triangle only: 0 for closed meshes.
     pub boundary_edges: usize,
 }
@@ -125,15 +130,19 @@ impl TriMesh {
         )
     }
 
-    /// Drops degenerate triangles and winds every connected shell outward.
+    /// Drops degenerate and repeated triangles and winds every connected
+    /// shell outward.
     ///
     /// Real meshes come with either winding, with duplicated vertices per
-    /// face (STL, DAE) and with slivers. Vertices are welded by position to
-    /// find shells; a shell with negative signed volume is flipped.
+    /// face (STL, DAE), with slivers and with repeated faces. Vertices are
+    /// welded by position to find shells; a shell with negative signed
+    /// volume is flipped.
     pub fn orient_shells(&mut self) -> OrientReport {
         let mut report = OrientReport::default();
         let weld = weld_map(&self.positions);
         let mut kept: Vec<[u32; 3]> = Vec::with_capacity(self.triangles.len());
+        let mut seen: std::collections::HashSet<[u32; 3]> =
+            std::collections::HashSet::with_capacity(self.triangles.len());
         for i in 0..self.triangles.len() {
             let (Some(c), Some(t)) = (self.corners(i), self.triangles.get(i)) else {
                 report.degenerate += 1;
@@ -147,6 +156,12 @@ impl TriMesh {
             }
             if triangle_area(&c) < DEGENERATE_AREA_M2 {
                 report.degenerate += 1;
+                continue;
+            }
+            let mut corners = w;
+            corners.sort_unstable();
+            if !seen.insert(corners) {
+                report.repeated += 1;
                 continue;
             }
             kept.push(*t);
@@ -339,6 +354,26 @@ mod tests {
         assert_eq!(report.flipped, 1);
         assert_eq!(report.degenerate, 2);
         assert!((cube.signed_volume() - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn repeated_faces_are_dropped_once_in_either_winding() {
+        let mut cube = primitives::cuboid(DVec3::ONE);
+        let first = cube.triangles[0];
+        let area = cube.area();
+        // The same face again, reversed, and on copies of its vertices.
+        cube.triangles.extend(std::iter::repeat_n(first, 1000));
+        cube.triangles.push([first[0], first[2], first[1]]);
+        let n = cube.positions.len() as u32;
+        let copies: Vec<DVec3> = first.iter().map(|&i| cube.positions[i as usize]).collect();
+        cube.positions.extend(copies);
+        cube.triangles.push([n, n + 1, n + 2]);
+        let report = cube.orient_shells();
+        assert_eq!(report.repeated, 1002);
+        assert_eq!(report.degenerate, 0);
+        assert_eq!(cube.triangles.len(), 12);
+        assert!((cube.area() - area).abs() < 1e-12);
+        assert_eq!(report.boundary_edges, 0);
     }
 
     #[test]

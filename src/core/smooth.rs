@@ -86,6 +86,52 @@ pub struct SmoothMesh {
     pub report: OrientReport,
 }
 
+/// The corners `(triangle, angle)` around one vertex as `(face normal,
+/// angle)`. Around a vertex of more than [`GROUPED_FROM`] corners, one
+/// entry per distinct normal (to 1e-9, far below any crease) with the
+/// angles summed, in the order the normals first appear; around the
+/// others one entry per corner, so that their sums are formed in the
+/// same order as ever (a regrouped sum moves the normals in their last
+/// bits, and every estimate with them).
+/// Corners around one vertex beyond which they are grouped by plane.
+const GROUPED_FROM: usize = 64;
+
+fn by_plane(face: &[DVec3], corners: Vec<(usize, f64)>) -> Vec<(DVec3, f64)> {
+    // Most vertices meet a handful of planes: a scan of those is cheaper
+    // than a map; past this many planes the map keeps a cone's tip linear.
+    const SCANNED: usize = 16;
+    if corners.len() <= GROUPED_FROM {
+        return corners
+            .into_iter()
+            .map(|(t, angle)| (face.get(t).copied().unwrap_or(DVec3::ZERO), angle))
+            .collect();
+    }
+    let key = |normal: DVec3| (normal * 1e9).round().to_array().map(|x| x as i64);
+    let mut planes: Vec<([i64; 3], DVec3, f64)> = Vec::new();
+    let mut index: HashMap<[i64; 3], usize> = HashMap::new();
+    for (t, angle) in corners {
+        let normal = face.get(t).copied().unwrap_or(DVec3::ZERO);
+        let k = key(normal);
+        let found = if planes.len() <= SCANNED {
+            planes.iter().position(|p| p.0 == k)
+        } else {
+            if index.is_empty() {
+                index.extend(planes.iter().enumerate().map(|(i, p)| (p.0, i)));
+            }
+            index.get(&k).copied()
+        };
+        if let Some(plane) = found.and_then(|i| planes.get_mut(i)) {
+            plane.2 += angle;
+        } else {
+            if !index.is_empty() {
+                index.insert(k, planes.len());
+            }
+            planes.push((k, normal, angle));
+        }
+    }
+    planes.into_iter().map(|(_, normal, angle)| (normal, angle)).collect()
+}
+
 impl SmoothMesh {
     /// Orients `mesh`, finds edge neighbours and corner normals.
     #[must_use]
@@ -118,6 +164,14 @@ impl SmoothMesh {
                     .push((t, if angle.is_finite() { angle } else { 0.0 }));
             }
         }
+        // Corners around a vertex grouped by their face's plane: a fan of
+        // coplanar faces (a cylinder's cap, a CAD export's triangulated
+        // flat) is one entry, so each corner below sums over the planes
+        // around its vertex rather than over every face.
+        let around: HashMap<u32, Vec<(DVec3, f64)>> = around
+            .into_iter()
+            .map(|(vertex, corners)| (vertex, by_plane(&face, corners)))
+            .collect();
         let mut neighbours = vec![[NO_NEIGHBOUR; 3]; mesh.triangles.len()];
         for uses in edges.values() {
             if let [(t0, k0), (t1, k1)] = uses.as_slice() {
@@ -135,8 +189,8 @@ impl SmoothMesh {
                 welded(tri).map(|w| {
                     let sum: DVec3 = around.get(&w).map_or(DVec3::ZERO, |list| {
                         list.iter()
-                            .filter(|(u, _)| face[*u].dot(own) >= cos_crease)
-                            .map(|(u, angle)| face[*u] * *angle)
+                            .filter(|(normal, _)| normal.dot(own) >= cos_crease)
+                            .map(|(normal, angle)| *normal * *angle)
                             .sum()
                     });
                     sum.try_normalize().unwrap_or(own)
