@@ -20,6 +20,7 @@ use clap::{Parser, Subcommand};
 use glam::DVec3;
 
 use proprioscope::core::kinematics::RobotPose;
+use proprioscope::core::limits;
 use proprioscope::core::robot::Robot;
 use proprioscope::core::surface::{Surface, SurfaceRequest};
 use proprioscope::core::torque::joint_torques;
@@ -81,11 +82,11 @@ enum Command {
         /// The PNG to write.
         #[arg(long)]
         out: PathBuf,
-        /// Width, pixels.
-        #[arg(long, default_value_t = 1400)]
+        /// Width, pixels (valid: 16 to 16384).
+        #[arg(long, default_value_t = 1400, value_parser = clap::value_parser!(u32).range(16..=16_384))]
         width: u32,
-        /// Height, pixels.
-        #[arg(long, default_value_t = 900)]
+        /// Height, pixels (valid: 16 to 16384).
+        #[arg(long, default_value_t = 900, value_parser = clap::value_parser!(u32).range(16..=16_384))]
         height: u32,
     },
     /// Estimates the contact in every frame of a recorded session.
@@ -116,8 +117,8 @@ enum Command {
     Surface {
         /// A scene file (JSON).
         scene: PathBuf,
-        /// Override the scene's surface resolution.
-        #[arg(long)]
+        /// Override the scene's surface resolution (valid: 1 to 1000000).
+        #[arg(long, value_parser = cli::counted(&limits::SURFACE_POINTS))]
         points: Option<usize>,
     },
     /// Records a scripted interactive session (the built-in LWR waving,
@@ -128,11 +129,11 @@ enum Command {
         /// The session file to write.
         #[arg(long)]
         out: PathBuf,
-        /// Frames per second.
-        #[arg(long, default_value_t = 50.0)]
+        /// Frames per second (valid: (0, 10000] Hz).
+        #[arg(long, default_value_t = 50.0, value_parser = cli::within(&limits::RATE_HZ))]
         rate: f64,
-        /// Stop after this long (default: run until killed).
-        #[arg(long)]
+        /// Stop after this long (default: run until killed; valid: (0, 3600] s).
+        #[arg(long, value_parser = cli::within(&limits::SECONDS))]
         seconds: Option<f64>,
     },
     /// Regenerates the shipped assets (`assets/lwr4plus.glb`) from the
@@ -151,17 +152,19 @@ struct TorquesArgs {
     /// `simple6`, `lwr4plus` or a URDF file.
     #[arg(long, conflicts_with = "scene")]
     robot: Option<String>,
-    /// Sensed joint positions, rad, comma separated (default all 0).
-    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = cli::finite)]
+    /// Sensed joint positions, rad (or m), comma separated (default all
+    /// 0; valid: [-10000, 10000] each).
+    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = cli::within(&limits::JOINT_POSITION))]
     q: Vec<f64>,
     /// The link pushed.
     #[arg(long)]
     link: Option<String>,
-    /// Contact point x,y,z in the world frame, m.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_vec3)]
+    /// Contact point x,y,z in the world frame, m (valid: [-1000, 1000] each).
+    #[arg(long, allow_hyphen_values = true, value_parser = cli::vec3_within(&limits::COORDINATE))]
     point: Option<DVec3>,
-    /// Force fx,fy,fz applied to the robot, world frame, N.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_vec3)]
+    /// Force fx,fy,fz applied to the robot, world frame, N (valid:
+    /// [-1e6, 1e6] each).
+    #[arg(long, allow_hyphen_values = true, value_parser = cli::vec3_within(&limits::FORCE_COMPONENT))]
     force: Option<DVec3>,
     /// Extra folder for `package://` URIs (repeatable).
     #[arg(long = "package-path")]

@@ -560,11 +560,11 @@ fn a_recording_is_smoothed_and_can_be_estimated_frame_by_frame() {
 
 /// Filtered or smoothed, the timeline offers the slide length (as
 /// `estimate --slide`); setting it estimates the session again with it
-/// (the smoothed places move), out of range it is clamped, and
-/// frames estimated alone offer none.
+/// (the smoothed places move), out of range it is refused with its range
+/// named (the slide stays), and frames estimated alone offer none.
 #[test]
 fn the_slide_length_is_set_in_the_timeline() {
-    use proprioscope::app::{Command, SLIDE_RANGE};
+    use proprioscope::app::Command;
     use proprioscope::core::pipeline::Temporal;
     let path = demo_session("slide.session.json", 1.0);
     let mut harness = session_harness(&path);
@@ -588,10 +588,15 @@ fn the_slide_length_is_set_in_the_timeline() {
         "{before:?}\n{after:?}"
     );
     harness.state_mut().apply(Command::SetSlide(5.0));
+    let refused = harness.state().model.refused.clone().unwrap_or_default();
+    assert!(
+        refused.contains("slide") && refused.contains("[0.001, 0.1] m/√s"),
+        "{refused}"
+    );
     harness.state_mut().apply(Command::SetSlide(f64::NAN));
     let replay = harness.state().model.replay.clone().unwrap();
     assert!(
-        (replay.slide_m_per_sqrt_s - SLIDE_RANGE.1).abs() < 1e-15,
+        (replay.slide_m_per_sqrt_s - 0.05).abs() < 1e-15,
         "{}",
         replay.slide_m_per_sqrt_s
     );
@@ -775,9 +780,10 @@ fn switching_robots_from_the_menu_never_draws_the_old_estimate() {
     }
 }
 
-/// A frame whose estimate fails (torques beyond what can be computed) is
-/// counted and listed: the timeline settles instead of waiting for it
-/// forever, and the other frames are estimated.
+/// A frame whose estimate fails (torques beyond what can be computed at
+/// the σ chosen: 1e5 N·m at 1e-4 N·m) is counted and listed: the timeline
+/// settles instead of waiting for it forever, and the other frames are
+/// estimated.
 #[test]
 fn a_session_frame_that_cannot_be_estimated_is_counted_and_the_timeline_settles() {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
@@ -787,11 +793,13 @@ fn a_session_frame_that_cannot_be_estimated_is_counted_and_the_timeline_settles(
         &path,
         r#"{"format": "contact-session", "version": 1, "robot": "lwr4plus", "frames": [
             {"t": 0.0, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.1, 0, 0, 0, 0, 0, 0]},
-            {"t": 0.1, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [1e70, 0, 0, 0, 0, 0, 0]},
+            {"t": 0.1, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [1e5, 0, 0, 0, 0, 0, 0]},
             {"t": 0.2, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0, 0.2, 0, 0, 0, 0, 0]}]}"#,
     )
     .unwrap();
-    let harness = session_harness(&path);
+    let mut harness = session_harness(&path);
+    harness.state_mut().apply(proprioscope::app::Command::SetSigma(1e-4));
+    settle(&mut harness);
     let app = harness.state();
     assert_eq!(app.session_estimated(), 2);
     let failures = app.session_failures();

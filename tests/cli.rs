@@ -287,7 +287,10 @@ fn estimate_over_time_adds_the_contact_probability() {
         "smooth",
         "--release-rate=-1",
     ]);
-    assert!(!ok && err.contains("release rate"), "{err}");
+    assert!(
+        !ok && err.contains("--release-rate") && err.contains("[0, 1000] 1/s"),
+        "{err}"
+    );
 }
 
 /// `synth` writes a session with truth that `estimate` reads; with
@@ -612,15 +615,18 @@ fn non_finite_and_out_of_range_inputs_are_named_errors() {
     let session = dir.join("s.json");
     std::fs::write(
         &session,
-        r#"{"format":"contact-session","version":1,"robot":"lwr4plus","frames":[{"t":0,"q":[0,0,0,0,0,0,0],"tau":[1e70,0,0,0,0,0,0]}]}"#,
+        r#"{"format":"contact-session","version":1,"robot":"lwr4plus","frames":[{"t":0,"q":[0,0,0,0,0,0,0],"tau":[1e5,0,0,0,0,0,0]}]}"#,
     )
     .unwrap();
     let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--n", "1000000000"]);
     assert!(
-        !ok && err.contains("1000000000") && err.contains("at most 1000000"),
+        !ok && err.contains("--n") && err.contains("1000000000") && err.contains("1 to 10000000"),
         "{err}"
     );
-    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--n", "300"]);
+    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--n", "2000000"]);
+    assert!(!ok && err.contains("--n") && err.contains("1 to 1000000"), "{err}");
+    // Each within its range, together beyond what a frame may hold: 1e5 N·m at σ 1e-4.
+    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--n", "300", "--sigma", "1e-4"]);
     assert!(!ok && err.contains("beyond what can be computed"), "{err}");
 }
 

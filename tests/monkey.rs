@@ -2,9 +2,11 @@
 //! items, shipped scenes, robot switches, clicks, drags and wheel turns in
 //! the 3-D view, sliders and drag values, checkboxes, keys, sessions opened, played,
 //! scrubbed and closed, recordings started and stopped, a robot recording
-//! that asks for its topics, a live stream listened to and fed), with the model's
-//! invariants checked after each. `MONKEY_ACTIONS` sets how many (2000 by
-//! default), `MONKEY_SEED` the seed.
+//! that asks for its topics, a live stream listened to and fed, numbers
+//! and text typed into the panels' fields: 0, 1e-300, 1e308, negative,
+//! `NaN`, words), with the model's invariants checked after each (every
+//! setting within its valid range, every estimate finite).
+//! `MONKEY_ACTIONS` sets how many (2000 by default), `MONKEY_SEED` the seed.
 
 // Test helpers may unwrap: a panic is a failed test with its message.
 #![allow(clippy::unwrap_used)]
@@ -28,6 +30,7 @@ fn session_file(dir: &Path) -> PathBuf {
         frame(0.2, "0.4, -1.0, 0.2, 0.25, 0.1, 0, 0"),
         frame(0.3, "0, 0, 0, 0, 0, 0, null"),
         frame(0.4, "1e70, 0, 0, 0, 0, 0, 0"),
+        frame(0.5, "1e5, 0, 0, 0, 0, 0, 0"),
     ];
     std::fs::write(
         &path,
@@ -87,7 +90,7 @@ struct Monkey {
 /// One random action; what it was, for the failure message.
 #[allow(clippy::too_many_lines)] // One arm per kind of action: reads as one table.
 fn act(harness: &mut Harness<'_, ProprioscopeApp>, rng: &mut Rng, m: &mut Monkey) -> String {
-    let action = rng.below(20);
+    let action = rng.below(21);
     let view = harness.state().view_rect();
     let random_pos = |rng: &mut Rng| {
         view.map_or(egui::pos2(600.0, 300.0), |r| {
@@ -252,6 +255,28 @@ fn act(harness: &mut Harness<'_, ProprioscopeApp>, rng: &mut Rng, m: &mut Monkey
                 let i = rng.below(radios.len());
                 click_nth(harness, Role::RadioButton, i);
                 format!("radio '{}'", radios[i])
+            }
+        }
+        20 => {
+            // Typed into a field: a drag value (or a slider's number)
+            // clicked into text editing, then a value typed and Enter.
+            let fields = labels(harness, Role::SpinButton);
+            if fields.is_empty() {
+                "no field".to_owned()
+            } else {
+                let i = rng.below(fields.len());
+                let typed = [
+                    "0", "1e-300", "1e308", "-1e308", "-3", "-0.5", "NaN", "inf", "abc", "", "7", "0.2", "1e4",
+                ];
+                let text = typed[rng.below(typed.len())];
+                if let Some(node) = harness.query_all_by_role(Role::SpinButton).nth(i) {
+                    node.click();
+                }
+                harness.run_steps(1);
+                harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+                harness.event(egui::Event::Text(text.to_owned()));
+                harness.key_press(egui::Key::Enter);
+                format!("typed '{text}' into '{}'", fields[i])
             }
         }
         14 => {

@@ -3,7 +3,8 @@
 
 use glam::DVec3;
 
-use super::{EstimatorChoice, LinkId, Model, Push, SPEED_RANGE, Temporal, ViewOptions};
+use super::{EstimatorChoice, LinkId, Model, Push, Temporal, ViewOptions};
+use crate::core::limits;
 
 /// A change to the [`Model`], sent by the UI and applied in one place.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,7 +45,7 @@ pub enum Command {
     StepFrames(i64),
     /// Play (true) or pause.
     Play(bool),
-    /// Set the playback speed (clamped to [`SPEED_RANGE`]).
+    /// Set the playback speed (within [`super::SPEED`]).
     SetSpeed(f64),
     /// Loop at the end (true) or stop.
     SetLoop(bool),
@@ -52,8 +53,7 @@ pub enum Command {
     SetOverTime(Temporal),
     /// Take the session's estimated torque bias off its frames (true) or not.
     SetBias(bool),
-    /// How far a contact slides over time, m/√s (clamped to
-    /// [`super::SLIDE_RANGE`]; not a finite number: ignored).
+    /// How far a contact slides over time, m/√s (within [`super::SLIDE`]).
     SetSlide(f64),
     /// Advance playback by this much wall-clock time, s.
     Tick(f64),
@@ -62,20 +62,108 @@ pub enum Command {
 /// The replay's settings that `command` sets (the others: nothing).
 fn set_replay(r: &mut super::Replay, command: &Command) {
     match *command {
-        Command::SetSpeed(speed) => r.speed = speed.clamp(SPEED_RANGE.0, SPEED_RANGE.1),
+        Command::SetSpeed(speed) => r.speed = speed,
         Command::SetLoop(on) => r.looping = on,
         Command::SetOverTime(temporal) => r.over_time = temporal,
         Command::SetBias(on) => r.bias_auto = on,
-        Command::SetSlide(slide_m_per_sqrt_s) if slide_m_per_sqrt_s.is_finite() => {
-            r.slide_m_per_sqrt_s = slide_m_per_sqrt_s.clamp(super::SLIDE_RANGE.0, super::SLIDE_RANGE.1);
-        }
+        Command::SetSlide(slide_m_per_sqrt_s) => r.slide_m_per_sqrt_s = slide_m_per_sqrt_s,
         _ => {}
     }
 }
 
 impl Model {
-    /// Applies a command; true when something changed.
+    /// Why `command` cannot be applied: a value outside its valid range
+    /// (see [`crate::core::limits`]), named with the range. A typed value
+    /// is refused whole rather than clamped: the panel keeps the value
+    /// before and says why.
+    #[must_use]
+    pub fn refusal(&self, command: &Command) -> Option<String> {
+        let why = |result: Result<f64, limits::OutOfRange>| result.err().map(|e| e.to_string());
+        let count = |result: Result<usize, limits::CountOutOfRange>| result.err().map(|e| e.to_string());
+        match *command {
+            Command::SetJoint(i, value) => self.joint_refusal(i, value),
+            Command::SetForce(f) => why(limits::PUSH_NEWTONS.check(f)),
+            Command::SetSigma(s) | Command::SetJointSigma(_, s) => why(limits::SIGMA.check(s)),
+            Command::SetSurfacePoints(n) => count(limits::SURFACE_POINTS.check(n)),
+            Command::SetNoise(s) => why(limits::NOISE.check(s)),
+            Command::SetEstimator(c) => count(limits::PARTICLES.check(c.particles))
+                .or_else(|| count(limits::MAGNITUDES.check(c.magnitudes_per_point)))
+                .or_else(|| count(limits::PHASE_POINTS.check(c.phase_sizes[0])))
+                .or_else(|| count(limits::PHASE_POINTS.check(c.phase_sizes[1])))
+                .or_else(|| why(limits::ALPHA.check(c.alpha)))
+                .or_else(|| why(limits::FRICTION.check(c.friction))),
+            Command::SetForceRange(lo, hi) => why(limits::FORCE_MIN.check(lo))
+                .or_else(|| why(limits::FORCE_MAX.check(hi)))
+                .or_else(|| (lo > hi).then(|| format!("F min {lo} N is above F max {hi} N"))),
+            Command::SetView(view) => why(limits::THRESHOLD.check(view.threshold)),
+            Command::SetSpeed(speed) => why(super::SPEED.check(speed)),
+            Command::SetSlide(slide) => why(super::SLIDE.check(slide)),
+            _ => None,
+        }
+    }
+
+    /// The first setting of the model outside its valid range, if any
+    /// (none can be: every command that sets one is checked).
+    #[must_use]
+    pub fn out_of_range(&self) -> Option<String> {
+        let (lo, hi) = self.force_range_newtons;
+        let mut commands = vec![
+            Command::SetSurfacePoints(self.surface_points),
+            Command::SetNoise(self.noise_sigma),
+            Command::SetEstimator(self.estimator),
+            Command::SetForceRange(lo, hi),
+            Command::SetView(self.view),
+        ];
+        commands.extend(self.sigma.iter().map(|&s| Command::SetSigma(s)));
+        if let Some(r) = &self.replay {
+            commands.extend([Command::SetSpeed(r.speed), Command::SetSlide(r.slide_m_per_sqrt_s)]);
+        }
+        let joint = self
+            .q
+            .iter()
+            .find_map(|&q| limits::JOINT_POSITION.check(q).err().map(|e| e.to_string()));
+        joint.or_else(|| commands.iter().find_map(|c| self.refusal(c)))
+    }
+
+    /// Why sensed joint `i` cannot be put at `value`: outside
+    /// [`limits::JOINT_POSITION`] or the joint's own limits.
+    fn joint_refusal(&self, i: usize, value: f64) -> Option<String> {
+        if let Err(e) = limits::JOINT_POSITION.check(value) {
+            return Some(e.to_string());
+        }
+        let joint = self.robot.sensed().get(i).and_then(|&j| self.robot.joints.get(j))?;
+        let l = joint.limits?;
+        // A hair of slack: a value typed in degrees comes back in radians.
+        let slack = 1e-9 * (1.0 + l.upper.abs().max(l.lower.abs()));
+        (value < l.lower - slack || value > l.upper + slack).then(|| {
+            if joint.kind.is_rotational() {
+                format!(
+                    "{:.3}° is outside the limits of {}: [{:.3}°, {:.3}°]",
+                    value.to_degrees(),
+                    joint.name,
+                    l.lower.to_degrees(),
+                    l.upper.to_degrees()
+                )
+            } else {
+                format!(
+                    "{value} m is outside the limits of {}: [{}, {}] m",
+                    joint.name, l.lower, l.upper
+                )
+            }
+        })
+    }
+
+    /// Applies a command; true when something changed. A command with a
+    /// value outside its range changes nothing and leaves its reason in
+    /// [`Model::refused`].
     pub fn apply(&mut self, command: Command) -> bool {
+        if let Some(why) = self.refusal(&command) {
+            self.refused = Some(why);
+            return false;
+        }
+        if !matches!(command, Command::Tick(_)) {
+            self.refused = None;
+        }
         let before = self.estimate_inputs();
         match command {
             Command::SetJoint(i, value) => {
@@ -97,17 +185,17 @@ impl Model {
             Command::Push(push) => self.push = Some(push),
             Command::SetForce(f) => {
                 if let Some(p) = self.push.as_mut() {
-                    p.force_newtons = f.max(0.0);
+                    p.force_newtons = f;
                 }
             }
             Command::ClearPush => self.push = None,
-            Command::SetSigma(s) => self.sigma.iter_mut().for_each(|v| *v = s.max(1e-6)),
+            Command::SetSigma(s) => self.sigma.iter_mut().for_each(|v| *v = s),
             Command::SetJointSigma(i, s) => {
                 if let Some(v) = self.sigma.get_mut(i) {
-                    *v = s.max(1e-6);
+                    *v = s;
                 }
             }
-            Command::SetSurfacePoints(n) => self.surface_points = n.clamp(10, crate::core::surface::MAX_POINTS),
+            Command::SetSurfacePoints(n) => self.surface_points = n,
             Command::SetCandidate(link, on) => {
                 let can_touch = self.robot.default_candidate_links().contains(&link);
                 if on && can_touch && !self.candidate_links.contains(&link) {
@@ -118,21 +206,9 @@ impl Model {
                     self.candidate_links.retain(|l| *l != link);
                 }
             }
-            Command::SetNoise(s) => self.noise_sigma = s.max(0.0),
-            Command::SetEstimator(choice) => {
-                self.estimator = EstimatorChoice {
-                    particles: choice.particles.clamp(1, crate::core::estimator::MAX_PARTICLES),
-                    magnitudes_per_point: choice
-                        .magnitudes_per_point
-                        .clamp(1, crate::core::estimator::MAX_MAGNITUDES),
-                    alpha: choice.alpha.clamp(0.0, 0.99),
-                    ..choice
-                };
-            }
-            Command::SetForceRange(lo, hi) => {
-                let lo = lo.max(0.0);
-                self.force_range_newtons = (lo, hi.max(lo));
-            }
+            Command::SetNoise(s) => self.noise_sigma = s,
+            Command::SetEstimator(choice) => self.estimator = choice,
+            Command::SetForceRange(lo, hi) => self.force_range_newtons = (lo, hi),
             Command::SetView(view) => self.view = view,
             Command::SetFrame(i) => self.show_frame(i),
             Command::StepFrames(by) => {

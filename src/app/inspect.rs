@@ -54,6 +54,15 @@ impl ProprioscopeApp {
         {
             return Err("the shown estimate does not fit the robot".to_owned());
         }
+        if let Some(o) = self.current_outcome()
+            && let Ok(u) = &o.update
+            && let Some(field) = u.summary.non_finite_field()
+        {
+            return Err(format!("the shown estimate's {field} is not finite"));
+        }
+        if let Some(why) = m.out_of_range() {
+            return Err(format!("a setting outside its range: {why}"));
+        }
         if let Some(r) = &m.replay
             && !r.session.frames.is_empty()
             && r.frame >= r.session.frames.len()

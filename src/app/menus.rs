@@ -80,6 +80,9 @@ impl ProprioscopeApp {
             if let Some(error) = &self.error {
                 ui.colored_label(egui::Color32::LIGHT_RED, error);
             }
+            if let Some(refused) = &self.model.refused {
+                ui.colored_label(egui::Color32::LIGHT_RED, format!("not applied: {refused}"));
+            }
         });
     }
 

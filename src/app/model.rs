@@ -50,6 +50,9 @@ pub struct Model {
     /// A recorded session being replayed: its current frame sets `q`, the
     /// measured torques and the true contact (shown as the push).
     pub replay: Option<Replay>,
+    /// Why the last command was refused (a value outside its range,
+    /// named with the range), until a command is applied.
+    pub refused: Option<String>,
 }
 
 /// A session on the timeline.
@@ -79,11 +82,15 @@ pub struct Replay {
 }
 
 /// Slowest and fastest playback.
-pub const SPEED_RANGE: (f64, f64) = (0.1, 10.0);
+pub const SPEED_RANGE: (f64, f64) = (SPEED.min, SPEED.max);
 
-/// Shortest and longest slide length the timeline offers, m/√s: from
-/// contacts that barely move to ones that wipe along a link.
-pub const SLIDE_RANGE: (f64, f64) = (0.001, 0.1);
+/// The playback speed the timeline takes, × real time.
+pub const SPEED: crate::core::limits::Range =
+    crate::core::limits::Range::closed("playback speed", "× real time", 0.1, 10.0);
+
+/// The slide length the timeline takes, m/√s: from contacts that barely
+/// move to ones that wipe along a link.
+pub const SLIDE: crate::core::limits::Range = crate::core::limits::Range::closed("slide", "m/√s", 0.001, 0.1);
 
 /// The estimator's mode as the panel offers it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -410,6 +417,7 @@ impl Model {
             title: settings.title,
             view: settings.view.unwrap_or(view),
             replay: None,
+            refused: None,
         }
     }
 
@@ -458,6 +466,7 @@ mod tests {
             title: (String::new(), String::new()),
             view: ViewOptions::default(),
             replay: None,
+            refused: None,
             robot: Arc::new(robot),
         }
     }

@@ -8,10 +8,13 @@ use super::{Command, EstimatorChoice, HeatLayer, ModeChoice, ProprioscopeApp, Ve
 /// Adds `slider` labelled `label`, its width chosen so that the slider,
 /// its value and the label fit the panel (a narrow window keeps every row
 /// readable instead of pushing the panel under the view).
+/// A typed value outside the slider's span is passed on as typed (never
+/// clamped): the command that carries it refuses it, naming its valid
+/// range, if it lies outside that.
 fn fitted_slider(ui: &mut egui::Ui, slider: egui::Slider<'_>, label: &str) -> egui::Response {
     let text = label_width(ui, label);
     ui.spacing_mut().slider_width = (ui.available_width() - text - 80.0).clamp(40.0, 220.0);
-    ui.add(slider.text(label))
+    ui.add(slider.clamping(egui::SliderClamping::Never).text(label))
 }
 
 /// The friction controls of the estimator panel (exact mode): auto, or
@@ -77,9 +80,9 @@ impl ProprioscopeApp {
                 let name = &self.model.robot.joints[self.model.robot.sensed()[i]].name;
                 if ui
                     .add(
+                        // No range: a typed value is refused, not clamped.
                         egui::DragValue::new(&mut v)
                             .update_while_editing(false)
-                            .range(0.001..=10.0)
                             .speed(0.001)
                             .prefix(format!("{name}: ")),
                     )
@@ -230,13 +233,11 @@ impl ProprioscopeApp {
                 ui.add(
                     egui::DragValue::new(&mut choice.phase_sizes[0])
                         .update_while_editing(false)
-                        .range(10..=5000)
                         .prefix("A: "),
                 );
                 ui.add(
                     egui::DragValue::new(&mut choice.phase_sizes[1])
                         .update_while_editing(false)
-                        .range(10..=20000)
                         .prefix("B: "),
                 );
                 ui.label("points");
@@ -248,14 +249,12 @@ impl ProprioscopeApp {
             let a = ui.add(
                 egui::DragValue::new(&mut lo)
                     .update_while_editing(false)
-                    .range(0.0..=1000.0)
                     .speed(0.1)
                     .prefix("F min "),
             );
             let b = ui.add(
                 egui::DragValue::new(&mut hi)
                     .update_while_editing(false)
-                    .range(0.0..=1000.0)
                     .speed(0.1)
                     .prefix("F max "),
             );

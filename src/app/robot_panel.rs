@@ -89,7 +89,10 @@ pub(super) fn fine_slider(
     let width = (ui.available_width() - name - 90.0).max(60.0);
     ui.spacing_mut().slider_width = width;
     let response = ui.add(
+        // A typed value is passed on as typed: its command refuses it,
+        // naming the valid range, if it lies outside.
         egui::Slider::new(value, range.clone())
+            .clamping(egui::SliderClamping::Never)
             .suffix(suffix)
             .text(text)
             .update_while_editing(false),

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use eframe::egui;
 
 use super::session::{self, EstimateJob, FrameEstimate, LoadFailure, Loader, SessionData};
-use super::{Command, Model, ProprioscopeApp, Replay, SLIDE_RANGE, SPEED_RANGE, per_joint};
+use super::{Command, Model, ProprioscopeApp, Replay, SPEED_RANGE, per_joint};
 use crate::core::pipeline::{Temporal, automatic_temporal};
 use crate::core::robot::{LinkId, Robot};
 use crate::core::summary::Verdict;
@@ -141,6 +141,7 @@ impl ProprioscopeApp {
                 bias_auto: false,
                 slide_m_per_sqrt_s: TemporalSettings::default().slide_m_per_sqrt_s,
             }),
+            refused: None,
         };
         let first = self.first_frame.take().unwrap_or(0);
         let mut model = model;
@@ -414,6 +415,7 @@ impl ProprioscopeApp {
             if ui
                 .add(
                     egui::Slider::new(&mut speed, SPEED_RANGE.0..=SPEED_RANGE.1)
+                        .clamping(egui::SliderClamping::Never)
                         .logarithmic(true)
                         .suffix("×")
                         .text("speed"),
@@ -503,8 +505,8 @@ impl ProprioscopeApp {
             ui.label("slide").on_hover_text(hover);
             if ui
                 .add(
+                    // No range: a typed value outside is refused, not clamped.
                     egui::DragValue::new(&mut slide_cm)
-                        .range(SLIDE_RANGE.0 * 100.0..=SLIDE_RANGE.1 * 100.0)
                         .speed(0.02)
                         .max_decimals(2)
                         .suffix(" cm/√s"),

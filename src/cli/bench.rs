@@ -10,6 +10,7 @@ use glam::DVec3;
 use proprioscope::batch::credible_set_holds_truth;
 use proprioscope::core::estimator::{EstimatorSettings, Mode, ParticleSettings, Sampling};
 use proprioscope::core::kinematics::RobotPose;
+use proprioscope::core::limits;
 use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, percentile};
 use proprioscope::core::pipeline::{Estimator, SequenceFrame, StageTimes, Temporal, Update, estimate_sequence};
 use proprioscope::core::rng::Rng;
@@ -29,11 +30,11 @@ pub struct BenchArgs {
     /// Extra folder for `package://` URIs (repeatable).
     #[arg(long = "package-path")]
     pub package_paths: Vec<PathBuf>,
-    /// Random contacts per configuration.
-    #[arg(long, default_value_t = 100)]
+    /// Random contacts per configuration (valid: 1 to 1000000).
+    #[arg(long, default_value_t = 100, value_parser = super::counted(&limits::CONTACTS))]
     pub contacts: usize,
-    /// Sensor noise on the contacts' torques, N·m.
-    #[arg(long, default_value_t = 0.05)]
+    /// Sensor noise on the contacts' torques, N·m (valid: [0, 100]).
+    #[arg(long, default_value_t = 0.05, value_parser = super::within(&limits::NOISE))]
     pub noise: f64,
     /// Seed of the contacts.
     #[arg(long, default_value_t = 1)]

@@ -8,6 +8,7 @@ use anyhow::{Context as _, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use proprioscope::batch::{FrameEstimate, credible_set_holds_truth, frame_outcome, session_robot};
 use proprioscope::core::bias::{estimate_drifting_bias, without_drifting_bias};
+use proprioscope::core::limits;
 use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, metrics_by_sensing_joints, percentile};
 use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, Update, automatic_temporal, estimate_sequence};
 use proprioscope::core::robot::Robot;
@@ -36,8 +37,8 @@ pub struct EstimateArgs {
     #[arg(long, conflicts_with = "session")]
     pub live: Option<String>,
     /// With --live: stop after this many frames (default: run until
-    /// killed; a closed connection waits for the next).
-    #[arg(long, requires = "live")]
+    /// killed; a closed connection waits for the next; at least 1).
+    #[arg(long, requires = "live", value_parser = super::counted(&limits::LIVE_FRAMES))]
     pub live_frames: Option<usize>,
     /// The robot (built-in name or URDF), overriding the session's.
     #[arg(long)]
@@ -65,8 +66,9 @@ pub struct EstimateArgs {
     pub bias: BiasArg,
     /// With `--bias auto`, the offset may drift: it is estimated over
     /// windows of this many seconds, half a window apart, and interpolated
-    /// (a session no longer than one window gets one offset).
-    #[arg(long, default_value_t = 30.0, value_parser = super::finite)]
+    /// (a session no longer than one window gets one offset). Valid:
+    /// [0.1, 86400] s.
+    #[arg(long, default_value_t = 30.0, value_parser = super::within(&limits::BIAS_WINDOW))]
     pub bias_window: f64,
     /// Topics of a recording.
     #[command(flatten)]

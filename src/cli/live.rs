@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
 use proprioscope::batch::{FrameEstimate, credible_set_holds_truth, frame_outcome, session_robot};
+use proprioscope::core::limits;
 use proprioscope::core::pipeline::{Estimator, SequenceError, StreamFilter, Temporal};
 use proprioscope::core::surface::SurfaceRequest;
 use proprioscope::core::temporal::TemporalModel;
@@ -34,12 +35,25 @@ pub struct StreamArgs {
     #[arg(long)]
     pub to: String,
     /// Playback speed: 1 is real time by the frames' `t`, 0 as fast as
-    /// the connection takes.
-    #[arg(long, default_value_t = 1.0, value_parser = super::finite)]
+    /// the connection takes (valid: 0, or (0, 1000]).
+    #[arg(long, default_value_t = 1.0, value_parser = stream_rate)]
     pub rate: f64,
-    /// How long to keep trying to connect, s.
-    #[arg(long, default_value_t = 10.0, value_parser = super::finite)]
+    /// How long to keep trying to connect, s (valid: [0, 3600] s).
+    #[arg(long, default_value_t = 10.0, value_parser = super::within(&limits::WAIT_SECONDS))]
     pub wait: f64,
+}
+
+/// `stream --rate`: 0 (as fast as the connection takes), or a speed
+/// within [`limits::SPEED`].
+fn stream_rate(text: &str) -> Result<f64, String> {
+    let value = super::finite(text)?;
+    if value == 0.0 {
+        Ok(0.0)
+    } else {
+        limits::SPEED
+            .check(value)
+            .map_err(|e| format!("{e} (or 0: as fast as the connection takes)"))
+    }
 }
 
 /// Where `stream` sends: a TCP connection, or UDP datagrams (a line each).

@@ -9,7 +9,9 @@ pub mod topics;
 use std::path::Path;
 
 use anyhow::{Result, bail};
+use glam::DVec3;
 use proprioscope::core::estimator::{DEFAULT_FORCE_RANGE_NEWTONS, EstimatorSettings};
+use proprioscope::core::limits::{self, CountRange, Range};
 use proprioscope::core::pipeline::Temporal;
 use proprioscope::core::robot::{LinkId, Robot};
 use proprioscope::core::temporal::TemporalSettings;
@@ -86,6 +88,40 @@ pub fn finite(text: &str) -> Result<f64, String> {
         .ok_or_else(|| format!("'{text}' is not a finite number"))
 }
 
+/// A value parser for a number within `range` (clap names the argument;
+/// the message names the quantity, the value and the range).
+pub fn within(range: &'static Range) -> impl Fn(&str) -> Result<f64, String> + Clone + Send + Sync + 'static {
+    move |text| {
+        let value = finite(text).map_err(|e| format!("{e}; the valid range of {} is {range}", range.quantity))?;
+        range.check(value).map_err(|e| e.to_string())
+    }
+}
+
+/// A value parser for a count within `range`.
+pub fn counted(range: &'static CountRange) -> impl Fn(&str) -> Result<usize, String> + Clone + Send + Sync + 'static {
+    move |text| {
+        let value = text.trim().parse::<usize>().map_err(|_| {
+            format!(
+                "'{text}' is not a whole number; the valid range of {} is {range}",
+                range.quantity
+            )
+        })?;
+        range.check(value).map_err(|e| e.to_string())
+    }
+}
+
+/// A value parser for `x,y,z`, each within `range`.
+pub fn vec3_within(range: &'static Range) -> impl Fn(&str) -> Result<DVec3, String> + Clone + Send + Sync + 'static {
+    move |text| {
+        let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+        let [x, y, z] = parts.as_slice() else {
+            return Err(format!("'{text}' is not three comma-separated numbers x,y,z"));
+        };
+        let component = |s: &str| within(range)(s);
+        Ok(DVec3::new(component(x)?, component(y)?, component(z)?))
+    }
+}
+
 /// Estimator mode on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ModeArg {
@@ -137,17 +173,19 @@ pub struct TemporalArgs {
     /// than a contact lasts; `none` for sets of unrelated frames).
     #[arg(long, value_enum, default_value = "auto")]
     pub temporal: TemporalArg,
-    /// Rate at which contacts begin, 1/s.
-    #[arg(long, default_value_t = TemporalSettings::default().onset_per_s, value_parser = finite)]
+    /// Rate at which contacts begin, 1/s (valid: [0, 1000]).
+    #[arg(long, default_value_t = TemporalSettings::default().onset_per_s, value_parser = within(&limits::EVENT_RATE))]
     pub onset_rate: f64,
-    /// Rate at which a contact ends, 1/s (its mean duration is the inverse).
-    #[arg(long, default_value_t = TemporalSettings::default().release_per_s, value_parser = finite)]
+    /// Rate at which a contact ends, 1/s (its mean duration is the
+    /// inverse; valid: [0, 1000]).
+    #[arg(long, default_value_t = TemporalSettings::default().release_per_s, value_parser = within(&limits::EVENT_RATE))]
     pub release_rate: f64,
-    /// RMS slide of a contact along each surface direction after one second, m.
-    #[arg(long, default_value_t = TemporalSettings::default().slide_m_per_sqrt_s, value_parser = finite)]
+    /// RMS slide of a contact along each surface direction after one
+    /// second, m/√s (valid: [0, 1]).
+    #[arg(long, default_value_t = TemporalSettings::default().slide_m_per_sqrt_s, value_parser = within(&limits::SLIDE))]
     pub slide: f64,
-    /// Rate at which a contact jumps to an unrelated place, 1/s.
-    #[arg(long, default_value_t = TemporalSettings::default().jump_per_s, value_parser = finite)]
+    /// Rate at which a contact jumps to an unrelated place, 1/s (valid: [0, 1000]).
+    #[arg(long, default_value_t = TemporalSettings::default().jump_per_s, value_parser = within(&limits::EVENT_RATE))]
     pub jump_rate: f64,
 }
 
@@ -172,50 +210,54 @@ pub struct EstimatorArgs {
     /// Particle sampling: `deterministic` or `random`.
     #[arg(long, value_enum, default_value = "deterministic")]
     pub sampling: SamplingArg,
-    /// N: surface points in exact mode, particles in particle mode.
-    #[arg(long)]
+    /// N: surface points in exact mode, particles in particle mode
+    /// (valid: 1 to 1000000 surface points, 1 to 10000000 particles).
+    #[arg(long, value_parser = counted(&limits::PARTICLES))]
     pub n: Option<usize>,
-    /// Magnitudes per point m (deterministic particles).
-    #[arg(long, default_value_t = 5)]
+    /// Magnitudes per point m (deterministic particles; valid: 1 to 1000).
+    #[arg(long, default_value_t = 5, value_parser = counted(&limits::MAGNITUDES))]
     pub m: usize,
-    /// Surface points when N counts particles (random sampling).
-    #[arg(long, default_value_t = 5000)]
+    /// Surface points when N counts particles (random sampling; valid: 1
+    /// to 1000000).
+    #[arg(long, default_value_t = 5000, value_parser = counted(&limits::SURFACE_POINTS))]
     pub points: usize,
-    /// Likelihood σ, N·m: one value, or one per sensed joint (comma separated).
-    #[arg(long, value_delimiter = ',', default_value = "0.05", value_parser = finite)]
+    /// Likelihood σ, N·m: one value, or one per sensed joint (comma
+    /// separated; valid: [1e-4, 100] N·m).
+    #[arg(long, value_delimiter = ',', default_value = "0.05", value_parser = within(&limits::SIGMA))]
     pub sigma: Vec<f64>,
-    /// Smallest push magnitude considered, N.
-    #[arg(long, default_value_t = DEFAULT_FORCE_RANGE_NEWTONS.0, value_parser = finite)]
+    /// Smallest push magnitude considered, N (valid: [0, 10000] N, not above --fmax).
+    #[arg(long, default_value_t = DEFAULT_FORCE_RANGE_NEWTONS.0, value_parser = within(&limits::FORCE_MIN))]
     pub fmin: f64,
-    /// Largest push magnitude considered, N.
-    #[arg(long, default_value_t = DEFAULT_FORCE_RANGE_NEWTONS.1, value_parser = finite)]
+    /// Largest push magnitude considered, N (valid: (0, 10000] N).
+    #[arg(long, default_value_t = DEFAULT_FORCE_RANGE_NEWTONS.1, value_parser = within(&limits::FORCE_MAX))]
     pub fmax: f64,
     /// Search coarse-to-fine in phases A/B/C.
     #[arg(long)]
     pub phases: bool,
-    /// Sizes of phases A and B.
-    #[arg(long, value_delimiter = ',', default_value = "200,1000")]
+    /// Sizes of phases A and B (valid: 1 to 1000000 each).
+    #[arg(long, value_delimiter = ',', default_value = "200,1000", value_parser = counted(&limits::PHASE_POINTS))]
     pub phase_sizes: Vec<usize>,
-    /// Keep clusters with P ≥ α `P_max` between phases.
-    #[arg(long, default_value_t = 0.5, value_parser = finite)]
+    /// Keep clusters with P ≥ α `P_max` between phases (valid: [0, 0.99]).
+    #[arg(long, default_value_t = 0.5, value_parser = within(&limits::ALPHA))]
     pub alpha: f64,
     /// Candidate links (comma separated); default: every link a revolute joint moves.
     #[arg(long, value_delimiter = ',')]
     pub links: Vec<String>,
-    /// Seed of the surface sampling, the phase clustering and random particles.
+    /// Seed of the surface sampling, the phase clustering and random
+    /// particles (any whole number from 0 to 2^64 - 1).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Treat each surface sample as a point (the thesis' model) instead
     /// of as the patch of surface it stands for (exact mode).
     #[arg(long)]
     pub points_only: bool,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads (default: all cores; valid: 1 to 1024).
+    #[arg(long, value_parser = counted(&limits::THREADS))]
     pub threads: Option<usize>,
     /// Friction μ: the refined contact's force gets a tangential part
     /// whose spread is μ times the push (0: frictionless); `auto`: 0 for
     /// frames alone, 0.2 over time (`--temporal filter|smooth`, where
-    /// friction is taken only where a press says so).
+    /// friction is taken only where a press says so; valid: [0, 2]).
     #[arg(long, default_value = "auto", value_parser = friction_arg)]
     pub friction: FrictionArg,
 }
@@ -244,9 +286,9 @@ fn friction_arg(text: &str) -> Result<FrictionArg, String> {
     if text.trim().eq_ignore_ascii_case("auto") {
         return Ok(FrictionArg::Auto);
     }
-    finite(text)
+    within(&limits::FRICTION)(text)
         .map(FrictionArg::Mu)
-        .map_err(|e| format!("{e} (give μ ≥ 0, or auto)"))
+        .map_err(|e| format!("{e} (or give auto)"))
 }
 
 /// What the options ask for, resolved against a robot.
@@ -293,6 +335,18 @@ impl EstimatorArgs {
             }
             (ModeArg::Particles, SamplingArg::Random) => self.points,
         };
+        if let ModeArg::Exact = self.mode {
+            limits::SURFACE_POINTS
+                .check(surface_points)
+                .map_err(|e| anyhow::anyhow!("--n: {e}"))?;
+        }
+        if self.fmin > self.fmax {
+            bail!(
+                "--fmin {} N is above --fmax {} N: the smallest push considered must not exceed the largest",
+                self.fmin,
+                self.fmax
+            );
+        }
         let phase_sizes = match (self.phases, self.phase_sizes.as_slice()) {
             (false, _) => None,
             (true, [a, b]) => Some([*a, *b]),
@@ -332,7 +386,7 @@ impl EstimatorArgs {
     pub fn with_threads<T: Send>(&self, f: impl FnOnce() -> T + Send) -> Result<T> {
         let mut builder = rayon::ThreadPoolBuilder::new();
         if let Some(t) = self.threads {
-            builder = builder.num_threads(t.max(1));
+            builder = builder.num_threads(t);
         }
         Ok(builder.build()?.install(f))
     }

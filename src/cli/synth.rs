@@ -10,18 +10,20 @@ use proprioscope::core::builtin;
 use proprioscope::core::synth::{SynthSettings, synthesize};
 use proprioscope::io::session::{Frame, Recorder, Truth};
 
-use super::finite;
+use proprioscope::core::limits;
+
+use super::within;
 
 /// Options of `synth`.
 #[derive(Debug, clap::Args)]
 pub struct SynthArgs {
     /// The session file to write (JSON).
     pub out: PathBuf,
-    /// Length, s.
-    #[arg(long, default_value_t = 6.0, value_parser = finite)]
+    /// Length, s (valid: (0, 3600] s).
+    #[arg(long, default_value_t = 6.0, value_parser = within(&limits::SECONDS))]
     pub seconds: f64,
-    /// Frames per second.
-    #[arg(long, default_value_t = 200.0, value_parser = finite)]
+    /// Frames per second (valid: (0, 10000] Hz).
+    #[arg(long, default_value_t = 200.0, value_parser = within(&limits::RATE_HZ))]
     pub rate: f64,
     /// Seed of everything drawn.
     #[arg(long, default_value_t = 0)]
@@ -30,17 +32,17 @@ pub struct SynthArgs {
     #[arg(long, value_delimiter = ',')]
     pub links: Vec<String>,
     /// Each press's tangential force is up to this fraction of its normal
-    /// force (a random direction per press).
-    #[arg(long, default_value_t = 0.0, value_parser = finite)]
+    /// force (a random direction per press; valid: [0, 2]).
+    #[arg(long, default_value_t = 0.0, value_parser = within(&limits::FRICTION))]
     pub friction: f64,
-    /// Each joint's bias is drawn uniformly within ± this, N·m.
-    #[arg(long, default_value_t = 0.0, value_parser = finite)]
+    /// Each joint's bias is drawn uniformly within ± this, N·m (valid: [0, 100]).
+    #[arg(long, default_value_t = 0.0, value_parser = within(&limits::BIAS))]
     pub bias: f64,
-    /// Each press slides at up to this speed, m/s.
-    #[arg(long, default_value_t = 0.0, value_parser = finite)]
+    /// Each press slides at up to this speed, m/s (valid: [0, 1]).
+    #[arg(long, default_value_t = 0.0, value_parser = within(&limits::SLIDE_SPEED))]
     pub slide: f64,
-    /// Gaussian noise on every torque, N·m.
-    #[arg(long, default_value_t = 0.05, value_parser = finite)]
+    /// Gaussian noise on every torque, N·m (valid: [0, 100]).
+    #[arg(long, default_value_t = 0.05, value_parser = within(&limits::NOISE))]
     pub noise: f64,
 }
 

@@ -11,6 +11,7 @@ pub mod fastmath;
 pub mod friction;
 pub mod kinematics;
 pub mod lanes;
+pub mod limits;
 pub mod mesh;
 pub mod metrics;
 pub mod observability;

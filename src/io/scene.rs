@@ -12,6 +12,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 use crate::core::kinematics::RobotPose;
+use crate::core::limits;
 use crate::core::robot::{LinkId, Robot, RobotError};
 use crate::core::torque::{joint_torques, with_sensor_noise};
 use crate::io::builtin::{LoadRobotError, load_robot};
@@ -322,9 +323,8 @@ impl Default for EstimatorSettings {
     }
 }
 
-/// The largest friction μ accepted: beyond 2 the tangential force would
-/// be expected to exceed twice the push, which no press does.
-pub const MAX_FRICTION: f64 = 2.0;
+/// The largest friction μ accepted ([`limits::FRICTION`]).
+pub const MAX_FRICTION: f64 = limits::FRICTION.max;
 
 fn default_particles() -> usize {
     20_000
@@ -538,41 +538,26 @@ impl Scene {
                 ),
             ));
         }
-        if let Some(i) = self.q.iter().position(|v| !v.is_finite()) {
-            return Err(invalid(&format!("q[{i}]"), format!("{} is not finite", self.q[i])));
+        for (i, &v) in self.q.iter().enumerate() {
+            in_range(path, &format!("q[{i}]"), &limits::JOINT_POSITION, v)?;
         }
-        for (name, v) in &self.other_joints {
-            if !v.is_finite() {
-                return Err(invalid(&format!("other_joints.{name}"), format!("{v} is not finite")));
-            }
+        for (name, &v) in &self.other_joints {
+            in_range(path, &format!("other_joints.{name}"), &limits::JOINT_POSITION, v)?;
         }
-        if self.surface_points == 0 || self.surface_points > crate::core::surface::MAX_POINTS {
-            return Err(invalid(
-                "surface_points",
-                format!(
-                    "{} is not between 1 and the limit of {}",
-                    self.surface_points,
-                    crate::core::surface::MAX_POINTS
-                ),
-            ));
-        }
+        limits::SURFACE_POINTS
+            .check(self.surface_points)
+            .map_err(|e| invalid("surface_points", e.to_string()))?;
         if let Some(push) = &self.push {
             push.validate(path)?;
         }
-        let n = &self.noise;
-        if !(n.sigma_newton_metres.is_finite() && n.sigma_newton_metres >= 0.0) {
-            return Err(invalid(
-                "noise.sigma_newton_metres",
-                format!("{} is not a number ≥ 0", n.sigma_newton_metres),
-            ));
-        }
-        if let Some(view) = &self.view
-            && !(0.0..=1.0).contains(&view.threshold)
-        {
-            return Err(invalid(
-                "view.threshold",
-                format!("{} is not in [0, 1]", view.threshold),
-            ));
+        in_range(
+            path,
+            "noise.sigma_newton_metres",
+            &limits::NOISE,
+            self.noise.sigma_newton_metres,
+        )?;
+        if let Some(view) = &self.view {
+            in_range(path, "view.threshold", &limits::THRESHOLD, view.threshold)?;
         }
         self.estimator.validate(path)
     }
@@ -635,18 +620,22 @@ fn invalid(path: &Path, field: &str, message: String) -> SceneError {
     }
 }
 
+/// `value` of `field` within `range`, or the error that names both.
+fn in_range(path: &Path, field: &str, range: &limits::Range, value: f64) -> Result<f64, SceneError> {
+    range.check(value).map_err(|e| invalid(path, field, e.to_string()))
+}
+
 impl Push {
     fn validate(&self, path: &Path) -> Result<(), SceneError> {
-        let finite3 = |field: &str, v: &[f64; 3]| {
-            if v.iter().all(|x| x.is_finite()) {
-                Ok(())
-            } else {
-                Err(invalid(path, field, format!("{v:?} is not finite")))
+        let each = |field: &str, range: &limits::Range, v: &[f64; 3]| {
+            for (axis, &x) in ["x", "y", "z"].iter().zip(v) {
+                in_range(path, &format!("{field}.{axis}"), range, x)?;
             }
+            Ok(())
         };
         match (&self.point_in_link, &self.point_world) {
-            (Some(p), None) => finite3("push.point_in_link", p)?,
-            (None, Some(p)) => finite3("push.point_world", p)?,
+            (Some(p), None) => each("push.point_in_link", &limits::COORDINATE, p)?,
+            (None, Some(p)) => each("push.point_world", &limits::COORDINATE, p)?,
             _ => {
                 return Err(invalid(
                     path,
@@ -656,13 +645,8 @@ impl Push {
             }
         }
         match (&self.force_world, self.force_newtons) {
-            (Some(f), None) => finite3("push.force_world", f),
-            (None, Some(f)) if f.is_finite() && f > 0.0 => Ok(()),
-            (None, Some(f)) => Err(invalid(
-                path,
-                "push.force_newtons",
-                format!("{f} is not a positive number"),
-            )),
+            (Some(f), None) => each("push.force_world", &limits::FORCE_COMPONENT, f),
+            (None, Some(f)) => in_range(path, "push.force_newtons", &limits::PUSH_NEWTONS, f).map(|_| ()),
             _ => Err(invalid(
                 path,
                 "push",
@@ -676,8 +660,10 @@ impl EstimatorSettings {
     /// What is wrong with the friction μ, if anything (NaN and infinities
     /// fall outside the range too).
     fn friction_problem(&self) -> Option<String> {
-        (!(0.0..=MAX_FRICTION).contains(&self.friction))
-            .then(|| format!("{} is not in [0, {MAX_FRICTION}] (0: frictionless)", self.friction))
+        limits::FRICTION
+            .check(self.friction)
+            .err()
+            .map(|e| format!("{e} (0: frictionless)"))
     }
 
     fn validate(&self, path: &Path) -> Result<(), SceneError> {
@@ -685,21 +671,21 @@ impl EstimatorSettings {
             Sigma::All(s) => vec![*s],
             Sigma::PerJoint(v) => v.clone(),
         };
-        if let Some(s) = sigmas.iter().find(|s| !(s.is_finite() && **s > 0.0)) {
-            return Err(invalid(
-                path,
-                "estimator.sigma_newton_metres",
-                format!("{s} is not a positive number"),
-            ));
+        for &s in &sigmas {
+            in_range(path, "estimator.sigma_newton_metres", &limits::SIGMA, s)?;
         }
-        let (lo, hi) = (self.force_min_newtons, self.force_max_newtons);
-        if !(lo.is_finite() && hi.is_finite() && lo >= 0.0) {
-            return Err(invalid(
-                path,
-                "estimator.force_min_newtons",
-                "the force range must be finite and ≥ 0".to_owned(),
-            ));
-        }
+        let lo = in_range(
+            path,
+            "estimator.force_min_newtons",
+            &limits::FORCE_MIN,
+            self.force_min_newtons,
+        )?;
+        let hi = in_range(
+            path,
+            "estimator.force_max_newtons",
+            &limits::FORCE_MAX,
+            self.force_max_newtons,
+        )?;
         if lo > hi {
             return Err(invalid(
                 path,
@@ -710,35 +696,21 @@ impl EstimatorSettings {
         if let Some(problem) = self.friction_problem() {
             return Err(invalid(path, "estimator.friction", problem));
         }
-        if !(0.0..1.0).contains(&self.phases.alpha) {
-            return Err(invalid(
-                path,
-                "estimator.phases.alpha",
-                format!("{} is not in [0, 1)", self.phases.alpha),
-            ));
+        in_range(path, "estimator.phases.alpha", &limits::ALPHA, self.phases.alpha)?;
+        for (i, &size) in self.phases.sizes.iter().enumerate() {
+            limits::PHASE_POINTS
+                .check(size)
+                .map_err(|e| invalid(path, &format!("estimator.phases.sizes[{i}]"), e.to_string()))?;
         }
-        if self.particles == 0 || self.particles > MAX_PARTICLES {
-            return Err(invalid(
-                path,
-                "estimator.particles",
-                format!("{} is not between 1 and the limit of {MAX_PARTICLES}", self.particles),
-            ));
-        }
-        if self.magnitudes_per_point == 0 || self.magnitudes_per_point > MAX_MAGNITUDES {
-            return Err(invalid(
-                path,
-                "estimator.magnitudes_per_point",
-                format!(
-                    "{} is not between 1 and the limit of {MAX_MAGNITUDES}",
-                    self.magnitudes_per_point
-                ),
-            ));
-        }
+        limits::PARTICLES
+            .check(self.particles)
+            .map_err(|e| invalid(path, "estimator.particles", e.to_string()))?;
+        limits::MAGNITUDES
+            .check(self.magnitudes_per_point)
+            .map_err(|e| invalid(path, "estimator.magnitudes_per_point", e.to_string()))?;
         Ok(())
     }
 }
-
-use crate::core::estimator::{MAX_MAGNITUDES, MAX_PARTICLES};
 
 fn resolve_push(robot: &Robot, pose: &RobotPose, push: &Push, scene_path: &Path) -> Result<ResolvedPush, SceneError> {
     let link = robot.link_id(&push.link).map_err(|cause| SceneError::Model {

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Deserializer};
 
 use super::recording::{TopicChoice, is_recording};
+use crate::core::limits;
 
 /// The true contact of a frame, when known.
 #[derive(Debug, Clone, PartialEq)]
@@ -121,7 +122,7 @@ pub enum SessionError {
         message: String,
     },
     /// A frame is wrong.
-    #[error("{path}: frame {frame} (t = {t}): {field}: {message}")]
+    #[error("{path}: frame {frame} ({}): {field}: {message}", at_time(*.t))]
     Frame {
         /// The file.
         path: PathBuf,
@@ -538,6 +539,18 @@ pub(crate) fn frame_problem(f: &Frame, width: Option<usize>, last_t: f64) -> Opt
         if let Some((j, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
             return Some((format!("{name}[{j}]"), format!("{v} is missing or not finite")));
         }
+        let range = if name == "q" {
+            &limits::JOINT_POSITION
+        } else {
+            &limits::TORQUE
+        };
+        if let Some((j, e)) = values
+            .iter()
+            .enumerate()
+            .find_map(|(j, &v)| Some((j, range.check(v).err()?)))
+        {
+            return Some((format!("{name}[{j}]"), e.to_string()));
+        }
     }
     if let Truth::Contact { point, force, .. } = &f.truth {
         if point.iter().chain(force).any(|v| !v.is_finite()) {
@@ -662,10 +675,10 @@ impl LiveReader {
 }
 
 /// The farthest a true contact point may be from the base, m.
-pub const MAX_TRUTH_POINT_M: f64 = 1000.0;
+pub const MAX_TRUTH_POINT_M: f64 = limits::COORDINATE.max;
 
 /// The largest component of a true contact force, N.
-pub const MAX_TRUTH_FORCE_N: f64 = 1e6;
+pub const MAX_TRUTH_FORCE_N: f64 = limits::FORCE_COMPONENT.max;
 
 /// A recording cut short (the program was killed while writing it): its
 /// header and every complete frame line, closed. `None` when the text is
@@ -799,9 +812,21 @@ impl std::fmt::Display for FrameProblem {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "frame {} (t = {}): {}: {}",
-            self.frame, self.t, self.field, self.message
+            "frame {} ({}): {}: {}",
+            self.frame,
+            at_time(self.t),
+            self.field,
+            self.message
         )
+    }
+}
+
+/// `t = 1.5` for a frame's time, or what stands in for a time it lacks.
+fn at_time(t: f64) -> String {
+    if t.is_finite() {
+        format!("t = {t}")
+    } else {
+        "no time".to_owned()
     }
 }
 

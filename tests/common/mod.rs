@@ -1,0 +1,80 @@
+//! Helpers shared by the integration tests: running the binary, temporary
+//! folders, and the JSON lines an estimate writes.
+
+// Not every test file uses every helper.
+#![allow(dead_code, clippy::unwrap_used)]
+
+use std::path::PathBuf;
+use std::process::Command;
+
+/// What a run of the binary gave: success, stdout, stderr.
+pub struct Ran {
+    /// Exit status 0.
+    pub ok: bool,
+    /// Standard output.
+    pub out: String,
+    /// Standard error.
+    pub err: String,
+}
+
+/// Runs `proprioscope args…` in the repository root with `env` set.
+pub fn run_with_env(args: &[&str], env: &[(&str, &str)]) -> Ran {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_proprioscope"));
+    command.args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
+    command.env_remove("RUST_LOG");
+    for (k, v) in env {
+        command.env(k, v);
+    }
+    let out = command.output().unwrap();
+    Ran {
+        ok: out.status.success(),
+        out: String::from_utf8_lossy(&out.stdout).into_owned(),
+        err: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+/// Runs `proprioscope args…` in the repository root.
+pub fn run(args: &[&str]) -> Ran {
+    run_with_env(args, &[])
+}
+
+/// A fresh folder under the system's temporary folder.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("proprioscope-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The repository's `../shared`.
+pub fn shared() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared")
+}
+
+/// Where a JSON value holds a number that is not one: `null` inside an
+/// array, or a `null` field outside `nullable` (dotted paths); the first
+/// such path.
+pub fn null_number(value: &serde_json::Value, nullable: &[&str], path: &str) -> Option<String> {
+    match value {
+        serde_json::Value::Array(items) => items.iter().enumerate().find_map(|(i, v)| {
+            if v.is_null() {
+                Some(format!("{path}[{i}]"))
+            } else {
+                null_number(v, nullable, &format!("{path}[{i}]"))
+            }
+        }),
+        serde_json::Value::Object(fields) => fields.iter().find_map(|(k, v)| {
+            let at = if path.is_empty() {
+                k.clone()
+            } else {
+                format!("{path}.{k}")
+            };
+            if v.is_null() {
+                (!nullable.contains(&at.as_str())).then_some(at)
+            } else {
+                null_number(v, nullable, &at)
+            }
+        }),
+        _ => None,
+    }
+}
