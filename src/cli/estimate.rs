@@ -408,11 +408,15 @@ fn report(session: &Session, verdicts: &[usize; 3], times_ms: &[f64], called: &[
         verdicts[1],
         verdicts[2]
     );
-    let mean = times_ms.iter().sum::<f64>() / times_ms.len().max(1) as f64;
-    outln!(
-        "update time: mean {mean:.3} ms, median {:.3} ms",
-        percentile(times_ms, 0.5)
-    );
+    if times_ms.is_empty() {
+        outln!("update time: no frame was estimated");
+    } else {
+        let mean = times_ms.iter().sum::<f64>() / times_ms.len() as f64;
+        outln!(
+            "update time: mean {mean:.3} ms, median {:.3} ms",
+            percentile(times_ms, 0.5)
+        );
+    }
     let truth: Vec<Option<bool>> = session.frames.iter().map(|f| f.truth.has_contact()).collect();
     let found = detection(&truth, called);
     if found.contact_frames + found.quiet_frames > 0 {
@@ -521,6 +525,16 @@ fn link_shares_json(robot: &Robot, s: &proprioscope::core::summary::Summary) -> 
         .collect()
 }
 
+/// A table cell: the number to `decimals`, or `–` where there is none
+/// to give (a statistic of no frame).
+fn cell(value: f64, decimals: usize) -> String {
+    if value.is_finite() {
+        format!("{value:.decimals$}")
+    } else {
+        "–".to_owned()
+    }
+}
+
 /// The errors table: all frames, then by number of sensing joints.
 pub fn print_metrics(outcomes: &[FrameOutcome]) -> Result<()> {
     outln!();
@@ -531,18 +545,18 @@ pub fn print_metrics(outcomes: &[FrameOutcome]) -> Result<()> {
     let row = |label: &str, m: &Metrics| -> Result<()> {
         let held = m
             .credible90_held
-            .map_or_else(|| "–".to_owned(), |h| format!("{:.1} %", h * 100.0));
+            .map_or_else(|| "–".to_owned(), |h| cell(h * 100.0, 1) + " %");
         outln!(
-            "| {} | {label} | {:.1} | {:.1} | {:.2} | {:.2} | {:.0} % | {:.1} | {:.2} | {:.1} | {held} |",
+            "| {} | {label} | {} | {} | {} | {} | {} % | {} | {} | {} | {held} |",
             m.frames,
-            m.position_median_m * 1e3,
-            m.position_p90_m * 1e3,
-            m.force_median_newtons,
-            m.force_p90_newtons,
-            m.link_accuracy * 100.0,
-            m.eps_r_m * 1e3,
-            m.eps_f_newtons,
-            m.sigma_r_m * 1e3
+            cell(m.position_median_m * 1e3, 1),
+            cell(m.position_p90_m * 1e3, 1),
+            cell(m.force_median_newtons, 2),
+            cell(m.force_p90_newtons, 2),
+            cell(m.link_accuracy * 100.0, 0),
+            cell(m.eps_r_m * 1e3, 1),
+            cell(m.eps_f_newtons, 2),
+            cell(m.sigma_r_m * 1e3, 1)
         );
         Ok(())
     };

@@ -125,7 +125,7 @@ impl Estimator {
             refine_ms,
             summary_ms,
         });
-        Ok(update)
+        finite(update)
     }
 
     /// A frame alone with friction: `update`'s credible set widened as a
@@ -817,6 +817,15 @@ impl Estimator {
     }
 }
 
+/// `update`, or the error that names its first number that is not
+/// finite: an estimate is reported finite or not at all.
+fn finite(update: Update) -> Result<Update, EstimateError> {
+    match update.summary.non_finite_field() {
+        None => Ok(update),
+        Some(field) => Err(EstimateError::NonFiniteEstimate { field }),
+    }
+}
+
 /// Milliseconds since `since`.
 fn elapsed_ms(since: Instant) -> f64 {
     since.elapsed().as_secs_f64() * 1e3
@@ -956,7 +965,7 @@ impl StreamFilter {
         let mut update = estimator.with_belief(robot, pending, tau, belief);
         let slide = model.settings().slide_m_per_sqrt_s;
         estimator.gate_friction(robot, &mut update, (number, t_secs, tau), slide, &mut self.gate);
-        Ok(update)
+        finite(update).map_err(|source| SequenceError::Frame { frame: number, source })
     }
 }
 
@@ -1039,6 +1048,14 @@ pub fn estimate_sequence_while(
             }
         }
         (Some(model), Temporal::Smooth) => {
+            // A smoothed frame whose estimate is not finite is left out
+            // and handed to `failed` once the presses are settled; the
+            // first it does not skip is the sequence's error.
+            let mut refused: Vec<(usize, EstimateError)> = Vec::new();
+            let mut each = |i: usize, update: Update, ms: f64| match finite(update) {
+                Ok(update) => each(i, update, ms),
+                Err(source) => refused.push((i, source)),
+            };
             let mut smoother = Smoother::new(model);
             // The frames pushed, and what each cost.
             let mut pushed: Vec<(usize, f64)> = Vec::with_capacity(frames.len());
@@ -1091,6 +1108,9 @@ pub fn estimate_sequence_while(
                 presses.offer(i, (update, alone), ms(t0) + backward_ms + first_ms, &mut each);
             }
             presses.settle(&mut each);
+            if let Some((frame, source)) = refused.into_iter().find(|(i, e)| !failed(*i, e)) {
+                return Err(SequenceError::Frame { frame, source });
+            }
         }
     }
     Ok(true)

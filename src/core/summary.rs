@@ -137,6 +137,71 @@ pub struct Summary {
     pub contact_probability: Option<f64>,
 }
 
+impl ContactEstimate {
+    /// The first of its numbers that is not finite, by name.
+    fn non_finite(&self) -> Option<&'static str> {
+        if !self.point_world.is_finite() {
+            Some("point")
+        } else if !self.force_world.is_finite() || !self.force_newtons.is_finite() {
+            Some("force")
+        } else if !self.inward_normal_world.is_finite() {
+            Some("normal")
+        } else if !self.probability.is_finite() {
+            Some("probability")
+        } else {
+            None
+        }
+    }
+}
+
+impl Summary {
+    /// The first number of the summary that is not finite, by the name
+    /// the estimate's output gives it; `None` when every one is. An
+    /// estimate is reported only when it is finite: a degenerate input
+    /// (a σ far below the torques' own precision, a force range at the
+    /// edge of the floating point) must be an error, never a NaN point.
+    #[must_use]
+    pub fn non_finite_field(&self) -> Option<&'static str> {
+        if let Some(field) = self.map.non_finite() {
+            return Some(field);
+        }
+        if let Some(field) = self.grid_map.non_finite() {
+            return Some(match field {
+                "point" => "grid.point",
+                "force" => "grid.force",
+                "normal" => "grid.normal",
+                _ => "grid.probability",
+            });
+        }
+        if self
+            .per_link
+            .iter()
+            .any(|l| !(l.summed.is_finite() && l.max.is_finite()))
+        {
+            return Some("links.probability");
+        }
+        if !(self.credible90.radius_m.is_finite() && self.credible90.mass.is_finite()) {
+            return Some("credible90_radius_m");
+        }
+        if self.clusters.iter().any(|c| {
+            !(c.mass.is_finite()
+                && c.mean_point_world.is_finite()
+                && c.sigma_r_m.is_finite()
+                && c.sigma_f_newtons.is_finite())
+        }) {
+            return Some("clusters");
+        }
+        if !(self.fit.p_value.is_finite() && self.fit.no_contact_p.is_finite() && !self.fit.best_residual_chi2.is_nan())
+        {
+            return Some("fit_p");
+        }
+        if self.contact_probability.is_some_and(|p| !p.is_finite()) {
+            return Some("contact_probability");
+        }
+        None
+    }
+}
+
 /// The contact hypothesis of surface point `k`.
 #[must_use]
 pub fn contact_at(posterior: &Posterior, surface: &Surface, pose: &RobotPose, k: usize) -> ContactEstimate {

@@ -709,8 +709,12 @@ impl Offset {
         let [l11, l12, l22] = self.precision;
         let [n1, n2] = self.shift;
         let det = self.det();
-        if det > 0.0 {
-            [(l22 * n1 - l12 * n2) / det, (l11 * n2 - l12 * n1) / det]
+        let mean = [(l22 * n1 - l12 * n2) / det, (l11 * n2 - l12 * n1) / det];
+        // A precision that is singular, or so large (a σ far below the
+        // torques' own precision) that its products overflow, says nothing
+        // usable about the offset: the sample's own place.
+        if det > 0.0 && mean.iter().all(|m| m.is_finite()) {
+            mean
         } else {
             [0.0, 0.0]
         }
