@@ -177,21 +177,45 @@ struct TorquesArgs {
     json: bool,
 }
 
-fn parse_vec3(text: &str) -> Result<DVec3, String> {
-    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
-    let [x, y, z] = parts.as_slice() else {
-        return Err(format!("'{text}' is not three comma-separated numbers x,y,z"));
-    };
-    let num = |s: &str| {
-        s.parse::<f64>()
-            .ok()
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| format!("'{s}' in '{text}' is not a finite number"))
-    };
-    Ok(DVec3::new(num(x)?, num(y)?, num(z)?))
+/// The logger for our messages and the libraries' (wgpu, eframe and mcap
+/// report through `log`): by default our progress and every warning;
+/// `RUST_LOG` (e.g. `RUST_LOG=wgpu_hal=info`, `RUST_LOG=error`) replaces
+/// that choice. Our progress reads as plain lines, warnings and errors
+/// say so, and a library's messages name the library.
+fn init_logging() {
+    use std::io::Write as _;
+    let mut builder = env_logger::Builder::new();
+    match std::env::var("RUST_LOG") {
+        Ok(spec) if !spec.trim().is_empty() => {
+            builder.parse_filters(&spec);
+        }
+        _ => {
+            builder
+                .filter_level(log::LevelFilter::Warn)
+                .filter_module("proprioscope", log::LevelFilter::Info);
+        }
+    }
+    builder.format(|out, record| {
+        let ours = record.target().starts_with("proprioscope");
+        match (record.level(), ours) {
+            (log::Level::Info, true) => writeln!(out, "{}", record.args()),
+            (log::Level::Warn, true) => writeln!(out, "warning: {}", record.args()),
+            (log::Level::Error, true) => writeln!(out, "error: {}", record.args()),
+            (level, _) => writeln!(
+                out,
+                "{} [{}]: {}",
+                level.as_str().to_lowercase(),
+                record.target(),
+                record.args()
+            ),
+        }
+    });
+    // A second logger (none here) would be the only reason this fails.
+    let _ = builder.try_init();
 }
 
 fn main() -> std::process::ExitCode {
+    init_logging();
     match run(Cli::parse()) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         // The reader of our output went away (`| head`): nothing to report.

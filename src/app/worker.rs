@@ -94,7 +94,7 @@ impl Worker {
                 let outcome = match crate::io::guard::isolated(|| serve(&request)) {
                     Ok(outcome) => outcome,
                     Err(message) => {
-                        eprintln!("proprioscope: the estimator failed and was restarted: {message}");
+                        log::error!("the estimator failed and was restarted: {message}");
                         failed(&request, format!("the estimator failed and was restarted: {message}"))
                     }
                 };

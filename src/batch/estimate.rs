@@ -141,7 +141,7 @@ fn serve(job: &EstimateJob, serving: &Serving<'_, EstimateJob, Estimated>) {
             )
         })
         .map_err(|message| {
-            eprintln!("proprioscope: estimating session frame {index} failed: {message}");
+            log::error!("estimating session frame {index} failed: {message}");
             format!("the estimator failed: {message}")
         })
         .and_then(|r| r);
@@ -217,7 +217,7 @@ fn estimate_together(job: &EstimateJob, estimator: &Estimator, serving: &Serving
             // A frame that cannot be estimated is counted and left out;
             // the frames around it carry the contact over.
             |frame, error| {
-                eprintln!("proprioscope: estimating session frame {frame} failed: {error}");
+                log::error!("estimating session frame {frame} failed: {error}");
                 serving.send(Estimated {
                     generation: job.generation,
                     frame,
@@ -239,7 +239,7 @@ fn estimate_together(job: &EstimateJob, estimator: &Estimator, serving: &Serving
         Ok(Err(e)) => e,
         Err(panic) => format!("the estimator failed: {panic}"),
     };
-    eprintln!("proprioscope: estimating the session over time failed: {failure}");
+    log::error!("estimating the session over time failed: {failure}");
     for (frame, _) in sent.into_inner().iter().enumerate().filter(|(_, s)| !**s) {
         let failed = Estimated {
             generation: job.generation,

@@ -283,7 +283,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     for robot in &robots {
         let contacts = contacts(robot, args.contacts, args.noise, args.seed)?;
         for config in configs(args.quick) {
-            eprintln!("{}: {} N = {} …", robot.name, config.label, particles_of(&config));
+            log::info!("{}: {} N = {} …", robot.name, config.label, particles_of(&config));
             let (median_us, metrics) = run_config(robot, &config, &contacts, args.seed)?;
             rows.push(Row {
                 robot: robot.name.clone(),
@@ -301,7 +301,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         .or_else(|| args.readme.as_ref().map(|_| PathBuf::from("screenshots/bench.png")));
     if let Some(path) = &plot_path {
         plot(&rows, path, &args.font)?;
-        eprintln!("wrote {}", path.display());
+        log::info!("wrote {}", path.display());
     }
     if let Some(readme) = &args.readme {
         let text = std::fs::read_to_string(readme).with_context(|| format!("reading {}", readme.display()))?;
@@ -318,7 +318,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         );
         let updated = format!("{}{section}{}", &text[..i], &text[j..]);
         std::fs::write(readme, updated).with_context(|| format!("writing {}", readme.display()))?;
-        eprintln!("updated {}", readme.display());
+        log::info!("updated {}", readme.display());
     }
     Ok(())
 }
@@ -411,7 +411,7 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
             continue;
         }
         for &seed in &args.seeds {
-            eprintln!("{}: {label}, {points} points, seed {seed} …", path.display());
+            log::info!("{}: {label}, {points} points, seed {seed} …", path.display());
             let how = How {
                 robot: &robot,
                 points,

@@ -98,7 +98,7 @@ fn read_session(args: &EstimateArgs, path: &std::path::Path) -> Result<(Session,
     Ok(if args.skip_bad_frames || is_recording(path) {
         let (session, problems, origin) = super::open_session_with_origin(path, &args.topics)?;
         for p in &problems {
-            eprintln!("{}: skipped {p}", path.display());
+            log::warn!("{}: skipped {p}", path.display());
         }
         let kept = kept_frame_numbers(session.frames.len(), &problems);
         (session, kept, origin)
@@ -273,7 +273,7 @@ fn chosen_temporal(args: &EstimateArgs, session: &Session, points: usize, patche
     }
     let times: Vec<f64> = session.frames.iter().map(|f| f.t).collect();
     let (chosen, why) = automatic_temporal(&times, &args.temporal.settings(), points, patches);
-    eprintln!("--temporal auto: {why} (choose with --temporal none|filter|smooth)");
+    log::info!("--temporal auto: {why} (choose with --temporal none|filter|smooth)");
     chosen
 }
 
@@ -293,7 +293,7 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
 fn friction_for(args: &EstimateArgs, temporal: Temporal) -> f64 {
     let mu = args.estimator.friction.for_temporal(temporal);
     if args.estimator.friction == FrictionArg::Auto && mu > 0.0 {
-        eprintln!("--friction auto: μ = {mu} over time (choose with --friction μ; 0: frictionless)");
+        log::info!("--friction auto: μ = {mu} over time (choose with --friction μ; 0: frictionless)");
     }
     mu
 }
@@ -315,7 +315,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
         seed: args.estimator.seed,
     };
     let mut estimator = Estimator::new(&robot, &request, resolved.settings, resolved.phase_sizes)?;
-    eprintln!(
+    log::info!(
         "{}: {} frames; {} surface points on {} links, sampled in {:.0} ms",
         path.display(),
         session.frames.len(),

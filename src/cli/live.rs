@@ -100,7 +100,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     }
     let (session, problems) = super::open_session(&args.session, &args.topics)?;
     for p in &problems {
-        eprintln!("{}: skipped {p}", args.session.display());
+        log::warn!("{}: skipped {p}", args.session.display());
     }
     let mut connection = Outlet::open(&args.to, args.wait)?;
     // A robot file named relative to the session means nothing to the
@@ -133,7 +133,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
             .send(&frame.to_json().to_string())
             .context("sending a frame")?;
     }
-    eprintln!(
+    log::info!(
         "{}: sent {} frames to {}",
         args.session.display(),
         session.frames.len(),
@@ -154,7 +154,7 @@ struct Live {
 /// `estimate --live ADDR`.
 pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
     let source = LiveSource::listen(address, || {})?;
-    eprintln!("listening on {}", source.address);
+    log::info!("listening on {}", source.address);
     let mut out: Box<dyn std::io::Write> = match &args.out {
         Some(path) => Box::new(std::io::BufWriter::new(
             std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
@@ -166,7 +166,7 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
         // Live, only the frames before can be used.
         TemporalArg::Auto | TemporalArg::Filter => Temporal::Filter,
         TemporalArg::Smooth => {
-            eprintln!("live, each frame is filtered (smoothing needs the frames after it)");
+            log::info!("live, each frame is filtered (smoothing needs the frames after it)");
             Temporal::Filter
         }
     };
@@ -205,7 +205,7 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
                         out.flush().context("writing an estimate")?;
                         done += 1;
                     }
-                    Err(e) => eprintln!("frame at t = {}: {e:#}", frame.t),
+                    Err(e) => log::warn!("frame at t = {}: {e:#}", frame.t),
                 }
             }
         }

@@ -66,7 +66,7 @@ pub fn open_session_with_origin(path: &Path, topics: &TopicArgs) -> Result<(Sess
     }
     let bytes = recording::read_bytes(path)?;
     let read = recording::read_session(path, &bytes, &topics.choice(), &|_| {})?;
-    eprintln!(
+    log::info!(
         "{}: {} frames from {} (time from {})",
         path.display(),
         read.session.frames.len(),
@@ -74,7 +74,7 @@ pub fn open_session_with_origin(path: &Path, topics: &TopicArgs) -> Result<(Sess
         read.stamps
     );
     for note in &read.notes {
-        eprintln!("{}: {note}", path.display());
+        log::warn!("{}: {note}", path.display());
     }
     Ok((read.session, read.problems, Some(read.origin_ns)))
 }

@@ -86,6 +86,6 @@ pub fn run(args: &SynthArgs) -> Result<()> {
         })?;
     }
     let written = recorder.finish()?;
-    eprintln!("{}: {written} frames", args.out.display());
+    log::info!("{}: {written} frames", args.out.display());
     Ok(())
 }
