@@ -44,6 +44,17 @@ pub struct LiveView {
     pub(super) filtered_sent: usize,
 }
 
+impl LiveView {
+    /// Frames from `sender` start a new session: nothing of the last
+    /// sender's carries over.
+    fn start_segment(&mut self, sender: String) {
+        self.sender = Some(sender);
+        self.joints.clear();
+        self.pending.clear();
+        self.fresh = true;
+    }
+}
+
 impl ProprioscopeApp {
     /// Listens on `address` (`host:port`, `tcp://…` or `udp://…`) for a
     /// live session on the current robot.
@@ -96,10 +107,11 @@ impl ProprioscopeApp {
             match event {
                 LiveEvent::Connected(from) => {
                     live.last_note = format!("{from}: connected");
-                    live.sender = Some(from);
-                    live.joints.clear();
-                    live.pending.clear();
-                    live.fresh = true;
+                    live.start_segment(from);
+                }
+                LiveEvent::NewSender { from, previous } => {
+                    live.last_note = format!("{from}: a new sender after {previous} went quiet: a new stream segment");
+                    live.start_segment(from);
                 }
                 LiveEvent::Header { joints, .. } => live.joints = joints,
                 LiveEvent::Frame(frame) if frame.q.len() == width && frame.tau.len() == width => {

@@ -180,8 +180,14 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
         };
         match event {
             LiveEvent::Connected(from) => {
-                eprintln!("{from}: connected");
+                log::info!("{from}: connected");
                 // A new sender starts a new recording: nothing carries over.
+                if let Some(l) = live.as_mut() {
+                    l.filter = StreamFilter::default();
+                }
+            }
+            LiveEvent::NewSender { from, previous } => {
+                log::info!("{from}: a new sender after {previous} went quiet: a new stream segment");
                 if let Some(l) = live.as_mut() {
                     l.filter = StreamFilter::default();
                 }
@@ -191,9 +197,9 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
                     robot_name = robot;
                 }
             }
-            LiveEvent::Bad(why) => eprintln!("{why}"),
-            LiveEvent::Gap { from_t, to_t } => eprintln!("no frame from t = {from_t} to {to_t} s"),
-            LiveEvent::Closed(why) => eprintln!("{why} after {done} frames in all"),
+            LiveEvent::Bad(why) => log::warn!("{why}"),
+            LiveEvent::Gap { from_t, to_t } => log::info!("no frame from t = {from_t} to {to_t} s"),
+            LiveEvent::Closed(why) => log::info!("{why} after {done} frames in all"),
             LiveEvent::Frame(frame) => {
                 if live.is_none() {
                     live = Some(start(args, robot_name.as_deref(), temporal)?);

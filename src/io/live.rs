@@ -2,13 +2,21 @@
 //! TCP (`host:port` or `tcp://host:port`: one sender at a time, each
 //! connection starting afresh) or UDP (`udp://host:port`: each datagram
 //! one or more lines), read on a thread of their own.
+//!
+//! A datagram's source address is its sender. UDP has no connections, so
+//! the sender stands for one: the first sender's frames make a stream
+//! segment, and a datagram from another sender starts a new segment (its
+//! clock may start at 0 again) once the current sender has been quiet for
+//! [`GAP_SECS`]. Two senders interleaving within that time are not one
+//! stream: the other sender's datagrams are refused, with a message
+//! naming both.
 
 use std::io::{ErrorKind, Read as _};
 use std::net::{TcpListener, TcpStream, UdpSocket};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use super::session::{Frame, LiveLine, LiveReader, MAX_LIVE_LINE_BYTES};
 
@@ -30,6 +38,14 @@ pub enum LiveError {
 pub enum LiveEvent {
     /// A sender connected (TCP) or was first heard from (UDP).
     Connected(String),
+    /// UDP: datagrams come from a new sender after the previous one went
+    /// quiet: a new stream segment begins (nothing carries over).
+    NewSender {
+        /// The new sender's address.
+        from: String,
+        /// The sender before it.
+        previous: String,
+    },
     /// A header line: the robot and joint names it gives.
     Header {
         /// The robot named.
@@ -257,7 +273,7 @@ fn receive_udp(socket: &UdpSocket, tx: &Sender<LiveEvent>, wake: &dyn Fn(), stop
     }
     let mut reader = LiveReader::new(None);
     let mut buffer = vec![0u8; 65_536];
-    let mut heard = std::collections::BTreeSet::new();
+    let mut senders = Senders::default();
     let mut last_t = None;
     while !stop.load(Ordering::Relaxed) {
         let (n, from) = match socket.recv_from(&mut buffer) {
@@ -270,8 +286,34 @@ fn receive_udp(socket: &UdpSocket, tx: &Sender<LiveEvent>, wake: &dyn Fn(), stop
             }
         };
         let from = from.to_string();
-        if heard.insert(from.clone()) && tx.send(LiveEvent::Connected(from.clone())).is_err() {
-            return;
+        let event = match senders.heard(&from, Instant::now()) {
+            Heard::Current => None,
+            Heard::First => Some(LiveEvent::Connected(from.clone())),
+            Heard::Next { previous } => Some(LiveEvent::NewSender {
+                from: from.clone(),
+                previous,
+            }),
+            Heard::Interleaving { current, report } => {
+                if let Some(refused) = report {
+                    let message = format!(
+                        "udp: refused {refused} datagram{} from {from}: {current} is sending, and two senders interleaving are not one stream (stop one, or send to another port; a new sender is taken once the current one has been quiet for {GAP_SECS} s)",
+                        if refused == 1 { "" } else { "s" }
+                    );
+                    if tx.send(LiveEvent::Bad(message)).is_err() {
+                        return;
+                    }
+                    wake();
+                }
+                continue;
+            }
+        };
+        if let Some(event) = event {
+            // A new segment: its clock starts afresh.
+            reader.restart();
+            last_t = None;
+            if tx.send(event).is_err() {
+                return;
+            }
         }
         let text = String::from_utf8_lossy(buffer.get(..n).unwrap_or_default());
         for line in text.lines().filter(|l| !l.trim().is_empty()) {
@@ -280,6 +322,65 @@ fn receive_udp(socket: &UdpSocket, tx: &Sender<LiveEvent>, wake: &dyn Fn(), stop
             }
         }
         wake();
+    }
+}
+
+/// Who sends to a UDP source: the current sender, when it was last heard,
+/// and the datagrams refused from others since the last report.
+#[derive(Debug, Default)]
+struct Senders {
+    current: Option<(String, Instant)>,
+    refused: usize,
+    reported: Option<Instant>,
+}
+
+/// What a datagram's sender is to the stream.
+#[derive(Debug, PartialEq)]
+enum Heard {
+    /// The sender of the segment going on.
+    Current,
+    /// The first sender heard.
+    First,
+    /// A new sender after the previous went quiet: a new segment.
+    Next { previous: String },
+    /// Another sender while the current one sends: refused; `report`
+    /// carries how many were refused since the last report, at most once
+    /// a second.
+    Interleaving { current: String, report: Option<usize> },
+}
+
+impl Senders {
+    /// A datagram from `from` at `now`.
+    fn heard(&mut self, from: &str, now: Instant) -> Heard {
+        let quiet = Duration::from_secs_f64(GAP_SECS);
+        let heard = match &mut self.current {
+            Some((current, last)) if current == from => {
+                *last = now;
+                return Heard::Current;
+            }
+            Some((current, last)) if now.saturating_duration_since(*last) < quiet => {
+                self.refused += 1;
+                let due = self
+                    .reported
+                    .is_none_or(|at| now.saturating_duration_since(at) >= Duration::from_secs(1));
+                let report = due.then(|| {
+                    self.reported = Some(now);
+                    std::mem::take(&mut self.refused)
+                });
+                return Heard::Interleaving {
+                    current: current.clone(),
+                    report,
+                };
+            }
+            Some((current, _)) => Heard::Next {
+                previous: current.clone(),
+            },
+            None => Heard::First,
+        };
+        self.current = Some((from.to_owned(), now));
+        self.refused = 0;
+        self.reported = None;
+        heard
     }
 }
 
@@ -392,5 +493,115 @@ mod tests {
             })
             .collect();
         assert_eq!(frames, [0.0, 0.1]);
+    }
+
+    #[test]
+    fn senders_take_turns_and_interleaving_is_refused_naming_both() {
+        let mut senders = Senders::default();
+        let t0 = Instant::now();
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        assert_eq!(senders.heard("a:1", at(0)), Heard::First);
+        assert_eq!(senders.heard("a:1", at(10)), Heard::Current);
+        // b while a sends: refused, reported once a second with a count.
+        assert_eq!(
+            senders.heard("b:2", at(20)),
+            Heard::Interleaving {
+                current: "a:1".into(),
+                report: Some(1)
+            }
+        );
+        assert_eq!(senders.heard("a:1", at(30)), Heard::Current);
+        for ms in [40, 50, 60] {
+            assert!(matches!(
+                senders.heard("b:2", at(ms)),
+                Heard::Interleaving { report: None, .. }
+            ));
+        }
+        assert_eq!(senders.heard("a:1", at(900)), Heard::Current);
+        assert_eq!(
+            senders.heard("b:2", at(1100)),
+            Heard::Interleaving {
+                current: "a:1".into(),
+                report: Some(4)
+            }
+        );
+        // a goes quiet for a gap: b takes over as a new segment.
+        assert_eq!(
+            senders.heard("b:2", at(1900 + 1000)),
+            Heard::Next { previous: "a:1".into() }
+        );
+        assert_eq!(senders.heard("b:2", at(2950)), Heard::Current);
+    }
+
+    /// A frame line at time `t`.
+    fn frame_line(t: f64) -> String {
+        format!("{{\"t\": {t}, \"q\": [0, 0], \"tau\": [0.5, 0]}}")
+    }
+
+    #[test]
+    fn a_second_udp_sender_starts_a_new_segment_whose_clock_starts_again() {
+        let source = LiveSource::listen("udp://127.0.0.1:0", || {}).unwrap();
+        let to = source.address.trim_start_matches("udp://").to_owned();
+        let first = UdpSocket::bind("127.0.0.1:0").unwrap();
+        for k in 0..3 {
+            first.send_to(frame_line(5.0 + f64::from(k)).as_bytes(), &to).unwrap();
+        }
+        let events = collect(&source, 3);
+        assert!(matches!(events[0], LiveEvent::Connected(_)), "{events:?}");
+        // The first sender stops; a restarted sender (another port) counts from 0.
+        std::thread::sleep(Duration::from_secs_f64(GAP_SECS + 0.2));
+        let second = UdpSocket::bind("127.0.0.1:0").unwrap();
+        for k in 0..3 {
+            second.send_to(frame_line(f64::from(k)).as_bytes(), &to).unwrap();
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let events = collect(&source, 3);
+        let from = second.local_addr().unwrap().to_string();
+        let previous = first.local_addr().unwrap().to_string();
+        assert_eq!(events[0], LiveEvent::NewSender { from, previous }, "{events:?}");
+        let times: Vec<f64> = events
+            .iter()
+            .filter_map(|e| match e {
+                LiveEvent::Frame(f) => Some(f.t),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(times, [0.0, 1.0, 2.0], "{events:?}");
+        assert!(!events.iter().any(|e| matches!(e, LiveEvent::Bad(_))), "{events:?}");
+    }
+
+    #[test]
+    fn two_udp_senders_interleaving_are_refused_with_both_named() {
+        let source = LiveSource::listen("udp://127.0.0.1:0", || {}).unwrap();
+        let to = source.address.trim_start_matches("udp://").to_owned();
+        let (a, b) = (
+            UdpSocket::bind("127.0.0.1:0").unwrap(),
+            UdpSocket::bind("127.0.0.1:0").unwrap(),
+        );
+        for k in 0..4 {
+            a.send_to(frame_line(10.0 + f64::from(k)).as_bytes(), &to).unwrap();
+            std::thread::sleep(Duration::from_millis(5));
+            b.send_to(frame_line(f64::from(k)).as_bytes(), &to).unwrap();
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let events = collect(&source, 4);
+        let times: Vec<f64> = events
+            .iter()
+            .filter_map(|e| match e {
+                LiveEvent::Frame(f) => Some(f.t),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(times, [10.0, 11.0, 12.0, 13.0], "only the first sender's frames");
+        let (a, b) = (a.local_addr().unwrap().to_string(), b.local_addr().unwrap().to_string());
+        let refusal = events
+            .iter()
+            .find_map(|e| match e {
+                LiveEvent::Bad(why) => Some(why.clone()),
+                _ => None,
+            })
+            .unwrap();
+        assert!(refusal.contains(&a) && refusal.contains(&b), "{refusal}");
+        assert!(!events.iter().any(|e| matches!(e, LiveEvent::NewSender { .. })));
     }
 }
