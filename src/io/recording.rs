@@ -797,6 +797,10 @@ impl JointOrder {
         if message_names.len() != values.len() {
             return Err(format!("{} names but {} values", message_names.len(), values.len()));
         }
+        if let Some(name) = repeated_name(&message_names) {
+            // Two values for one joint would leave another joint's at 0.
+            return Err(format!("the message names joint '{name}' twice"));
+        }
         let names = self.names.get_or_insert_with(|| message_names.clone());
         if let Some((cached_names, slots)) = &self.cached
             && *cached_names == message_names
@@ -823,6 +827,12 @@ impl JointOrder {
         self.cached = Some((message_names, slots));
         Ok(out)
     }
+}
+
+/// The first name that `names` gives twice.
+fn repeated_name(names: &[String]) -> Option<&str> {
+    let mut seen = std::collections::HashSet::with_capacity(names.len());
+    names.iter().find(|n| !seen.insert(n.as_str())).map(String::as_str)
 }
 
 fn permute(values: &[f64], slots: &[usize], n: usize) -> Vec<f64> {
@@ -1239,6 +1249,24 @@ mod tests {
         assert!(order.arrange(names(&["c", "a"]), &[0.0; 2]).is_err());
         assert!(order.arrange(None, &[0.0; 2]).is_err());
         assert_eq!(order.arrange(None, &[7.0, 8.0, 9.0]), Ok(vec![7.0, 8.0, 9.0]));
+    }
+
+    #[test]
+    fn a_message_that_names_a_joint_twice_is_refused_naming_it() {
+        let names = |n: &[&str]| Some(n.iter().map(|s| (*s).to_owned()).collect());
+        // As the first message (which sets the order) and after it.
+        let mut fresh = JointOrder {
+            names: None,
+            cached: None,
+        };
+        let e = fresh.arrange(names(&["a", "b", "a"]), &[1.0, 2.0, 3.0]).unwrap_err();
+        assert!(e.contains("'a' twice"), "{e}");
+        let mut order = JointOrder {
+            names: Some(vec!["a".into(), "b".into(), "c".into()]),
+            cached: None,
+        };
+        let e = order.arrange(names(&["a", "c", "a"]), &[1.0, 2.0, 3.0]).unwrap_err();
+        assert!(e.contains("'a' twice"), "{e}");
     }
 
     #[test]
