@@ -17,6 +17,7 @@ seed() {
 shopt -s nullglob globstar
 seed stl "$shared"/robots/**/*.STL "$shared"/robots/**/*.stl
 seed obj "$shared"/robots/**/*.obj
+seed mesh_surface "$shared"/robots/**/*.obj
 seed dae "$shared"/robots/**/*.dae
 seed gltf ../assets/*.glb
 seed urdf "$shared"/robots/**/*.urdf
@@ -24,6 +25,26 @@ seed scene ../scenes/*.json
 seed session_json "$shared"/sessions/*.json
 seed session_csv "$shared"/sessions/*.csv
 seed ros_recording "$shared"/recordings/*.mcap "$shared"/recordings/*.bag
+mkdir -p corpus/settings corpus/mesh_surface
+# Settings: a link selector byte, then 18 little-endian f64s (q, point,
+# force, σ, F min, F max, μ, α): ordinary values and the ranges' edges.
+python3 - corpus/settings <<'PY'
+import struct, sys
+cases = {
+    "ordinary": (3, [0.3, 0.6, -0.4, -1.2, 0.5, 0.9, 0.2, 0.1, 0.05, 0.6, -3, 2, -5, 0.05, 1, 30, 0.2, 0.5]),
+    "edges": (0x85, [1e4, -1e4, 1e4, -1e4, 1e4, -1e4, 1e4, -1e3, 1e3, -1e3, 1e6, -1e6, 1e6, 1e-4, 0, 1e4, 2, 0.99]),
+    "tiny": (1, [0] * 7 + [1e-300, 0, 0, 1e-300, 0, 0, 1e-4, 1e4, 1e4, 0, 0]),
+}
+for name, (selector, values) in cases.items():
+    open(f"{sys.argv[1]}/{name}", "wb").write(bytes([selector]) + struct.pack("<18d", *values))
+PY
+# A box, then one of its faces repeated; and a sliver and a giant.
+{
+    printf 'v 0 0 0\nv 0.1 0 0\nv 0.1 0.1 0\nv 0 0.1 0\nv 0 0 0.3\nv 0.1 0 0.3\nv 0.1 0.1 0.3\nv 0 0.1 0.3\n'
+    printf 'f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\n'
+    for _ in $(seq 200); do printf 'f 1 3 2\n'; done
+    printf 'v 1e30 0 0\nv 0 1e-30 0\nf 9 10 1\n'
+} > corpus/mesh_surface/repeated_box.obj
 mkdir -p corpus/rosmsg
 # A definition (first byte: CDR), a NUL, a message byte and a CDR JointState.
 printf '\x00std_msgs/Header header\nstring[] name\nfloat64[] position\n================\nMSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n====\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n\x00\x00\x00\x01\x00\x00\x05\x00\x00\x00\x07\x00\x00\x00\x02\x00\x00\x00b\x00\x00\x00\x01\x00\x00\x00\x03\x00\x00\x00a1\x00\x00\x01\x00\x00\x00\x00\x00\x00\x00\x00\x00\xf8\x3f' > corpus/rosmsg/joint_state

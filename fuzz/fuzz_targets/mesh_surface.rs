@@ -1,0 +1,54 @@
+//! Past parsing: any OBJ text that gives a mesh goes through the shell
+//! pass, the BVH (a ray cast) and the surface sampling of a link, with
+//! repeated, degenerate, huge and tiny faces alike: a surface or an
+//! error, never a panic or a hang.
+#![no_main]
+
+use glam::{DAffine3, DVec3};
+use proprioscope::core::bvh::Bvh;
+use proprioscope::core::robot::{JointKind, JointSpec, LinkSpec, Robot};
+use proprioscope::core::smooth::SmoothMesh;
+use proprioscope::core::surface::{Surface, SurfaceRequest};
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    let Ok(mesh) = proprioscope::io::mesh::read_obj(data, std::path::Path::new("fuzz.obj")) else {
+        return;
+    };
+    let shell = SmoothMesh::new(&mesh);
+    let bvh = Bvh::new(&shell.mesh);
+    let _ = bvh.ray_cast(DVec3::new(0.01, 0.02, -10.0), DVec3::Z, f64::INFINITY);
+    let _ = bvh.winding_number(DVec3::new(0.01, 0.02, 0.03));
+    let links = [
+        LinkSpec {
+            name: "base".into(),
+            ..LinkSpec::default()
+        },
+        LinkSpec {
+            name: "link".into(),
+            mesh,
+            segment: None,
+        },
+    ];
+    let joints = [JointSpec {
+        name: "joint".into(),
+        kind: JointKind::Revolute,
+        parent: "base".into(),
+        child: "link".into(),
+        parent_from_joint: DAffine3::IDENTITY,
+        axis: DVec3::Z,
+        limits: None,
+        mimic: None,
+    }];
+    let Ok(robot) = Robot::new("fuzz", &links, &joints) else {
+        return;
+    };
+    let request = SurfaceRequest {
+        links: vec![1],
+        total_points: 64,
+        seed: 0,
+    };
+    if let Ok(surface) = Surface::sample(&robot, &request) {
+        assert!(surface.point_in_link.iter().all(|p| p.is_finite()));
+        assert!(surface.inward_normal_in_link.iter().all(|n| n.is_finite()));
+    }
+});
