@@ -10,12 +10,12 @@ use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{DAffine3, DVec3};
-use proprioscope::core::bvh::Bvh;
-use proprioscope::core::mesh::TriMesh;
-use proprioscope::core::primitives;
-use proprioscope::core::robot::{JointKind, JointSpec, LinkSpec, Robot};
-use proprioscope::core::smooth::SmoothMesh;
-use proprioscope::core::surface::{Surface, SurfaceRequest};
+use proprioscope::core::geometry::bvh::Bvh;
+use proprioscope::core::geometry::mesh::TriMesh;
+use proprioscope::core::geometry::primitives;
+use proprioscope::core::geometry::shell::SmoothMesh;
+use proprioscope::core::robot::model::{JointKind, JointSpec, LinkSpec, Robot};
+use proprioscope::core::surface::sampling::{Surface, SurfaceRequest};
 
 /// A one-joint arm whose moving link is `mesh`.
 fn arm(mesh: TriMesh) -> Robot {

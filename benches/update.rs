@@ -6,13 +6,14 @@
 #![allow(clippy::unwrap_used, missing_docs)]
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use proprioscope::core::builtin;
-use proprioscope::core::contact::{ContactModel, PosedSurface};
-use proprioscope::core::estimator::{EstimatorSettings, estimate};
-use proprioscope::core::kinematics::RobotPose;
-use proprioscope::core::pipeline::Estimator;
-use proprioscope::core::surface::SurfaceRequest;
-use proprioscope::core::torque::{TorqueModel, joint_torques};
+use proprioscope::core::estimate::contact::{ContactModel, PosedSurface};
+use proprioscope::core::estimate::estimator::Estimator;
+use proprioscope::core::estimate::posterior::estimate;
+use proprioscope::core::estimate::settings::EstimatorSettings;
+use proprioscope::core::robot::builtin;
+use proprioscope::core::robot::kinematics::RobotPose;
+use proprioscope::core::robot::torque::{TorqueModel, joint_torques};
+use proprioscope::core::surface::sampling::SurfaceRequest;
 
 fn update(c: &mut Criterion) {
     let robot = builtin::lwr4plus_generated().unwrap();

@@ -19,11 +19,11 @@ use anyhow::{Context as _, Result, bail};
 use clap::{Parser, Subcommand};
 use glam::DVec3;
 
-use proprioscope::core::kinematics::RobotPose;
-use proprioscope::core::limits;
-use proprioscope::core::robot::Robot;
-use proprioscope::core::surface::{Surface, SurfaceRequest};
-use proprioscope::core::torque::joint_torques;
+use proprioscope::core::config::limits;
+use proprioscope::core::robot::kinematics::RobotPose;
+use proprioscope::core::robot::model::Robot;
+use proprioscope::core::robot::torque::joint_torques;
+use proprioscope::core::surface::sampling::{Surface, SurfaceRequest};
 use proprioscope::io::builtin::{LWR4PLUS_GLB_PATH, load_robot, lwr4plus_glb_generated};
 use proprioscope::io::scene::Scene;
 use proprioscope::io::urdf::{MeshSelection, UrdfOptions};
@@ -577,7 +577,7 @@ fn record_demo(out: &Path, rate: f64, seconds: Option<f64>) -> Result<()> {
     if !(rate.is_finite() && rate > 0.0) {
         bail!("--rate {rate}: give a positive number of frames per second");
     }
-    let robot = proprioscope::core::builtin::lwr4plus_generated()?;
+    let robot = proprioscope::core::robot::builtin::lwr4plus_generated()?;
     let link = robot.link_id("lwr_5_link")?;
     let joints: Vec<String> = robot.sensed().iter().map(|&j| robot.joints[j].name.clone()).collect();
     let push = Some(Push {

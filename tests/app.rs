@@ -75,7 +75,7 @@ fn a_click_on_link_5_pushes_link_5_and_only_joints_1_to_5_feel_it() {
     let app = harness.state();
     let push = app.model.push.unwrap();
     assert_eq!(app.model.robot.links[push.link].name, "lwr_5_link");
-    let pose = proprioscope::core::kinematics::RobotPose::new(&app.model.robot, &app.model.joint_positions());
+    let pose = proprioscope::core::robot::kinematics::RobotPose::new(&app.model.robot, &app.model.joint_positions());
     let tau = app.model.applied_torques(&pose);
     assert!(tau[5].abs() < 1e-12 && tau[6].abs() < 1e-12, "{tau:?}");
     assert!(tau[..5].iter().any(|t| t.abs() > 1e-3), "{tau:?}");
@@ -152,7 +152,7 @@ fn the_phases_checkbox_runs_phases_a_b_c() {
 /// brings the μ slider, whose value then holds over time too.
 #[test]
 fn the_friction_auto_checkbox_gives_way_to_the_mu_slider() {
-    use proprioscope::core::pipeline::{OVER_TIME_FRICTION, Temporal};
+    use proprioscope::core::over_time::sequence::{OVER_TIME_FRICTION, Temporal};
     let mut harness = app_harness();
     settle(&mut harness);
     assert!(harness.state().model.estimator.friction_auto);
@@ -399,7 +399,7 @@ fn dragging_the_timeline_changes_q() {
     assert_eq!(app.model.q, replay.session.frames[replay.frame].q);
     assert_ne!(app.model.q, q0);
     // The torques the estimator is given are the frame's.
-    let pose = proprioscope::core::kinematics::RobotPose::new(&app.model.robot, &app.model.joint_positions());
+    let pose = proprioscope::core::robot::kinematics::RobotPose::new(&app.model.robot, &app.model.joint_positions());
     assert_eq!(
         app.model.measured_torques(&pose),
         replay.session.frames[replay.frame].tau
@@ -471,7 +471,7 @@ fn the_app_records_a_session_that_reads_back_bit_for_bit() {
         let frame = &session.frames[at];
         let mut model = harness.state().model.clone();
         model.apply(proprioscope::app::Command::SetJoint(0, q0));
-        let pose = proprioscope::core::kinematics::RobotPose::new(&model.robot, &model.joint_positions());
+        let pose = proprioscope::core::robot::kinematics::RobotPose::new(&model.robot, &model.joint_positions());
         assert_eq!(frame.tau, model.measured_torques(&pose));
         assert!(matches!(frame.truth, proprioscope::io::session::Truth::Contact { .. }));
     }
@@ -529,7 +529,7 @@ fn session_replay_matches_its_snapshot() {
 /// timeline re-estimates the frames alone, without one.
 #[test]
 fn a_recording_is_smoothed_and_can_be_estimated_frame_by_frame() {
-    use proprioscope::core::pipeline::Temporal;
+    use proprioscope::core::over_time::sequence::Temporal;
     let path = demo_session("over-time.session.json", 0.5);
     let mut harness = session_harness(&path);
     {
@@ -565,7 +565,7 @@ fn a_recording_is_smoothed_and_can_be_estimated_frame_by_frame() {
 #[test]
 fn the_slide_length_is_set_in_the_timeline() {
     use proprioscope::app::Command;
-    use proprioscope::core::pipeline::Temporal;
+    use proprioscope::core::over_time::sequence::Temporal;
     let path = demo_session("slide.session.json", 1.0);
     let mut harness = session_harness(&path);
     assert!(harness.query_all_by_label("slide").next().is_some());
@@ -894,9 +894,9 @@ fn a_panda_scene_round_trips() {
     harness.state_mut().apply(proprioscope::app::Command::SetJoint(3, -1.5));
     let robot = harness.state().model.robot.clone();
     let link = robot.link_id("panda_link4").unwrap();
-    let shell = proprioscope::core::smooth::SmoothMesh::new(&robot.links[link].mesh);
+    let shell = proprioscope::core::geometry::shell::SmoothMesh::new(&robot.links[link].mesh);
     let frame = shell
-        .frame(proprioscope::core::smooth::MeshPoint {
+        .frame(proprioscope::core::geometry::shell::MeshPoint {
             triangle: 10,
             weights: [0.3, 0.3],
         })
@@ -1106,7 +1106,7 @@ fn a_live_session_is_filtered_as_its_frames_arrive() {
     let filtered = wait_filtered(&mut harness);
     assert_eq!(
         harness.state().model.replay.as_ref().unwrap().over_time,
-        proprioscope::core::pipeline::Temporal::Filter
+        proprioscope::core::over_time::sequence::Temporal::Filter
     );
     harness.run_steps(2);
     // The row above the timeline reads the filtered contact of the frame shown.

@@ -9,16 +9,16 @@
 #![allow(clippy::unwrap_used)]
 
 use glam::DVec3;
-use proprioscope::core::builtin;
-use proprioscope::core::estimator::{EstimatorSettings, Mode};
-use proprioscope::core::kinematics::RobotPose;
-use proprioscope::core::metrics::percentile;
-use proprioscope::core::pipeline::Estimator;
-use proprioscope::core::rng::Rng;
-use proprioscope::core::robot::{LinkId, Robot};
-use proprioscope::core::summary::Verdict;
-use proprioscope::core::surface::{Surface, SurfaceRequest};
-use proprioscope::core::torque::joint_torques;
+use proprioscope::core::estimate::estimator::Estimator;
+use proprioscope::core::estimate::settings::{EstimatorSettings, Mode};
+use proprioscope::core::estimate::summary::Verdict;
+use proprioscope::core::eval::metrics::percentile;
+use proprioscope::core::numerics::rng::Rng;
+use proprioscope::core::robot::builtin;
+use proprioscope::core::robot::kinematics::RobotPose;
+use proprioscope::core::robot::model::{LinkId, Robot};
+use proprioscope::core::robot::torque::joint_torques;
+use proprioscope::core::surface::sampling::{Surface, SurfaceRequest};
 
 /// One generated frame: where and how hard the arm was pushed, and what
 /// its sensors read.

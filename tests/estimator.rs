@@ -6,11 +6,11 @@
 
 use std::path::{Path, PathBuf};
 
-use proprioscope::core::estimator::Mode;
-use proprioscope::core::metrics::percentile;
-use proprioscope::core::pipeline::{Estimator, Update};
-use proprioscope::core::summary::Verdict;
-use proprioscope::core::surface::SurfaceRequest;
+use proprioscope::core::estimate::estimator::{Estimator, Update};
+use proprioscope::core::estimate::settings::Mode;
+use proprioscope::core::estimate::summary::Verdict;
+use proprioscope::core::eval::metrics::percentile;
+use proprioscope::core::surface::sampling::SurfaceRequest;
 use proprioscope::io::builtin::load_robot;
 use proprioscope::io::scene::{LoadedScene, Scene};
 use proprioscope::io::session::{Session, Truth};
@@ -102,13 +102,13 @@ fn thesis_lwr_collisions_lie_in_their_own_credible_sets() {
         let s = &estimator.surface;
         let world = |i: usize| s.point_world(&update.pose, i).unwrap();
         let off_surface = match s.shape(push.link).unwrap() {
-            proprioscope::core::surface::LinkShape::Mesh(mesh) => {
+            proprioscope::core::surface::sampling::LinkShape::Mesh(mesh) => {
                 let in_link = update.pose.world_from_link[push.link]
                     .inverse()
                     .transform_point3(push.point_world);
                 mesh.closest(in_link).unwrap().1.point.distance(in_link)
             }
-            proprioscope::core::surface::LinkShape::Segment { .. } => 0.0,
+            proprioscope::core::surface::sampling::LinkShape::Segment { .. } => 0.0,
         };
         let set = &update.summary.credible90;
         let push_to_set = set
@@ -202,7 +202,7 @@ fn session_medians(name: &str, seeds: &[u64]) -> (Vec<f64>, f64) {
     let mut medians = Vec::new();
     let (mut poor, mut frames) = (0usize, 0usize);
     for &seed in seeds {
-        let settings = proprioscope::core::estimator::EstimatorSettings::exact(vec![0.05; 7]);
+        let settings = proprioscope::core::estimate::settings::EstimatorSettings::exact(vec![0.05; 7]);
         let request = SurfaceRequest {
             links: robot.default_candidate_links(),
             total_points: 5000,

@@ -11,13 +11,14 @@ mod common;
 use std::fmt::Write as _;
 
 use common::{null_number, run, run_with_env, temp_dir};
-use proprioscope::core::builtin;
-use proprioscope::core::estimator::EstimatorSettings;
-use proprioscope::core::limits::{self, Range};
-use proprioscope::core::pipeline::{Estimator, Temporal, estimate_sequence_while};
-use proprioscope::core::surface::SurfaceRequest;
-use proprioscope::core::synth::{SynthSettings, as_sequence, joint_positions, synthesize};
-use proprioscope::core::temporal::{TemporalModel, TemporalSettings};
+use proprioscope::core::config::limits::{self, Range};
+use proprioscope::core::estimate::estimator::Estimator;
+use proprioscope::core::estimate::settings::EstimatorSettings;
+use proprioscope::core::eval::synth::{SynthSettings, as_sequence, joint_positions, synthesize};
+use proprioscope::core::over_time::sequence::{Temporal, estimate_sequence_while};
+use proprioscope::core::over_time::temporal::{TemporalModel, TemporalSettings};
+use proprioscope::core::robot::builtin;
+use proprioscope::core::surface::sampling::SurfaceRequest;
 
 /// `torques` on a push of `simple6`, with `flag` set to `value` (given
 /// as `--flag=value`, so that a value may start with a minus).

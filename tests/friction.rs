@@ -5,18 +5,19 @@
 // Test helpers may unwrap: a panic is a failed test with its message.
 #![allow(clippy::unwrap_used)]
 
-use proprioscope::core::builtin;
-use proprioscope::core::estimator::EstimatorSettings;
-use proprioscope::core::friction::frictional_force;
-use proprioscope::core::kinematics::RobotPose;
-use proprioscope::core::metrics::percentile;
-use proprioscope::core::pipeline::{Estimator, Temporal};
-use proprioscope::core::refine::Measurement;
-use proprioscope::core::rng::Rng;
-use proprioscope::core::surface::{Surface, SurfaceRequest};
-use proprioscope::core::synth::{SynthSettings, as_sequence, joint_positions, synthesize};
-use proprioscope::core::temporal::TemporalSettings;
-use proprioscope::core::torque::TorqueModel;
+use proprioscope::core::estimate::estimator::Estimator;
+use proprioscope::core::estimate::friction::frictional_force;
+use proprioscope::core::estimate::measurement::Measurement;
+use proprioscope::core::estimate::settings::EstimatorSettings;
+use proprioscope::core::eval::metrics::percentile;
+use proprioscope::core::eval::synth::{SynthSettings, as_sequence, joint_positions, synthesize};
+use proprioscope::core::numerics::rng::Rng;
+use proprioscope::core::over_time::sequence::Temporal;
+use proprioscope::core::over_time::temporal::TemporalSettings;
+use proprioscope::core::robot::builtin;
+use proprioscope::core::robot::kinematics::RobotPose;
+use proprioscope::core::robot::torque::TorqueModel;
+use proprioscope::core::surface::sampling::{Surface, SurfaceRequest};
 
 /// The estimator's settings of these tests: σ 0.05 N·m, 1–30 N.
 fn settings(friction: f64) -> EstimatorSettings {
@@ -155,10 +156,10 @@ fn per_frame_friction_lowers_the_force_error_and_keeps_the_place() {
 /// A synthetic session of 10 s at 50 Hz whose presses on links 4–7
 /// carry tangential parts of up to `friction` of the push.
 fn presses(
-    robot: &proprioscope::core::robot::Robot,
+    robot: &proprioscope::core::robot::model::Robot,
     friction: f64,
     seed: u64,
-) -> Vec<proprioscope::core::synth::SynthFrame> {
+) -> Vec<proprioscope::core::eval::synth::SynthFrame> {
     let settings = SynthSettings {
         duration_secs: 10.0,
         rate_hz: 50.0,
@@ -170,7 +171,9 @@ fn presses(
 
 /// 20 s at 50 Hz of presses on links 4–7 dragging by up to 30 % of the
 /// push (`synth --seconds 20 --rate 50 --friction 0.3 --seed 1`).
-fn dragging_presses(robot: &proprioscope::core::robot::Robot) -> Vec<proprioscope::core::synth::SynthFrame> {
+fn dragging_presses(
+    robot: &proprioscope::core::robot::model::Robot,
+) -> Vec<proprioscope::core::eval::synth::SynthFrame> {
     presses_for_20_s(robot, 0.3, 1)
 }
 
@@ -178,10 +181,10 @@ fn dragging_presses(robot: &proprioscope::core::robot::Robot) -> Vec<proprioscop
 /// `friction` of the push (`synth --seconds 20 --rate 50 --friction F
 /// --seed S`).
 fn presses_for_20_s(
-    robot: &proprioscope::core::robot::Robot,
+    robot: &proprioscope::core::robot::model::Robot,
     friction: f64,
     seed: u64,
-) -> Vec<proprioscope::core::synth::SynthFrame> {
+) -> Vec<proprioscope::core::eval::synth::SynthFrame> {
     let settings = SynthSettings {
         duration_secs: 20.0,
         rate_hz: 50.0,
@@ -193,10 +196,10 @@ fn presses_for_20_s(
 
 /// A synthetic session drawn with `settings`, pressing links 4–7.
 fn presses_drawn(
-    robot: &proprioscope::core::robot::Robot,
+    robot: &proprioscope::core::robot::model::Robot,
     settings: &SynthSettings,
     seed: u64,
-) -> Vec<proprioscope::core::synth::SynthFrame> {
+) -> Vec<proprioscope::core::eval::synth::SynthFrame> {
     let pressed: Vec<usize> = robot
         .default_candidate_links()
         .into_iter()
@@ -209,11 +212,15 @@ fn presses_drawn(
 /// surface (1000 points, seed 0): per frame, the position error (m) and
 /// force error (N) of the contact frames, and the map of every frame.
 fn over_time(
-    robot: &proprioscope::core::robot::Robot,
-    frames: &[proprioscope::core::synth::SynthFrame],
-    temporal: proprioscope::core::pipeline::Temporal,
+    robot: &proprioscope::core::robot::model::Robot,
+    frames: &[proprioscope::core::eval::synth::SynthFrame],
+    temporal: proprioscope::core::over_time::sequence::Temporal,
     points: usize,
-) -> [(Vec<f64>, Vec<f64>, Vec<proprioscope::core::summary::ContactEstimate>); 2] {
+) -> [(
+    Vec<f64>,
+    Vec<f64>,
+    Vec<proprioscope::core::estimate::summary::ContactEstimate>,
+); 2] {
     [(temporal, 0.0), (temporal, 0.1)].map(|(t, friction)| estimated(robot, frames, t, friction, points))
 }
 
@@ -221,12 +228,16 @@ fn over_time(
 /// (`points`, seed 0): per frame, the position error (m) and force error
 /// (N) of the contact frames, and the map of every frame.
 fn estimated(
-    robot: &proprioscope::core::robot::Robot,
-    frames: &[proprioscope::core::synth::SynthFrame],
-    temporal: proprioscope::core::pipeline::Temporal,
+    robot: &proprioscope::core::robot::model::Robot,
+    frames: &[proprioscope::core::eval::synth::SynthFrame],
+    temporal: proprioscope::core::over_time::sequence::Temporal,
     friction: f64,
     points: usize,
-) -> (Vec<f64>, Vec<f64>, Vec<proprioscope::core::summary::ContactEstimate>) {
+) -> (
+    Vec<f64>,
+    Vec<f64>,
+    Vec<proprioscope::core::estimate::summary::ContactEstimate>,
+) {
     let surface = (points, 0);
     estimated_with(robot, frames, temporal, friction, surface, TemporalSettings::default())
 }
@@ -234,15 +245,19 @@ fn estimated(
 /// [`estimated`] over a surface of `(points, seed)`, with the temporal
 /// model's `settings`.
 fn estimated_with(
-    robot: &proprioscope::core::robot::Robot,
-    frames: &[proprioscope::core::synth::SynthFrame],
-    temporal: proprioscope::core::pipeline::Temporal,
+    robot: &proprioscope::core::robot::model::Robot,
+    frames: &[proprioscope::core::eval::synth::SynthFrame],
+    temporal: proprioscope::core::over_time::sequence::Temporal,
     friction: f64,
     (points, seed): (usize, u64),
     temporal_settings: TemporalSettings,
-) -> (Vec<f64>, Vec<f64>, Vec<proprioscope::core::summary::ContactEstimate>) {
-    use proprioscope::core::pipeline::estimate_sequence;
-    use proprioscope::core::temporal::TemporalModel;
+) -> (
+    Vec<f64>,
+    Vec<f64>,
+    Vec<proprioscope::core::estimate::summary::ContactEstimate>,
+) {
+    use proprioscope::core::over_time::sequence::estimate_sequence;
+    use proprioscope::core::over_time::temporal::TemporalModel;
     let request = SurfaceRequest {
         links: robot.default_candidate_links(),
         total_points: points,
@@ -287,7 +302,7 @@ fn estimated_with(
 /// the sliding session's smoothed error from 4.7 to 2.2 mm.
 #[test]
 fn smoothed_at_the_default_friction_halves_the_per_frame_error() {
-    use proprioscope::core::pipeline::OVER_TIME_FRICTION;
+    use proprioscope::core::over_time::sequence::OVER_TIME_FRICTION;
     let robot = builtin::lwr4plus_generated().unwrap();
     for (friction, slide_m_per_s, seed) in [(0.3, 0.0, 1), (0.3, 0.0, 3), (0.0, 0.0, 1), (0.15, 0.03, 1)] {
         let synth = SynthSettings {
@@ -681,9 +696,10 @@ fn friction_keeps_hard_cases_finite() {
 /// link 7 press then miss by 7538 and 5878 a frame.
 #[test]
 fn a_smoothed_press_its_frames_contradict_reports_their_own_contacts() {
-    use proprioscope::core::pipeline::{PRESS_MISFIT_MARGIN, PRESS_MISFIT_PER_FRAME, estimate_sequence};
-    use proprioscope::core::summary::Verdict;
-    use proprioscope::core::temporal::{TemporalModel, TemporalSettings};
+    use proprioscope::core::estimate::summary::Verdict;
+    use proprioscope::core::over_time::presses::{PRESS_MISFIT_MARGIN, PRESS_MISFIT_PER_FRAME};
+    use proprioscope::core::over_time::sequence::estimate_sequence;
+    use proprioscope::core::over_time::temporal::{TemporalModel, TemporalSettings};
     let robot = builtin::lwr4plus_generated().unwrap();
     let synth = SynthSettings {
         duration_secs: 6.0,
@@ -802,13 +818,13 @@ fn a_press_stays_on_its_link_unless_another_explains_it_by_far() {
 /// friction μ (5000 points, surface seed 0), with the contact frames'
 /// count and the sets' median radius, m.
 fn credible_sets_hold(
-    robot: &proprioscope::core::robot::Robot,
-    frames: &[proprioscope::core::synth::SynthFrame],
+    robot: &proprioscope::core::robot::model::Robot,
+    frames: &[proprioscope::core::eval::synth::SynthFrame],
     temporal: Temporal,
     friction: f64,
 ) -> (f64, usize, f64) {
-    use proprioscope::core::pipeline::estimate_sequence;
-    use proprioscope::core::temporal::TemporalModel;
+    use proprioscope::core::over_time::sequence::estimate_sequence;
+    use proprioscope::core::over_time::temporal::TemporalModel;
     let request = SurfaceRequest {
         links: robot.default_candidate_links(),
         total_points: 5000,
@@ -923,8 +939,8 @@ fn filtered_credible_sets_take_each_frames_own_spread() {
 /// holding the push in at least `least` of them, and not by taking the
 /// whole link (median radius under 5 cm).
 fn sets_hold_at_least(
-    robot: &proprioscope::core::robot::Robot,
-    frames: &[proprioscope::core::synth::SynthFrame],
+    robot: &proprioscope::core::robot::model::Robot,
+    frames: &[proprioscope::core::eval::synth::SynthFrame],
     temporal: Temporal,
     friction: f64,
     least: f64,

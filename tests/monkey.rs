@@ -18,7 +18,7 @@ use egui::accesskit::Role;
 use egui_kittest::Harness;
 use egui_kittest::kittest::{NodeT as _, Queryable as _};
 use proprioscope::app::{ProprioscopeApp, open_target};
-use proprioscope::core::rng::Rng;
+use proprioscope::core::numerics::rng::Rng;
 
 /// A small session of the built-in LWR: a few frames, one of them bad.
 fn session_file(dir: &Path) -> PathBuf {

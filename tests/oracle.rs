@@ -8,9 +8,9 @@
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
-use proprioscope::core::bvh::Bvh;
-use proprioscope::core::kinematics::RobotPose;
-use proprioscope::core::torque::joint_torques;
+use proprioscope::core::geometry::bvh::Bvh;
+use proprioscope::core::robot::kinematics::RobotPose;
+use proprioscope::core::robot::torque::joint_torques;
 use proprioscope::io::urdf::{UrdfOptions, load_urdf};
 use serde::Deserialize;
 

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
-use proprioscope::core::surface::{Surface, SurfaceRequest};
+use proprioscope::core::surface::sampling::{Surface, SurfaceRequest};
 use proprioscope::io::scene::{LoadedScene, Scene};
 
 fn scene_path(name: &str) -> PathBuf {

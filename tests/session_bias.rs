@@ -85,7 +85,7 @@ fn taking_off_the_bias_estimates_as_the_command_line_does() {
     let differs = harness.state().session_estimates.iter().zip(&cli).any(|(e, c)| {
         let e = e.unwrap();
         match c["point"].as_array() {
-            None => e.verdict != proprioscope::core::summary::Verdict::NoContact,
+            None => e.verdict != proprioscope::core::estimate::summary::Verdict::NoContact,
             Some(p) => (e.point_world.x - p[0].as_f64().unwrap()).abs() > 1e-6,
         }
     });
@@ -106,7 +106,11 @@ fn taking_off_the_bias_estimates_as_the_command_line_does() {
         let e = e.unwrap();
         // The command line writes no contact as nulls.
         if c["verdict"] == "no_contact" {
-            assert_eq!(e.verdict, proprioscope::core::summary::Verdict::NoContact, "frame {i}");
+            assert_eq!(
+                e.verdict,
+                proprioscope::core::estimate::summary::Verdict::NoContact,
+                "frame {i}"
+            );
             continue;
         }
         assert_eq!(c["link"], app.model.robot.links[e.link].name.as_str(), "frame {i}");

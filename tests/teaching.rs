@@ -12,7 +12,7 @@ use eframe::egui;
 use egui_kittest::Harness;
 use egui_kittest::kittest::{NodeT as _, Queryable as _};
 use proprioscope::app::{ProprioscopeApp, open_target, open_target_with};
-use proprioscope::core::kinematics::RobotPose;
+use proprioscope::core::robot::kinematics::RobotPose;
 
 fn harness_at(target: Option<&str>, size: [f32; 2]) -> Harness<'static, ProprioscopeApp> {
     let mut harness = proprioscope::app::headless_harness(open_target(target).unwrap(), size);
@@ -59,7 +59,7 @@ fn the_camera_frames_each_built_in_robot() {
     let mut harness = harness_at(None, [1280.0, 720.0]);
     harness.run_steps(2);
     assert_robot_in_view(harness.state(), "default scene");
-    for name in proprioscope::core::builtin::BUILTIN_NAMES {
+    for name in proprioscope::core::robot::builtin::BUILTIN_NAMES {
         harness.state_mut().open(name);
         for _ in 0..500 {
             harness.step();
@@ -141,7 +141,7 @@ fn a_plain_click_keeps_the_inward_push() {
         glam::Vec2::new(rect.width(), rect.height()),
     );
     let pose = app.model.pose();
-    let hit = proprioscope::core::picking::Picker::new(&app.model.robot)
+    let hit = proprioscope::core::surface::picking::Picker::new(&app.model.robot)
         .pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])
         .unwrap();
     let normal_in_link = pose.world_from_link[hit.link]

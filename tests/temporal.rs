@@ -7,15 +7,16 @@
 // Test helpers may unwrap: a panic is a failed test with its message.
 #![allow(clippy::unwrap_used)]
 
-use proprioscope::core::bias::{estimate_bias, without_bias};
-use proprioscope::core::builtin;
-use proprioscope::core::estimator::EstimatorSettings;
-use proprioscope::core::metrics::{Detection, detection, percentile};
-use proprioscope::core::pipeline::{Estimator, Temporal, estimate_sequence};
-use proprioscope::core::summary::Verdict;
-use proprioscope::core::surface::SurfaceRequest;
-use proprioscope::core::synth::{SynthSettings, as_sequence, joint_positions, synthesize};
-use proprioscope::core::temporal::{TemporalModel, TemporalSettings};
+use proprioscope::core::estimate::estimator::Estimator;
+use proprioscope::core::estimate::settings::EstimatorSettings;
+use proprioscope::core::estimate::summary::Verdict;
+use proprioscope::core::eval::metrics::{Detection, detection, percentile};
+use proprioscope::core::eval::synth::{SynthSettings, as_sequence, joint_positions, synthesize};
+use proprioscope::core::over_time::bias::{estimate_bias, without_bias};
+use proprioscope::core::over_time::sequence::{Temporal, estimate_sequence};
+use proprioscope::core::over_time::temporal::{TemporalModel, TemporalSettings};
+use proprioscope::core::robot::builtin;
+use proprioscope::core::surface::sampling::SurfaceRequest;
 
 /// Median position error over contact frames and the detection record.
 struct Run {

@@ -5,10 +5,10 @@
 #![no_main]
 
 use glam::{DAffine3, DVec3};
-use proprioscope::core::bvh::Bvh;
-use proprioscope::core::robot::{JointKind, JointSpec, LinkSpec, Robot};
-use proprioscope::core::smooth::SmoothMesh;
-use proprioscope::core::surface::{Surface, SurfaceRequest};
+use proprioscope::core::geometry::bvh::Bvh;
+use proprioscope::core::robot::model::{JointKind, JointSpec, LinkSpec, Robot};
+use proprioscope::core::geometry::shell::SmoothMesh;
+use proprioscope::core::surface::sampling::{Surface, SurfaceRequest};
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
     let Ok(mesh) = proprioscope::io::mesh::read_obj(data, std::path::Path::new("fuzz.obj")) else {

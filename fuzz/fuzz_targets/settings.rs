@@ -8,14 +8,14 @@
 use std::sync::OnceLock;
 
 use glam::DVec3;
-use proprioscope::core::builtin;
-use proprioscope::core::estimator::EstimatorSettings;
-use proprioscope::core::kinematics::RobotPose;
-use proprioscope::core::limits;
-use proprioscope::core::pipeline::Estimator;
-use proprioscope::core::robot::Robot;
-use proprioscope::core::surface::SurfaceRequest;
-use proprioscope::core::torque::joint_torques;
+use proprioscope::core::robot::builtin;
+use proprioscope::core::estimate::settings::EstimatorSettings;
+use proprioscope::core::robot::kinematics::RobotPose;
+use proprioscope::core::config::limits;
+use proprioscope::core::estimate::estimator::Estimator;
+use proprioscope::core::robot::model::Robot;
+use proprioscope::core::surface::sampling::SurfaceRequest;
+use proprioscope::core::robot::torque::joint_torques;
 
 /// The built-in LWR and an estimator on 300 of its surface points.
 fn base() -> &'static (Robot, Estimator) {

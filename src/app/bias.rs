@@ -7,7 +7,7 @@
 use std::sync::Arc;
 
 use super::{ProprioscopeApp, worker};
-use crate::core::bias::estimate_drifting_bias;
+use crate::core::over_time::bias::estimate_drifting_bias;
 
 /// Window over which a drifting bias is estimated, s (as `--bias-window`).
 pub const BIAS_WINDOW_SECS: f64 = 30.0;

@@ -4,7 +4,7 @@
 use glam::DVec3;
 
 use super::{EstimatorChoice, LinkId, Model, Push, Temporal, ViewOptions};
-use crate::core::limits;
+use crate::core::config::limits;
 
 /// A change to the [`Model`], sent by the UI and applied in one place.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -73,7 +73,7 @@ fn set_replay(r: &mut super::Replay, command: &Command) {
 
 impl Model {
     /// Why `command` cannot be applied: a value outside its valid range
-    /// (see [`crate::core::limits`]), named with the range. A typed value
+    /// (see [`crate::core::config::limits`]), named with the range. A typed value
     /// is refused whole rather than clamped: the panel keeps the value
     /// before and says why.
     #[must_use]
@@ -173,7 +173,7 @@ impl Model {
             }
             Command::ZeroJoints => self.q.iter_mut().for_each(|q| *q = 0.0),
             Command::RandomPose(seed) => {
-                let mut rng = crate::core::rng::Rng::new(seed);
+                let mut rng = crate::core::numerics::rng::Rng::new(seed);
                 for (q, &j) in self.q.iter_mut().zip(self.robot.sensed()) {
                     let (lo, hi) = self.robot.joints[j]
                         .limits

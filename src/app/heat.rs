@@ -2,13 +2,13 @@
 //! (log or linear), or the observability map, over a neutral arm; and the
 //! legend that gives the colours their numbers. Plain values, no egui.
 
-use crate::core::kinematics::RobotPose;
-use crate::core::observability::position_widths_m;
-use crate::core::pipeline::Update;
-use crate::core::robot::Robot;
-use crate::core::summary::Verdict;
-use crate::core::surface::Surface;
-use crate::core::torque::TorqueModel;
+use crate::core::estimate::estimator::Update;
+use crate::core::estimate::observability::position_widths_m;
+use crate::core::estimate::summary::Verdict;
+use crate::core::robot::kinematics::RobotPose;
+use crate::core::robot::model::Robot;
+use crate::core::robot::torque::TorqueModel;
+use crate::core::surface::sampling::Surface;
 use crate::render::scene::{ROBOT_GREY, red_green, viridis};
 
 /// Log scale depth: from the densest point (top of the ramp) down to

@@ -165,7 +165,7 @@ impl ProprioscopeApp {
             // Live, only the frames before can be used (as `estimate
             // --live`): filtered, unless the user picks each frame alone.
             if let Some(replay) = self.model.replay.as_mut() {
-                replay.over_time = crate::core::pipeline::Temporal::Filter;
+                replay.over_time = crate::core::over_time::sequence::Temporal::Filter;
             }
             return;
         }
@@ -192,7 +192,7 @@ impl ProprioscopeApp {
 
     /// How far the live filter has got, while frames are estimated over time.
     fn live_filter_note(&self) -> Option<String> {
-        use crate::core::pipeline::Temporal;
+        use crate::core::over_time::sequence::Temporal;
         let replay = self.model.replay.as_ref()?;
         let pending = replay
             .session

@@ -70,7 +70,7 @@ impl ProprioscopeApp {
                 }
             });
             ui.menu_button("Robot", |ui| {
-                for name in crate::core::builtin::BUILTIN_NAMES {
+                for name in crate::core::robot::builtin::BUILTIN_NAMES {
                     if ui.button(name).clicked() {
                         ui.close();
                         self.open(name);

@@ -34,14 +34,14 @@ use std::sync::Arc;
 use eframe::egui;
 use glam::{DVec3, Vec2};
 
-use crate::core::estimator::{EstimatorSettings, Mode};
-use crate::core::kinematics::RobotPose;
-use crate::core::picking::Picker;
-use crate::core::pipeline::Temporal;
-use crate::core::robot::{LinkId, Robot};
-use crate::core::summary::Verdict;
-use crate::core::surface::SurfaceRequest;
-use crate::core::torque::{joint_torques, with_sensor_noise};
+use crate::core::estimate::settings::{EstimatorSettings, Mode};
+use crate::core::estimate::summary::Verdict;
+use crate::core::over_time::sequence::Temporal;
+use crate::core::robot::kinematics::RobotPose;
+use crate::core::robot::model::{LinkId, Robot};
+use crate::core::robot::torque::{joint_torques, with_sensor_noise};
+use crate::core::surface::picking::Picker;
+use crate::core::surface::sampling::SurfaceRequest;
 use crate::render::camera::OrbitCamera;
 use crate::render::renderer::{Frame, Renderer};
 use crate::render::scene::{ROBOT_GREY, grid_and_axes, robot_triangles};
@@ -65,7 +65,7 @@ fn per_joint(sigma: &[f64], joints: usize) -> Vec<f64> {
 }
 
 /// Points and particles evaluated, per phase when there are phases.
-fn phase_report(phases: &[crate::core::estimator::PhaseReport]) -> String {
+pub(crate) fn phase_report(phases: &[crate::core::estimate::posterior::PhaseReport]) -> String {
     if let [one] = phases {
         return format!("evaluated {} points, {} particles", one.points, one.particles);
     }
@@ -170,7 +170,7 @@ pub struct ProprioscopeApp {
     /// The legend of the heat last drawn.
     legend: Option<Legend>,
     /// A push being dragged: the contact found where the drag started.
-    push_drag: Option<crate::core::picking::Pick>,
+    push_drag: Option<crate::core::surface::picking::Pick>,
     /// The session's torque bias, when it is taken off, with what it was
     /// estimated from.
     session_bias: Option<(bias::BiasKey, bias::BiasState)>,

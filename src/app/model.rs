@@ -85,12 +85,13 @@ pub struct Replay {
 pub const SPEED_RANGE: (f64, f64) = (SPEED.min, SPEED.max);
 
 /// The playback speed the timeline takes, × real time.
-pub const SPEED: crate::core::limits::Range =
-    crate::core::limits::Range::closed("playback speed", "× real time", 0.1, 10.0);
+pub const SPEED: crate::core::config::limits::Range =
+    crate::core::config::limits::Range::closed("playback speed", "× real time", 0.1, 10.0);
 
 /// The slide length the timeline takes, m/√s: from contacts that barely
 /// move to ones that wipe along a link.
-pub const SLIDE: crate::core::limits::Range = crate::core::limits::Range::closed("slide", "m/√s", 0.001, 0.1);
+pub const SLIDE: crate::core::config::limits::Range =
+    crate::core::config::limits::Range::closed("slide", "m/√s", 0.001, 0.1);
 
 /// The estimator's mode as the panel offers it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -123,8 +124,8 @@ pub struct EstimatorChoice {
     /// Friction μ (0: frictionless), when not `friction_auto`.
     pub friction: f64,
     /// Friction by how frames are combined
-    /// ([`crate::core::pipeline::Temporal::default_friction`]: 0 for a
-    /// frame alone, [`crate::core::pipeline::OVER_TIME_FRICTION`] filtered
+    /// ([`crate::core::over_time::sequence::Temporal::default_friction`]: 0 for a
+    /// frame alone, [`crate::core::over_time::sequence::OVER_TIME_FRICTION`] filtered
     /// or smoothed), as `estimate --friction auto`.
     pub friction_auto: bool,
 }
@@ -342,7 +343,7 @@ impl Model {
     /// The core estimator's settings for frames combined by `temporal`
     /// (the friction follows it when `friction_auto`).
     #[must_use]
-    pub fn estimator_settings_for(&self, temporal: crate::core::pipeline::Temporal) -> EstimatorSettings {
+    pub fn estimator_settings_for(&self, temporal: crate::core::over_time::sequence::Temporal) -> EstimatorSettings {
         let mut settings = self.estimator_settings();
         if self.estimator.friction_auto && settings.mode == Mode::Exact {
             settings.friction = temporal.default_friction();
@@ -446,10 +447,10 @@ impl Model {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::pipeline::{OVER_TIME_FRICTION, Temporal};
+    use crate::core::over_time::sequence::{OVER_TIME_FRICTION, Temporal};
 
     fn model() -> Model {
-        let robot = crate::core::builtin::lwr4plus_generated().unwrap();
+        let robot = crate::core::robot::builtin::lwr4plus_generated().unwrap();
         let candidate_links = robot.default_candidate_links();
         Model {
             q: vec![0.0; 7],
@@ -507,7 +508,7 @@ mod tests {
         match m.estimator_settings().mode {
             Mode::Particles(p) => assert_eq!(
                 p.sampling,
-                crate::core::estimator::Sampling::Random { count: 1234, seed: 3 }
+                crate::core::estimate::settings::Sampling::Random { count: 1234, seed: 3 }
             ),
             Mode::Exact => panic!("random particles expected"),
         }

@@ -6,8 +6,8 @@ use eframe::egui;
 use glam::{DVec3, Vec2};
 
 use super::heat::Legend;
-use crate::core::kinematics::RobotPose;
-use crate::core::picking::Picker;
+use crate::core::robot::kinematics::RobotPose;
+use crate::core::surface::picking::Picker;
 use crate::render::camera::OrbitCamera;
 
 /// What an arrow in the view stands for.

@@ -1,7 +1,7 @@
 //! The estimator panel: σ, resolution, mode and phases, the estimate's
 //! summary, and the heatmap's options.
 
-use crate::core::pipeline::OVER_TIME_FRICTION;
+use crate::core::over_time::sequence::OVER_TIME_FRICTION;
 
 use super::{Command, EstimatorChoice, HeatLayer, ModeChoice, ProprioscopeApp, Verdict, egui, phase_report};
 

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use super::{ProprioscopeApp, egui, session};
-use crate::core::metrics::Metrics;
+use crate::core::eval::metrics::Metrics;
 
 /// How one metric is written in the session panel.
 type MetricText = fn(&Metrics) -> String;
@@ -31,8 +31,8 @@ const METRIC_ROWS: [(&str, MetricText); 7] = [
 
 /// Metrics over all frames, and by the number of sensing joints.
 pub(super) type SessionMetrics = (
-    crate::core::metrics::Metrics,
-    Vec<(usize, crate::core::metrics::Metrics)>,
+    crate::core::eval::metrics::Metrics,
+    Vec<(usize, crate::core::eval::metrics::Metrics)>,
 );
 
 impl ProprioscopeApp {

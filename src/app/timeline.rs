@@ -8,11 +8,11 @@ use eframe::egui;
 
 use super::session::{self, EstimateJob, FrameEstimate, LoadFailure, Loader, SessionData};
 use super::{Command, Model, ProprioscopeApp, Replay, SPEED_RANGE, per_joint};
-use crate::core::pipeline::{Temporal, automatic_temporal};
-use crate::core::robot::{LinkId, Robot};
-use crate::core::summary::Verdict;
-use crate::core::surface::SurfaceRequest;
-use crate::core::temporal::TemporalSettings;
+use crate::core::estimate::summary::Verdict;
+use crate::core::over_time::sequence::{Temporal, automatic_temporal};
+use crate::core::over_time::temporal::TemporalSettings;
+use crate::core::robot::model::{LinkId, Robot};
+use crate::core::surface::sampling::SurfaceRequest;
 use crate::io::session::{Frame, Truth};
 
 pub use super::recorder::interactive_frame;

@@ -80,7 +80,7 @@ impl ProprioscopeApp {
     }
 
     /// The arm under a pixel of the view, with the pose it was found in.
-    pub(super) fn pick(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<crate::core::picking::Pick> {
+    pub(super) fn pick(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<crate::core::surface::picking::Pick> {
         let local = pos - rect.min;
         let (origin, dir) = self
             .camera
@@ -96,7 +96,7 @@ impl ProprioscopeApp {
     /// point of drag, 0.5–30 N.
     pub(super) fn dragged_push(
         &self,
-        drag: &crate::core::picking::Pick,
+        drag: &crate::core::surface::picking::Pick,
         pointer: egui::Pos2,
         rect: egui::Rect,
     ) -> Push {
@@ -224,7 +224,7 @@ impl ProprioscopeApp {
                     .distance_squared(hit.point_in_link)
                     .total_cmp(&surface.point_in_link[b].distance_squared(hit.point_in_link))
             })?;
-        let contact = crate::core::summary::contact_at(&update.posterior, surface, &update.pose, k);
+        let contact = crate::core::estimate::summary::contact_at(&update.posterior, surface, &update.pose, k);
         let produced = joint_torques(
             &self.model.robot,
             &update.pose,
@@ -330,9 +330,9 @@ impl ProprioscopeApp {
                 let flags = u.posterior.phase_flags.get(k).copied().unwrap_or(0);
                 let colour = if in_set.contains(&k) {
                     [1.0, 1.0, 1.0, 1.0]
-                } else if flags & crate::core::estimator::phase_flag::A != 0 {
+                } else if flags & crate::core::estimate::posterior::phase_flag::A != 0 {
                     [0.95, 0.2, 0.2, 1.0]
-                } else if flags & crate::core::estimator::phase_flag::B != 0 {
+                } else if flags & crate::core::estimate::posterior::phase_flag::B != 0 {
                     [1.0, 0.6, 0.1, 1.0]
                 } else {
                     h.colours.get(k).copied().unwrap_or(ROBOT_GREY)

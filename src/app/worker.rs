@@ -8,10 +8,10 @@ use std::time::Instant;
 
 pub use crate::batch::Background;
 use crate::batch::{Latest, Serving};
-use crate::core::estimator::EstimatorSettings;
-use crate::core::pipeline::{Estimator, Update};
-use crate::core::robot::{LinkId, Robot};
-use crate::core::surface::{Surface, SurfaceRequest};
+use crate::core::estimate::estimator::{Estimator, Update};
+use crate::core::estimate::settings::EstimatorSettings;
+use crate::core::robot::model::{LinkId, Robot};
+use crate::core::surface::sampling::{Surface, SurfaceRequest};
 use crate::render::scene::{VertexSamples, nearest_samples};
 
 /// The sampled surface kept between requests: which robot, links and
@@ -197,12 +197,12 @@ fn serve(cache: &mut Option<Cached>, request: &Request) -> Outcome {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::estimator::EstimatorSettings;
+    use crate::core::estimate::settings::EstimatorSettings;
 
     fn request(generation: u64) -> Request {
         Request {
             generation,
-            robot: Arc::new(crate::core::builtin::simple6().unwrap_or_else(|e| panic!("{e}"))),
+            robot: Arc::new(crate::core::robot::builtin::simple6().unwrap_or_else(|e| panic!("{e}"))),
             joint_positions: vec![0.0; 6],
             tau: vec![0.0; 6],
             surface: SurfaceRequest {

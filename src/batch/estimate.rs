@@ -8,11 +8,13 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::{FrameEstimate, Latest, Serving, SessionData};
-use crate::core::estimator::EstimatorSettings;
-use crate::core::pipeline::{Estimator, SequenceFrame, Temporal, estimate_sequence_while};
-use crate::core::robot::Robot;
-use crate::core::surface::SurfaceRequest;
-use crate::core::temporal::{TemporalModel, TemporalSettings};
+use crate::core::estimate::estimator::Estimator;
+use crate::core::estimate::settings::EstimatorSettings;
+use crate::core::over_time::frame::SequenceFrame;
+use crate::core::over_time::sequence::{Temporal, estimate_sequence_while};
+use crate::core::over_time::temporal::{TemporalModel, TemporalSettings};
+use crate::core::robot::model::Robot;
+use crate::core::surface::sampling::SurfaceRequest;
 
 /// Everything the background estimation of a session depends on.
 #[derive(Debug, Clone)]

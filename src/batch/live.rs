@@ -8,11 +8,12 @@ use std::sync::mpsc::{Receiver, Sender, TryIter, channel};
 use std::time::Instant;
 
 use super::{Estimated, FrameEstimate};
-use crate::core::estimator::EstimatorSettings;
-use crate::core::pipeline::{Estimator, StreamFilter};
-use crate::core::robot::Robot;
-use crate::core::surface::SurfaceRequest;
-use crate::core::temporal::{TemporalModel, TemporalSettings};
+use crate::core::estimate::estimator::Estimator;
+use crate::core::estimate::settings::EstimatorSettings;
+use crate::core::over_time::sequence::StreamFilter;
+use crate::core::over_time::temporal::{TemporalModel, TemporalSettings};
+use crate::core::robot::model::Robot;
+use crate::core::surface::sampling::SurfaceRequest;
 use crate::io::session::Frame;
 
 /// What filtering a live session depends on; a new one starts over from
@@ -208,8 +209,9 @@ fn step(r: &mut Running, frame: &Frame) -> Estimated {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::pipeline::{SequenceFrame, Temporal, estimate_sequence_while};
-    use crate::core::synth::{SynthSettings, synthesize};
+    use crate::core::eval::synth::{SynthSettings, synthesize};
+    use crate::core::over_time::frame::SequenceFrame;
+    use crate::core::over_time::sequence::{Temporal, estimate_sequence_while};
     use crate::io::session::Truth;
 
     /// Frames given in pieces as they "arrive" are estimated as the
@@ -217,7 +219,7 @@ mod tests {
     /// contact probabilities, frame by frame.
     #[test]
     fn a_stream_in_pieces_is_filtered_as_the_whole_recording() {
-        let robot = Arc::new(crate::core::builtin::lwr4plus_generated().unwrap_or_else(|e| panic!("{e}")));
+        let robot = Arc::new(crate::core::robot::builtin::lwr4plus_generated().unwrap_or_else(|e| panic!("{e}")));
         let links: Vec<_> = ["lwr_5_link", "lwr_6_link"]
             .iter()
             .filter_map(|l| robot.link_id(l).ok())

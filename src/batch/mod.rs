@@ -18,10 +18,10 @@ pub use live::{LiveFilterWorker, LiveJob};
 use anyhow::{Context as _, Result, bail};
 use glam::DVec3;
 
-use crate::core::metrics::{FrameOutcome, Metrics, metrics, metrics_by_sensing_joints};
-use crate::core::pipeline::Update;
-use crate::core::robot::{LinkId, Robot};
-use crate::core::summary::Verdict;
+use crate::core::estimate::estimator::Update;
+use crate::core::estimate::summary::Verdict;
+use crate::core::eval::metrics::{FrameOutcome, Metrics, metrics, metrics_by_sensing_joints};
+use crate::core::robot::model::{LinkId, Robot};
 use crate::io::builtin::load_robot;
 use crate::io::recording::{RecordingError, TopicChoice};
 use crate::io::session::{Frame, FrameProblem, Session, SessionError, Truth};
@@ -69,8 +69,8 @@ pub fn session_robot(
 #[must_use]
 pub fn credible_set_holds_truth(
     robot: &Robot,
-    surface: &crate::core::surface::Surface,
-    update: &crate::core::pipeline::Update,
+    surface: &crate::core::surface::sampling::Surface,
+    update: &crate::core::estimate::estimator::Update,
     truth: &Truth,
 ) -> Option<bool> {
     let Truth::Contact { link, point, .. } = truth else {
@@ -161,7 +161,7 @@ impl FrameEstimate {
     #[must_use]
     pub fn of_frame(
         robot: &Robot,
-        surface: &crate::core::surface::Surface,
+        surface: &crate::core::surface::sampling::Surface,
         update: &Update,
         update_ms: f64,
         truth: &Truth,

@@ -8,16 +8,18 @@ use std::time::Instant;
 use anyhow::{Context as _, Result, anyhow};
 use glam::DVec3;
 use proprioscope::batch::credible_set_holds_truth;
-use proprioscope::core::estimator::{EstimatorSettings, Mode, ParticleSettings, Sampling};
-use proprioscope::core::kinematics::RobotPose;
-use proprioscope::core::limits;
-use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, percentile};
-use proprioscope::core::pipeline::{Estimator, SequenceFrame, StageTimes, Temporal, Update, estimate_sequence};
-use proprioscope::core::rng::Rng;
-use proprioscope::core::robot::{JointKind, Robot};
-use proprioscope::core::surface::{Surface, SurfaceRequest};
-use proprioscope::core::temporal::{TemporalModel, TemporalSettings, is_continuous_recording};
-use proprioscope::core::torque::joint_torques;
+use proprioscope::core::config::limits;
+use proprioscope::core::estimate::estimator::{Estimator, StageTimes, Update};
+use proprioscope::core::estimate::settings::{EstimatorSettings, Mode, ParticleSettings, Sampling};
+use proprioscope::core::eval::metrics::{FrameOutcome, Metrics, detection, metrics, percentile};
+use proprioscope::core::numerics::rng::Rng;
+use proprioscope::core::over_time::frame::SequenceFrame;
+use proprioscope::core::over_time::sequence::{Temporal, estimate_sequence};
+use proprioscope::core::over_time::temporal::{TemporalModel, TemporalSettings, is_continuous_recording};
+use proprioscope::core::robot::kinematics::RobotPose;
+use proprioscope::core::robot::model::{JointKind, Robot};
+use proprioscope::core::robot::torque::joint_torques;
+use proprioscope::core::surface::sampling::{Surface, SurfaceRequest};
 use proprioscope::io::builtin::load_robot;
 use proprioscope::io::urdf::{MeshSelection, UrdfOptions};
 
@@ -453,7 +455,7 @@ fn session_text(
             .filter(|f| matches!(f.truth, Truth::Contact { .. }))
             .count(),
         args.noise,
-        proprioscope::core::simd::vector_unit(),
+        proprioscope::core::numerics::simd::vector_unit(),
         args.seeds
     );
     out.push_str("| estimator | points | p50 [µs] | p99 [µs] | max [µs] | without contact p50 / p99 [µs] | with a contact p50 / p99 [µs] | median pos. error per seed [mm] | spread [mm] | poorly explained | contact frames called | false alarms | 90 % set holds the push |\n");
@@ -546,7 +548,7 @@ fn seed_run(
     truth: &[Option<bool>],
     run: &mut SessionRun,
 ) -> Result<()> {
-    use proprioscope::core::summary::Verdict;
+    use proprioscope::core::estimate::summary::Verdict;
     use proprioscope::io::session::Truth;
     let robot = how.robot;
     // Friction as `estimate` takes it when not told: over time only.
@@ -654,7 +656,7 @@ fn table(rows: &[Row], args: &BenchArgs) -> String {
         args.contacts,
         args.seed,
         args.noise,
-        proprioscope::core::simd::vector_unit()
+        proprioscope::core::numerics::simd::vector_unit()
     );
     out.push_str("| robot | mode | N | surface points | σ [N·m] | threads | median update [µs] | updates/s | median pos. error [mm] | p90 [mm] | median force error [N] | p90 [N] | link right |\n");
     out.push_str("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");

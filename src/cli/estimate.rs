@@ -7,14 +7,18 @@ use std::time::Instant;
 use anyhow::{Context as _, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use proprioscope::batch::{FrameEstimate, credible_set_holds_truth, frame_outcome, session_robot};
-use proprioscope::core::bias::{estimate_drifting_bias, without_drifting_bias};
-use proprioscope::core::limits;
-use proprioscope::core::metrics::{FrameOutcome, Metrics, detection, metrics, metrics_by_sensing_joints, percentile};
-use proprioscope::core::pipeline::{Estimator, SequenceFrame, Temporal, Update, automatic_temporal, estimate_sequence};
-use proprioscope::core::robot::Robot;
-use proprioscope::core::summary::Verdict;
-use proprioscope::core::surface::SurfaceRequest;
-use proprioscope::core::temporal::TemporalModel;
+use proprioscope::core::config::limits;
+use proprioscope::core::estimate::estimator::{Estimator, Update};
+use proprioscope::core::estimate::summary::Verdict;
+use proprioscope::core::eval::metrics::{
+    FrameOutcome, Metrics, detection, metrics, metrics_by_sensing_joints, percentile,
+};
+use proprioscope::core::over_time::bias::{estimate_drifting_bias, without_drifting_bias};
+use proprioscope::core::over_time::frame::SequenceFrame;
+use proprioscope::core::over_time::sequence::{Temporal, automatic_temporal, estimate_sequence};
+use proprioscope::core::over_time::temporal::TemporalModel;
+use proprioscope::core::robot::model::Robot;
+use proprioscope::core::surface::sampling::SurfaceRequest;
 use proprioscope::io::mcap_out::{EstimateMessage, EstimateWriter};
 use proprioscope::io::recording::{is_recording, read_bytes};
 use proprioscope::io::session::{Session, Truth, kept_frame_numbers};
@@ -511,7 +515,7 @@ const LINK_SHARE_SHOWN: f64 = 0.01;
 
 /// The `links` field of a frame's JSON line: `[{"link", "probability"}]`,
 /// most probable first (equal shares by name).
-fn link_shares_json(robot: &Robot, s: &proprioscope::core::summary::Summary) -> serde_json::Value {
+fn link_shares_json(robot: &Robot, s: &proprioscope::core::estimate::summary::Summary) -> serde_json::Value {
     let mut shares: Vec<(String, f64)> = s
         .per_link
         .iter()

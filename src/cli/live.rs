@@ -9,10 +9,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
 use proprioscope::batch::{FrameEstimate, credible_set_holds_truth, frame_outcome, session_robot};
-use proprioscope::core::limits;
-use proprioscope::core::pipeline::{Estimator, SequenceError, StreamFilter, Temporal};
-use proprioscope::core::surface::SurfaceRequest;
-use proprioscope::core::temporal::TemporalModel;
+use proprioscope::core::config::limits;
+use proprioscope::core::estimate::estimator::Estimator;
+use proprioscope::core::over_time::sequence::{SequenceError, StreamFilter, Temporal};
+use proprioscope::core::over_time::temporal::TemporalModel;
+use proprioscope::core::surface::sampling::SurfaceRequest;
 use proprioscope::io::live::{LiveEvent, LiveSource};
 use proprioscope::io::session::Session;
 
@@ -144,7 +145,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
 
 /// What a live estimate keeps between frames.
 struct Live {
-    robot: proprioscope::core::robot::Robot,
+    robot: proprioscope::core::robot::model::Robot,
     estimator: Estimator,
     model: Option<TemporalModel>,
     /// The belief and friction gate carried between frames.

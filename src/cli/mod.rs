@@ -10,11 +10,11 @@ use std::path::Path;
 
 use anyhow::{Result, bail};
 use glam::DVec3;
-use proprioscope::core::estimator::{DEFAULT_FORCE_RANGE_NEWTONS, EstimatorSettings};
-use proprioscope::core::limits::{self, CountRange, Range};
-use proprioscope::core::pipeline::Temporal;
-use proprioscope::core::robot::{LinkId, Robot};
-use proprioscope::core::temporal::TemporalSettings;
+use proprioscope::core::config::limits::{self, CountRange, Range};
+use proprioscope::core::estimate::settings::{DEFAULT_FORCE_RANGE_NEWTONS, EstimatorSettings};
+use proprioscope::core::over_time::sequence::Temporal;
+use proprioscope::core::over_time::temporal::TemporalSettings;
+use proprioscope::core::robot::model::{LinkId, Robot};
 use proprioscope::io::recording::{self, TopicChoice, is_recording};
 use proprioscope::io::scene::{self as sc, Sigma};
 use proprioscope::io::session::{FrameProblem, Session};

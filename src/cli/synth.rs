@@ -6,11 +6,11 @@
 use std::path::PathBuf;
 
 use anyhow::{Context as _, Result};
-use proprioscope::core::builtin;
-use proprioscope::core::synth::{SynthSettings, synthesize};
+use proprioscope::core::eval::synth::{SynthSettings, synthesize};
+use proprioscope::core::robot::builtin;
 use proprioscope::io::session::{Frame, Recorder, Truth};
 
-use proprioscope::core::limits;
+use proprioscope::core::config::limits;
 
 use super::within;
 

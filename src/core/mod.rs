@@ -1,34 +1,19 @@
-//! The numerical core: robot model, kinematics, surface sampling, torques.
-//!
-//! Pure math on `glam` f64 types, SI units, no I/O and no UI.
+//! The numerical core: pure maths on `glam` f64 types in SI units, no I/O
+//! and no UI, in rooms by concern. Each room imports only the rooms
+//! listed before it here (ARCHITECTURE.md draws the floors).
 
-pub mod bias;
-pub mod builtin;
-pub mod bvh;
-pub mod contact;
-pub mod estimator;
-pub mod fastmath;
-pub mod friction;
-pub mod kinematics;
-pub mod lanes;
-pub mod limits;
-pub mod mesh;
-pub mod metrics;
-pub mod observability;
-pub mod phases;
-pub mod picking;
-pub mod pipeline;
-pub mod press;
-pub mod primitives;
-pub mod refine;
-pub mod regions;
-pub mod rng;
+pub mod numerics;
+
+pub mod geometry;
+
 pub mod robot;
-pub mod simd;
-pub mod smooth;
-pub mod special;
-pub mod summary;
+
 pub mod surface;
-pub mod synth;
-pub mod temporal;
-pub mod torque;
+
+pub mod estimate;
+
+pub mod over_time;
+
+pub mod config;
+
+pub mod eval;

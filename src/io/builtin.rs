@@ -4,8 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::core::builtin;
-use crate::core::robot::{Robot, RobotError};
+use crate::core::robot::builtin;
+use crate::core::robot::model::{Robot, RobotError};
 use crate::io::mesh::{MeshError, encode_glb, read_gltf_nodes};
 use crate::io::urdf::{UrdfError, UrdfOptions, load_urdf};
 

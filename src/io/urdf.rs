@@ -5,9 +5,9 @@ use std::path::{Path, PathBuf};
 
 use glam::{DAffine3, DQuat, DVec3};
 
-use crate::core::mesh::TriMesh;
-use crate::core::primitives::{self, Primitive};
-use crate::core::robot::{JointKind, JointLimits, JointSpec, LinkSpec, Robot, RobotError};
+use crate::core::geometry::mesh::TriMesh;
+use crate::core::geometry::primitives::{self, Primitive};
+use crate::core::robot::model::{JointKind, JointLimits, JointSpec, LinkSpec, Robot, RobotError};
 use crate::io::guard;
 use crate::io::mesh::{MeshError, check_extent, load_mesh};
 

@@ -3,9 +3,9 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::core::kinematics::RobotPose;
-use crate::core::robot::{LinkId, Robot};
-use crate::core::surface::Surface;
+use crate::core::robot::kinematics::RobotPose;
+use crate::core::robot::model::{LinkId, Robot};
+use crate::core::surface::sampling::Surface;
 use crate::render::renderer::{LineVertex, MeshVertex};
 
 /// Grey of the robot where no heat is shown.
@@ -174,8 +174,8 @@ pub fn line(out: &mut Vec<LineVertex>, a: Vec3, b: Vec3, color: [f32; 4]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::builtin;
-    use crate::core::surface::SurfaceRequest;
+    use crate::core::robot::builtin;
+    use crate::core::surface::sampling::SurfaceRequest;
 
     #[test]
     fn viridis_runs_from_purple_to_yellow() {

@@ -1,0 +1,407 @@
+//! The estimator of one frame: the surface and the phase hierarchy are
+//! built once (they live in link frames), then each measurement is an
+//! update at its own configuration, refined on the continuous surface
+//! and summarised. A session's frames over time go through
+//! [`crate::core::over_time::sequence`], which adds the temporal
+//! model's belief to the same steps.
+
+use std::time::Instant;
+
+use glam::DVec3;
+
+use crate::core::estimate::contact::{PatchForms, PosedSurface};
+use crate::core::estimate::measurement::Measurement;
+use crate::core::estimate::phases::{PhaseHierarchy, link_ranges};
+use crate::core::estimate::posterior::{Posterior, estimate_keeping_forms};
+use crate::core::estimate::press::{PlaceSpread, PressFrame, PressSettings, locate, press_spreads};
+use crate::core::estimate::refine::{contact_at_offsets, refine};
+use crate::core::estimate::settings::{EstimateError, EstimatorSettings, Mode};
+use crate::core::estimate::summary::{NO_CONTACT_P, PlacedContact, Refinement, Summary, Verdict, summarize_refined};
+use crate::core::geometry::shell::MeshPoint;
+use crate::core::numerics::special::chi_square_survival;
+use crate::core::robot::kinematics::RobotPose;
+use crate::core::robot::model::{LinkId, Robot};
+use crate::core::robot::torque::TorqueModel;
+use crate::core::surface::sampling::{LinkShape, Surface, SurfaceError, SurfaceRequest};
+
+/// Everything fixed across updates.
+#[derive(Debug, Clone)]
+pub struct Estimator {
+    /// Candidate surface points.
+    pub surface: Surface,
+    /// Candidate links.
+    pub links: Vec<LinkId>,
+    /// Phases A/B/C, when used.
+    pub hierarchy: Option<PhaseHierarchy>,
+    /// Noise model, force range, mode.
+    pub settings: EstimatorSettings,
+}
+
+/// A measurement's posterior awaiting a temporal model's belief (see
+/// [`Estimator::update_for_sequence`], [`Estimator::with_belief`]).
+#[derive(Debug, Clone)]
+pub struct PendingUpdate {
+    /// The robot at the measurement's configuration.
+    pub pose: RobotPose,
+    /// The frame's own posterior over the surface points.
+    pub posterior: Posterior,
+}
+
+/// One measurement's result.
+#[derive(Debug, Clone)]
+pub struct Update {
+    /// The robot at the measurement's configuration.
+    pub pose: RobotPose,
+    /// The posterior over the surface points.
+    pub posterior: Posterior,
+    /// What it says.
+    pub summary: Summary,
+    /// Where the time of a frame estimated alone ([`Estimator::update`])
+    /// went; `None` for frames combined over time, whose stages
+    /// interleave with the temporal model's.
+    pub stages: Option<StageTimes>,
+}
+
+/// The wall time of one frame's stages, ms: disjoint parts of
+/// [`Estimator::update`], so they add up to at most its time. What
+/// `bench` reports to show where a frame's 99th percentile comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StageTimes {
+    /// The posterior over the samples (the pose, the torque model, the
+    /// likelihood of every sample and the posterior's masses).
+    pub posterior_ms: f64,
+    /// The search for the contact on the continuous surface (0 where the
+    /// frame is not refined: no contact, or grid mode).
+    pub refine_ms: f64,
+    /// The summary: fit test, verdict, shares, credible set, clusters.
+    pub summary_ms: f64,
+}
+
+impl Estimator {
+    /// Samples the surface and, with `phase_sizes`, builds the phase
+    /// hierarchy (seeded by the surface seed).
+    pub fn new(
+        robot: &Robot,
+        request: &SurfaceRequest,
+        settings: EstimatorSettings,
+        phase_sizes: Option<[usize; 2]>,
+    ) -> Result<Self, SurfaceError> {
+        let surface = Surface::sample(robot, request)?;
+        // The evidence's erfc fit is built on first use: here, not in the
+        // first update (a few milliseconds that would be that frame's).
+        let _ = crate::core::numerics::fastmath::ErfTable::get();
+        let hierarchy = phase_sizes.map(|sizes| PhaseHierarchy::new(&surface, sizes, request.seed));
+        Ok(Self {
+            surface,
+            links: request.links.clone(),
+            hierarchy,
+            settings,
+        })
+    }
+
+    /// The posterior for torques `tau` measured at `joint_positions`
+    /// (every joint's, see [`Robot::joint_positions`]).
+    pub fn update(&self, robot: &Robot, joint_positions: &[f64], tau: &[f64]) -> Result<Update, EstimateError> {
+        let started = Instant::now();
+        let (pose, torque_model, posterior) = self.posterior_at(robot, joint_positions, tau, None)?;
+        let posterior_ms = elapsed_ms(started);
+        let concluding = Instant::now();
+        let (summary, refine_ms) = self.conclude_alone(&torque_model, &pose, &posterior, tau);
+        let mut update = Update {
+            pose,
+            posterior,
+            summary,
+            stages: None,
+        };
+        self.widen_alone(&mut update, &torque_model, tau);
+        let summary_ms = (elapsed_ms(concluding) - refine_ms).max(0.0);
+        update.stages = Some(StageTimes {
+            posterior_ms,
+            refine_ms,
+            summary_ms,
+        });
+        finite(update)
+    }
+
+    /// A frame alone with friction: `update`'s credible set widened as a
+    /// smoothed press's is ([`Estimator::widen_credible`]), by the spread
+    /// that the frame's own torques leave its place once a tangential
+    /// force under its prior (spread μ per newton of push) is let in
+    /// ([`Estimator::spread_alone`]). The posterior over samples is the
+    /// frictionless one, and it is sure of a place that a drag has shifted
+    /// (measured: 34 % of a session's 30 % drags in the set).
+    fn widen_alone(&self, update: &mut Update, torque_model: &TorqueModel, tau: &[f64]) {
+        if !self.fits_presses() || !is_pressed(update) {
+            return;
+        }
+        let Some((link, shape, at)) = self.located_contact(update) else {
+            return;
+        };
+        let frame = PressFrame {
+            t_secs: 0.0,
+            torque_model,
+            tau,
+            start: at,
+        };
+        if let Some(spread) = self.spread_alone(shape, link, frame) {
+            self.widen_credible(update, link, &spread);
+        }
+    }
+
+    /// The spread that one frame's torques leave its place (`frame.start`
+    /// on `link`), γ free under its prior: a press of one frame.
+    pub(crate) fn spread_alone(&self, shape: &LinkShape, link: LinkId, frame: PressFrame) -> Option<PlaceSpread> {
+        let weights = self.settings.weights();
+        // One frame has no slide between frames: any positive length will do.
+        let settings = self.press_settings(&weights, 1.0);
+        press_spreads(shape, link, &[frame], &settings)?.first().copied()
+    }
+
+    pub(crate) fn posterior_at(
+        &self,
+        robot: &Robot,
+        joint_positions: &[f64],
+        tau: &[f64],
+        forms: Option<&mut PatchForms>,
+    ) -> Result<(RobotPose, TorqueModel, Posterior), EstimateError> {
+        let pose = RobotPose::new(robot, joint_positions);
+        let torque_model = TorqueModel::new(robot, &pose, &self.links);
+        let posed = PosedSurface {
+            torque_model: &torque_model,
+            surface: &self.surface,
+        };
+        let posterior = estimate_keeping_forms(&posed, tau, &self.settings, self.hierarchy.as_ref(), forms)?;
+        Ok((pose, torque_model, posterior))
+    }
+
+    /// A frame's summary from its own posterior: the contact refined
+    /// unless the torques are within noise of zero (there is no contact
+    /// to place; the summary reports the most probable sample); and the
+    /// refinement's time, ms.
+    pub(crate) fn conclude_alone(
+        &self,
+        torque_model: &TorqueModel,
+        pose: &RobotPose,
+        posterior: &Posterior,
+        tau: &[f64],
+    ) -> (Summary, f64) {
+        let no_contact = chi_square_survival(posterior.no_contact_chi2, torque_model.sensed_count()) > NO_CONTACT_P;
+        self.conclude(torque_model, pose, posterior, tau, !no_contact, None)
+    }
+
+    /// Refines (when asked and the settings allow) and summarises a
+    /// posterior of the torques `tau` at `pose`; also the refinement's
+    /// time, ms.
+    pub(crate) fn conclude(
+        &self,
+        torque_model: &TorqueModel,
+        pose: &RobotPose,
+        posterior: &Posterior,
+        tau: &[f64],
+        refine_contact: bool,
+        belief: Option<BeliefAtFrame>,
+    ) -> (Summary, f64) {
+        let (contact_probability, offsets, friction) = match belief {
+            Some(b) => (
+                Some(b.contact_probability),
+                b.offset_m,
+                if b.friction_at_place {
+                    self.settings.friction
+                } else {
+                    0.0
+                },
+            ),
+            None => (None, None, self.settings.friction),
+        };
+        let refines = self.settings.patches && self.settings.mode == Mode::Exact && refine_contact;
+        let refining = Instant::now();
+        let refined = refines
+            .then(|| {
+                let weights = self.settings.weights();
+                let measurement = Measurement {
+                    tau,
+                    weights: &weights,
+                    force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
+                    friction,
+                };
+                // With friction (`Measurement::friction`) a frame's own
+                // refinement places the contact by the friction model; both
+                // report that model's force.
+                match offsets {
+                    Some(offset_m) => {
+                        contact_at_offsets(torque_model, &self.surface, posterior, &measurement, offset_m)
+                    }
+                    None => refine(torque_model, &self.surface, posterior, &measurement),
+                }
+            })
+            .flatten();
+        let refine_ms = if refines { elapsed_ms(refining) } else { 0.0 };
+        let summary = summarize_refined(
+            posterior,
+            &self.surface,
+            pose,
+            torque_model.sensed_count(),
+            refined.as_ref().map(|contact| Refinement {
+                contact,
+                sensing_joints: torque_model.twists(contact.link).len(),
+            }),
+            contact_probability,
+        );
+        (summary, refine_ms)
+    }
+
+    /// Whether smoothed presses are fitted as a whole with friction
+    /// ([`crate::core::estimate::press`]): with a friction setting, exact mode and
+    /// patches (the contacts are then placed on the continuous surface).
+    #[must_use]
+    pub fn fits_presses(&self) -> bool {
+        self.settings.friction > 0.0 && self.uses_patches()
+    }
+
+    /// `update`'s reported contact on its link's continuous surface: the
+    /// link, its shape and the place there (walked to from the contact's
+    /// sample). `None` where the link has no shape here.
+    pub(crate) fn located_contact(&self, update: &Update) -> Option<(LinkId, &LinkShape, MeshPoint)> {
+        let map = &update.summary.map;
+        let shape = self.surface.shape(map.link)?;
+        let &sample = self.surface.location.get(map.point)?;
+        let world_from_link = update.pose.world_from_link.get(map.link)?;
+        let point_in_link = world_from_link.inverse().transform_point3(map.point_world);
+        Some((map.link, shape, locate(shape, sample, point_in_link)))
+    }
+
+    /// Adds to `update`'s 90 % credible set the samples of `link` (its
+    /// reported contact's) that lie in the press's 90 % region around the
+    /// reported place (`spread`, a patch's radius added; samples facing
+    /// away from the place's normal left out): the smoother multiplies
+    /// its frames' likelihoods as if each frame's misfit were fresh noise,
+    /// and a press whose friction shifts every frame's place the same way
+    /// ends up sure of a wrong place (measured: `../shared` link 4, the
+    /// set a few millimetres wide and 68 mm from the push).
+    pub(crate) fn widen_credible(&self, update: &mut Update, link: LinkId, spread: &PlaceSpread) {
+        let map = &update.summary.map;
+        let Some(link_from_world) = update.pose.world_from_link.get(link).map(glam::DAffine3::inverse) else {
+            return;
+        };
+        if map.link != link {
+            return;
+        }
+        let center = link_from_world.transform_point3(map.point_world);
+        let normal = link_from_world.transform_vector3(map.inward_normal_world);
+        let Some(region) = spread.region(0.5 * self.surface.spacing_m(), CHI2_2_AT_90) else {
+            return;
+        };
+        let surface = &self.surface;
+        // Only the link's own samples (the surface keeps each link's in one
+        // run): a scan of every sample read more memory than the rest of
+        // the widening cost.
+        let Some(range) = link_ranges(&surface.link)
+            .into_iter()
+            .find_map(|(on, range)| (on == link).then_some(range))
+        else {
+            return;
+        };
+        let (Some(points), Some(normals)) = (
+            surface.point_in_link.get(range.clone()),
+            surface.inward_normal_in_link.get(range.clone()),
+        ) else {
+            return;
+        };
+        let more: Vec<usize> = range
+            .zip(points.iter().zip(normals))
+            .filter(|&(_, (&point, &inward))| inward.dot(normal) > 0.0 && region.contains(point - center))
+            .map(|(k, _)| k)
+            .collect();
+        if more.is_empty() {
+            return;
+        }
+        let pose = &update.pose;
+        update.summary.credible90 = update
+            .summary
+            .credible90
+            .with_points(&more, &update.posterior.probability, |k| {
+                surface.point_world(pose, k).unwrap_or(DVec3::ZERO)
+            });
+    }
+
+    /// Reports `placed` as `update`'s contact (see
+    /// [`Summary::place_contact`]), `model` being the frame's torques.
+    pub(crate) fn place(&self, update: &mut Update, placed: &PlacedContact, model: &TorqueModel) {
+        update.summary.place_contact(
+            placed,
+            model.twists(placed.link).len(),
+            (&update.posterior, &self.surface, &update.pose),
+            model.sensed_count(),
+        );
+    }
+
+    /// How presses are fitted under these settings: the noise `weights`
+    /// (`1/σ²`, [`EstimatorSettings::weights`]) and a fraction
+    /// ([`PRESS_SLIDE_FRACTION`]) of the temporal model's slide length.
+    pub(crate) fn press_settings<'w>(&self, weights: &'w [f64], slide_m_per_sqrt_s: f64) -> PressSettings<'w> {
+        PressSettings {
+            weights,
+            force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
+            friction: self.settings.friction,
+            slide_m_per_sqrt_s: slide_m_per_sqrt_s * PRESS_SLIDE_FRACTION,
+        }
+    }
+
+    /// Whether posteriors integrate each sample's patch (exact mode with
+    /// patches): their samples are then weighed by area.
+    #[must_use]
+    pub fn uses_patches(&self) -> bool {
+        self.settings.patches && self.settings.mode == Mode::Exact
+    }
+}
+
+/// `update`, or the error that names its first number that is not
+/// finite: an estimate is reported finite or not at all.
+pub(crate) fn finite(update: Update) -> Result<Update, EstimateError> {
+    match update.summary.non_finite_field() {
+        None => Ok(update),
+        Some(field) => Err(EstimateError::NonFiniteEstimate { field }),
+    }
+}
+
+/// Milliseconds since `since`.
+pub(crate) fn elapsed_ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
+}
+
+/// What a temporal model believes at a frame, as a summary needs it.
+#[derive(Clone, Copy)]
+pub(crate) struct BeliefAtFrame<'a> {
+    /// Probability of a contact.
+    pub contact_probability: f64,
+    /// Where within its patch the contact is believed to be, per sample,
+    /// m along the sample's tangents (confined to the patch: beyond it
+    /// the linear model does not hold); the samples are points when
+    /// `None`.
+    pub offset_m: Option<&'a dyn Fn(usize) -> Option<[f64; 2]>>,
+    /// Whether the force at the believed place follows the friction
+    /// setting (else it is frictionless).
+    pub friction_at_place: bool,
+}
+
+/// The 90 % point of χ² with two degrees of freedom: a 2-D Gaussian's
+/// 90 % region is where the squared Mahalanobis distance is below it
+/// (`-2 ln 0.1`).
+pub const CHI2_2_AT_90: f64 = 4.605_170_185_988_091;
+
+/// Whether a frame's contact can join a press: a contact placed on the
+/// continuous surface.
+pub(crate) fn is_pressed(update: &Update) -> bool {
+    update.summary.refined && update.summary.verdict != Verdict::NoContact
+}
+
+/// The press fit (see [`crate::core::estimate::press`]) slides the place by this
+/// fraction of the temporal model's slide length. The smoother reports
+/// one place per press (its heaviest sample moved by the offset every
+/// frame believes), whereas a trajectory free to slide at the full
+/// length follows each frame's noise: on synthetic sessions without
+/// friction (`synth --seed 3`) a fit at the full length moved the median
+/// error from 1.4 to 7 mm on a press of link 6, and on the link 4
+/// `MuJoCo` presses it took a second press for friction at 27 mm instead of
+/// 10 mm.
+pub const PRESS_SLIDE_FRACTION: f64 = 0.3;

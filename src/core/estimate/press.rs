@@ -1,0 +1,809 @@
+//! A press's friction, fitted over the whole press.
+//!
+//! A frame alone cannot tell a tangential force from a shifted place when
+//! fewer than five joints sense the link, and integrating a fresh
+//! tangential force out of every frame (the per-frame friction model of
+//! [`crate::core::estimate::friction`]) lets each frame explain its misfit its own
+//! way. A real press drags in one direction for its whole length: the
+//! tangential force is a fixed fraction γ of the push, fixed in the link's
+//! frame, while the arm moves under it. Over a press that is three
+//! unknowns in all, and the arm's motion pins them.
+//!
+//! The unknowns are the place at every frame (on the link's surface, two
+//! tangent coordinates each), γ (link frame; only its part along the
+//! surface acts) and each frame's push magnitude (profiled out). The cost
+//! is `-2 ln` of the posterior:
+//!
+//! `Σ_t ‖τ_t - f_t (u_t + C_t γ)‖²_W + Σ_t |p_t - p_{t-1}|²/(ℓ² Δt) + |γ|²/μ²`
+//!
+//! (`u_t`: torques per newton of the push along the inward normal at the
+//! frame's place, `C_t`: per newton along the link's axes projected on the
+//! surface; `ℓ`: the slide's length scale; `μ`: the friction setting, the
+//! spread of γ per direction). Gauss–Newton steps solve a block
+//! tridiagonal system (a frame's place is tied to its neighbours' by the
+//! slide) bordered by γ, in `O(frames)`.
+//!
+//! The same search with γ held at zero is the frictionless answer; the
+//! friction model is kept only when it explains the press by far better
+//! ([`FRICTION_GAIN`]) with a plausible γ. A frictionless press then keeps
+//! its estimate, and a press that our models explain poorly either way
+//! (too few joints, another kind of error) is not moved.
+
+use glam::{DMat2, DMat3, DVec2, DVec3};
+
+use crate::core::geometry::shell::{MeshPoint, SurfaceFrame};
+use crate::core::robot::model::LinkId;
+use crate::core::robot::torque::{TorqueModel, weighted_dot as inner};
+use crate::core::surface::sampling::LinkShape;
+
+/// The drop in `-2 ln L` (the cost above, both searches started from the
+/// same places, and the friction model's again from the frictionless
+/// answer where it ended costlier) that the friction model must reach
+/// over the frictionless one to be kept. Three more unknowns fitting
+/// noise gain about 3; 30 is a likelihood ratio of e¹⁵ (χ² with three
+/// degrees of freedom beyond it: a chance of 1e-6). Measured on synthetic
+/// sessions (`synth --friction 0.15|0.3`, seeds 1–6) the answer moves
+/// little between 15 and 60.
+pub const FRICTION_GAIN: f64 = 30.0;
+
+/// A fitted γ longer than this many spreads μ is taken for a model
+/// failure, not friction (a push nearly along the surface explained as
+/// friction), and the press keeps its frictionless estimate.
+pub const RATIO_LIMIT_SPREADS: f64 = 4.0;
+
+/// Gauss–Newton steps at most per search.
+const MAX_STEPS: usize = 50;
+
+/// Halvings of a step that does not lower the cost before giving up.
+const MAX_HALVINGS: usize = 10;
+
+/// No frame's place moves by more than this in one step, m: the surface
+/// curves, and the linear model of the torques holds over about a patch.
+const TRUST_M: f64 = 0.01;
+
+/// A search stops once a step gains less than this in `-2 ln L`.
+const CONVERGED: f64 = 1e-3;
+
+/// Walks that [`locate`] takes (each lands within the surface's curvature
+/// times the offset squared of the point: a patch-sized offset is within
+/// micrometres after three).
+const LOCATE_STEPS: usize = 4;
+
+/// Shortest interval between frames the slide term divides by, s
+/// (frames sharing a time stamp are tied this tightly).
+const MIN_DT_SECS: f64 = 1e-6;
+
+/// One frame of a press.
+#[derive(Debug, Clone, Copy)]
+pub struct PressFrame<'a> {
+    /// Time, s.
+    pub t_secs: f64,
+    /// Torques per unit force at this frame's configuration.
+    pub torque_model: &'a TorqueModel,
+    /// Measured torques, sensed order, N·m.
+    pub tau: &'a [f64],
+    /// Where the search starts (the frame's estimate without this fit).
+    pub start: MeshPoint,
+}
+
+/// What the fit needs besides the frames.
+#[derive(Debug, Clone, Copy)]
+pub struct PressSettings<'a> {
+    /// `1/σ²` per sensed joint.
+    pub weights: &'a [f64],
+    /// Push magnitudes considered, N.
+    pub force_range_newtons: (f64, f64),
+    /// μ: spread of the tangential fraction γ per direction.
+    pub friction: f64,
+    /// ℓ: RMS slide of the place along each surface direction after 1 s,
+    /// m/√s.
+    pub slide_m_per_sqrt_s: f64,
+}
+
+/// One frame's contact under the fitted press.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PressContact {
+    /// Where on the link's surface.
+    pub location: MeshPoint,
+    /// Contact point, link frame, m.
+    pub point_in_link: DVec3,
+    /// Inward unit normal, link frame.
+    pub inward_normal_in_link: DVec3,
+    /// Push along the inward normal, N.
+    pub force_newtons: f64,
+    /// Tangential force, link frame, N.
+    pub tangential_in_link: DVec3,
+    /// `Σ (τ - f (u + C γ))² / σ²` of this frame (χ² with one degree of
+    /// freedom per sensed joint less the three the place and push fit).
+    pub residual_chi2: f64,
+    /// How far the whole press leaves this frame's place undetermined
+    /// (see [`PlaceSpread`]); `None` where it cannot be computed.
+    pub spread: Option<PlaceSpread>,
+}
+
+/// The uncertainty of one frame's place given the whole press: the
+/// Laplace approximation of the posterior at the fit, with γ free under
+/// its prior (spread μ per direction) even where the frictionless fit is
+/// reported. A press that drags while the arm is still cannot tell a
+/// tangential force from a shifted place (on the LWR's link 4, three
+/// joints see a push: a place 50–70 mm off explains a drag of 17 % of the
+/// push as well as the truth does); the place's spread along that
+/// direction is then what μ allows, and the credible region says so
+/// instead of shrinking with every frame of the press.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlaceSpread {
+    /// The surface's two unit tangents at the place, link frame.
+    pub tangents_in_link: [DVec3; 2],
+    /// Covariance of the place along the two tangents, m².
+    pub covariance_m2: DMat2,
+}
+
+impl PlaceSpread {
+    /// The points within `level` (a squared Mahalanobis distance) of the
+    /// place, a patch of radius `rho_m` around it counted in: `dᵀ (Σ +
+    /// ρ² I)⁻¹ d ≤ level` for an offset `d` projected on the tangents.
+    /// `None` where the matrix is singular or not finite.
+    #[must_use]
+    pub fn region(&self, rho_m: f64, level: f64) -> Option<PlaceRegion> {
+        let widened = self.covariance_m2 + DMat2::IDENTITY * (rho_m * rho_m);
+        let det = widened.determinant();
+        (det.is_finite() && det > 0.0).then(|| PlaceRegion {
+            tangents_in_link: self.tangents_in_link,
+            inverse_m2: widened.inverse(),
+            level,
+        })
+    }
+}
+
+/// An ellipse around a place along its surface ([`PlaceSpread::region`]),
+/// its inverse formed once for the many points tested against it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlaceRegion {
+    tangents_in_link: [DVec3; 2],
+    inverse_m2: DMat2,
+    level: f64,
+}
+
+impl PlaceRegion {
+    /// Whether the point `offset_in_link` from the place (projected on the
+    /// place's tangents) lies in the region.
+    #[must_use]
+    pub fn contains(&self, offset_in_link: DVec3) -> bool {
+        let [t0, t1] = self.tangents_in_link;
+        let d = DVec2::new(t0.dot(offset_in_link), t1.dot(offset_in_link));
+        d.dot(self.inverse_m2 * d) <= self.level
+    }
+}
+
+/// A press explained with a tangential force fixed in the link's frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PressFit {
+    /// Each frame's contact, in the frames' order.
+    pub contacts: Vec<PressContact>,
+    /// γ: the tangential force per newton of push, link frame (its part
+    /// along the surface acts at each frame).
+    pub tangential_ratio_in_link: DVec3,
+    /// How much lower `-2 ln L` is with friction than without.
+    pub gain: f64,
+}
+
+/// Fits the press `frames` (in time order, all on `link`) with a
+/// tangential force fixed in the link's frame, and returns it when the
+/// friction model explains the press by [`FRICTION_GAIN`] better than the
+/// frictionless one with a plausible γ; `None` otherwise (also when μ is
+/// 0, there are no frames, or the surface cannot be evaluated).
+#[must_use]
+pub fn fit_press(shape: &LinkShape, link: LinkId, frames: &[PressFrame], settings: &PressSettings) -> Option<PressFit> {
+    let answer = explain_press(shape, link, frames, settings)?;
+    answer.friction.then_some(PressFit {
+        contacts: answer.contacts,
+        tangential_ratio_in_link: answer.tangential_ratio_in_link,
+        gain: answer.gain,
+    })
+}
+
+/// The press's best explanation on one link from one start: the
+/// frictionless fit, or the friction model's where it is kept (as in
+/// [`fit_press`]), with its cost, so that explanations on other links or
+/// from other starts can be weighed against it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PressAnswer {
+    /// Each frame's contact, in the frames' order.
+    pub contacts: Vec<PressContact>,
+    /// γ, link frame (zero without friction).
+    pub tangential_ratio_in_link: DVec3,
+    /// `-2 ln` of the posterior at the fit (the cost of the module's
+    /// documentation, γ's prior included when friction is kept).
+    pub cost: f64,
+    /// Whether the friction model was kept.
+    pub friction: bool,
+    /// How much lower the cost is with friction than without (0 without a
+    /// friction setting).
+    pub gain: f64,
+}
+
+/// Fits the press `frames` (in time order, all on `link`, each started at
+/// its `start`) without friction and, with a friction setting, with it;
+/// returns the friction model's fit where [`fit_press`] would keep it and
+/// the frictionless one otherwise. `None` without frames, without a
+/// positive finite slide length, or where the surface cannot be
+/// evaluated.
+#[must_use]
+pub fn explain_press(
+    shape: &LinkShape,
+    link: LinkId,
+    frames: &[PressFrame],
+    settings: &PressSettings,
+) -> Option<PressAnswer> {
+    let problem = Problem::new(shape, link, frames, settings)?;
+    let start: Vec<MeshPoint> = frames.iter().map(|f| f.start).collect();
+    let frictionless = problem.descend(start.clone(), false)?;
+    let with_friction = settings.friction > 0.0 && settings.friction.is_finite();
+    // From the recording's places; where that search ends above the
+    // frictionless cost (in another valley: γ = 0 is the frictionless
+    // answer, so the friction model's best is never worse), again from
+    // where the frictionless search ended, which ends at or below it.
+    let frictional = if with_friction {
+        match problem.descend(start, true) {
+            Some(cold) if cold.normal.cost <= frictionless.normal.cost => Some(cold),
+            cold => problem.descend(frictionless.locations.clone(), true).or(cold),
+        }
+    } else {
+        None
+    };
+    let gain = frictional
+        .as_ref()
+        .map_or(0.0, |f| frictionless.normal.cost - f.normal.cost);
+    let kept =
+        frictional.filter(|f| gain > FRICTION_GAIN && f.ratio.length() <= RATIO_LIMIT_SPREADS * settings.friction);
+    let friction = kept.is_some();
+    let found = kept.unwrap_or(frictionless);
+    let ratio = found.ratio;
+    let spreads = problem.spreads(&found.locations, ratio, with_friction);
+    let contacts = found
+        .locations
+        .iter()
+        .zip(&found.normal.surface)
+        .zip(&found.normal.magnitudes)
+        .zip(&found.normal.residuals)
+        .enumerate()
+        .map(
+            |(t, (((&location, surface), &force_newtons), &residual_chi2))| PressContact {
+                location,
+                point_in_link: surface.point,
+                inward_normal_in_link: surface.inward_normal,
+                force_newtons,
+                tangential_in_link: along_surface(ratio, surface.inward_normal) * force_newtons,
+                residual_chi2,
+                spread: spreads
+                    .as_ref()
+                    .and_then(|all| all.get(t))
+                    .map(|&covariance_m2| PlaceSpread {
+                        tangents_in_link: surface.tangents,
+                        covariance_m2,
+                    }),
+            },
+        )
+        .collect();
+    Some(PressAnswer {
+        contacts,
+        tangential_ratio_in_link: ratio,
+        cost: found.normal.cost,
+        friction,
+        gain,
+    })
+}
+
+/// Each frame's [`PlaceSpread`] at the frames' `start` places with no
+/// tangential force, γ marginalised under its prior where μ > 0: what
+/// the frames leave undetermined of places already chosen (a filter's
+/// press so far), without a search. `None` without frames, without a
+/// positive finite slide length, or where the surface or the matrix
+/// cannot be evaluated.
+#[must_use]
+pub fn press_spreads(
+    shape: &LinkShape,
+    link: LinkId,
+    frames: &[PressFrame],
+    settings: &PressSettings,
+) -> Option<Vec<PlaceSpread>> {
+    let problem = Problem::new(shape, link, frames, settings)?;
+    let locations: Vec<MeshPoint> = frames.iter().map(|f| f.start).collect();
+    let with_friction = settings.friction > 0.0 && settings.friction.is_finite();
+    let covariances = problem.spreads(&locations, DVec3::ZERO, with_friction)?;
+    locations
+        .iter()
+        .zip(covariances)
+        .map(|(&at, covariance_m2)| {
+            Some(PlaceSpread {
+                tangents_in_link: shape.frame(at)?.tangents,
+                covariance_m2,
+            })
+        })
+        .collect()
+}
+
+/// The place on `shape` of `point_in_link` (a point on or next to the
+/// surface), found by walking from `from` (a sample near it) along the
+/// surface: a few steps, each the offset's part along the surface there.
+#[must_use]
+pub fn locate(shape: &LinkShape, from: MeshPoint, point_in_link: DVec3) -> MeshPoint {
+    let mut at = from;
+    for _ in 0..LOCATE_STEPS {
+        let Some(here) = shape.frame(at) else {
+            break;
+        };
+        let offset = along_surface(point_in_link - here.point, here.inward_normal);
+        if offset.length() < 1e-9 {
+            break;
+        }
+        at = shape.walk(at, offset);
+    }
+    at
+}
+
+/// Torques per newton at `here` into `columns`: the push `u` along the
+/// inward normal, its derivatives along the two tangents, and a push along
+/// each of the link's axes projected on the surface. `None` unless there
+/// are six columns.
+fn columns_at(model: &TorqueModel, link: LinkId, here: &SurfaceFrame, columns: &mut [Vec<f64>]) -> Option<()> {
+    let [u, d0, d1, c0, c1, c2] = columns else {
+        return None;
+    };
+    model.line_array_torques_into(link, &here.line(), u);
+    model.line_array_torques_into(link, &here.line_derivatives[0], d0);
+    model.line_array_torques_into(link, &here.line_derivatives[1], d1);
+    for (axis, out) in [DVec3::X, DVec3::Y, DVec3::Z].into_iter().zip([c0, c1, c2]) {
+        let direction = along_surface(axis, here.inward_normal);
+        let moment = here.point.cross(direction);
+        let line = [moment.x, moment.y, moment.z, direction.x, direction.y, direction.z];
+        model.line_array_torques_into(link, &line, out);
+    }
+    Some(())
+}
+
+/// The part of `v` perpendicular to the unit normal `n`.
+fn along_surface(v: DVec3, n: DVec3) -> DVec3 {
+    v - v.dot(n) * n
+}
+
+/// The press and its settings.
+struct Problem<'a> {
+    shape: &'a LinkShape,
+    link: LinkId,
+    frames: &'a [PressFrame<'a>],
+    settings: &'a PressSettings<'a>,
+}
+
+impl<'a> Problem<'a> {
+    /// The press `frames` on `link`; `None` without frames or without a
+    /// positive finite slide length (the slide prior divides by it).
+    fn new(
+        shape: &'a LinkShape,
+        link: LinkId,
+        frames: &'a [PressFrame<'a>],
+        settings: &'a PressSettings<'a>,
+    ) -> Option<Self> {
+        let slide = settings.slide_m_per_sqrt_s;
+        (!frames.is_empty() && slide > 0.0 && slide.is_finite()).then_some(Self {
+            shape,
+            link,
+            frames,
+            settings,
+        })
+    }
+}
+
+/// The cost at a trajectory and its Gauss–Newton normal equations.
+struct Normal {
+    /// `-2 ln` posterior (up to a constant).
+    cost: f64,
+    /// Each frame's surface.
+    surface: Vec<SurfaceFrame>,
+    /// Each frame's profiled push, N.
+    magnitudes: Vec<f64>,
+    /// Each frame's `‖τ - f (u + C γ)‖²_W`.
+    residuals: Vec<f64>,
+    /// Diagonal 2×2 blocks (a frame's two tangent coordinates).
+    diagonal: Vec<DMat2>,
+    /// `lower[t]`: the block coupling frame t to frame t-1 (`lower[0]`
+    /// unused).
+    lower: Vec<DMat2>,
+    /// Coupling of each frame's place to γ: one column per axis of γ.
+    border: Vec<[DVec2; 3]>,
+    /// γ's own block.
+    corner: DMat3,
+    /// Right-hand sides: places.
+    rhs_places: Vec<DVec2>,
+    /// Right-hand side: γ.
+    rhs_ratio: DVec3,
+}
+
+impl Normal {
+    /// Adds the slide from frame `t - 1` to frame `t`, `weight |p_t -
+    /// p_{t-1}|²` (`weight`: 1/(ℓ² Δt)), to the cost and the normal
+    /// equations.
+    fn add_slide(&mut self, t: usize, weight: f64) -> Option<()> {
+        let (here, before) = (self.surface.get(t)?, self.surface.get(t.checked_sub(1)?)?);
+        let gap = here.point - before.point;
+        let (tangents_here, tangents_before) = (here.tangents, before.tangents);
+        self.cost += weight * gap.length_squared();
+        *self.diagonal.get_mut(t)? += DMat2::IDENTITY * weight;
+        *self.diagonal.get_mut(t - 1)? += DMat2::IDENTITY * weight;
+        // Row: this frame's tangent i; column: the frame before's j.
+        *self.lower.get_mut(t)? -= DMat2::from_cols(
+            DVec2::new(
+                tangents_here[0].dot(tangents_before[0]),
+                tangents_here[1].dot(tangents_before[0]),
+            ),
+            DVec2::new(
+                tangents_here[0].dot(tangents_before[1]),
+                tangents_here[1].dot(tangents_before[1]),
+            ),
+        ) * weight;
+        *self.rhs_places.get_mut(t)? -= DVec2::new(tangents_here[0].dot(gap), tangents_here[1].dot(gap)) * weight;
+        *self.rhs_places.get_mut(t - 1)? +=
+            DVec2::new(tangents_before[0].dot(gap), tangents_before[1].dot(gap)) * weight;
+        Some(())
+    }
+}
+
+/// The end of a search.
+struct Found {
+    locations: Vec<MeshPoint>,
+    ratio: DVec3,
+    normal: Normal,
+}
+
+impl Problem<'_> {
+    /// Gauss–Newton from `start` (γ = 0), moving γ only when
+    /// `ratio_free`.
+    fn descend(&self, start: Vec<MeshPoint>, ratio_free: bool) -> Option<Found> {
+        let mut locations = start;
+        let mut ratio = DVec3::ZERO;
+        let mut normal = self.normal_at(&locations, ratio, ratio_free)?;
+        for _ in 0..MAX_STEPS {
+            let Some((places, ratio_step)) = step(&normal, ratio_free) else {
+                break;
+            };
+            let largest = places.iter().map(|d| d.length()).fold(0.0, f64::max);
+            let mut scale = if largest > TRUST_M { TRUST_M / largest } else { 1.0 };
+            let mut gained = 0.0;
+            for _ in 0..MAX_HALVINGS {
+                let moved: Vec<MeshPoint> = locations
+                    .iter()
+                    .zip(&normal.surface)
+                    .zip(&places)
+                    .map(|((&at, surface), d)| {
+                        let offset = (surface.tangents[0] * d.x + surface.tangents[1] * d.y) * scale;
+                        self.shape.walk(at, offset)
+                    })
+                    .collect();
+                let next_ratio = ratio + ratio_step * scale;
+                if let Some(next) = self.normal_at(&moved, next_ratio, ratio_free)
+                    && next.cost < normal.cost
+                {
+                    gained = normal.cost - next.cost;
+                    locations = moved;
+                    ratio = next_ratio;
+                    normal = next;
+                    break;
+                }
+                scale *= 0.5;
+            }
+            if gained < CONVERGED {
+                break;
+            }
+        }
+        Some(Found {
+            locations,
+            ratio,
+            normal,
+        })
+    }
+
+    /// Each frame's place covariance (tangent coordinates, m²) at
+    /// `locations` and γ = `ratio`: the inverse of the Gauss–Newton
+    /// matrix (the cost is `-2 ln` posterior and the matrix half its
+    /// Hessian, so the inverse is the Laplace covariance) with γ
+    /// marginalised where `ratio_free`. `None` where it is singular.
+    fn spreads(&self, locations: &[MeshPoint], ratio: DVec3, ratio_free: bool) -> Option<Vec<DMat2>> {
+        covariances(&self.normal_at(locations, ratio, ratio_free)?, ratio_free)
+    }
+
+    /// The cost at `locations` with γ = `ratio`, and its normal equations
+    /// (γ's rows only when `ratio_free`). `None` where the surface cannot
+    /// be evaluated or a number is not finite.
+    fn normal_at(&self, locations: &[MeshPoint], ratio: DVec3, ratio_free: bool) -> Option<Normal> {
+        let settings = self.settings;
+        let w = settings.weights;
+        let joints = w.len();
+        let (f_min, f_max) = settings.force_range_newtons;
+        let spread = settings.friction;
+        let slide = settings.slide_m_per_sqrt_s;
+        let n = self.frames.len();
+        let surface: Vec<SurfaceFrame> = locations
+            .iter()
+            .map(|&at| self.shape.frame(at))
+            .collect::<Option<_>>()?;
+        let mut normal = Normal {
+            cost: 0.0,
+            surface,
+            magnitudes: vec![0.0; n],
+            residuals: vec![0.0; n],
+            diagonal: vec![DMat2::ZERO; n],
+            lower: vec![DMat2::ZERO; n],
+            border: vec![[DVec2::ZERO; 3]; n],
+            corner: DMat3::ZERO,
+            rhs_places: vec![DVec2::ZERO; n],
+            rhs_ratio: DVec3::ZERO,
+        };
+        if ratio_free {
+            normal.cost += ratio.length_squared() / (spread * spread);
+            normal.corner = DMat3::IDENTITY / (spread * spread);
+            normal.rhs_ratio = -ratio / (spread * spread);
+        }
+        // u, ∂u/∂s₁, ∂u/∂s₂, then the three axes' tangential columns.
+        let mut columns = vec![vec![0.0; joints]; 6];
+        let mut pushed = vec![0.0; joints];
+        let mut residual = vec![0.0; joints];
+        for (t, frame) in self.frames.iter().enumerate() {
+            let here = *normal.surface.get(t)?;
+            let tau = frame.tau.get(..joints)?;
+            columns_at(frame.torque_model, self.link, &here, &mut columns)?;
+            let [u, d0, d1, c0, c1, c2] = columns.as_slice() else {
+                return None;
+            };
+            for (j, p) in pushed.iter_mut().enumerate() {
+                *p = u[j] + ratio.x * c0[j] + ratio.y * c1[j] + ratio.z * c2[j];
+            }
+            let lever = inner(w, &pushed, &pushed);
+            let best = if lever > 0.0 {
+                inner(w, &pushed, tau) / lever
+            } else {
+                f_min
+            };
+            let f = best.clamp(f_min, f_max);
+            // Where the best magnitude is inside the range it moves with
+            // the place: the step sees the residual with the push's
+            // direction projected out.
+            let profiled = lever > 0.0 && best > f_min && best < f_max;
+            for ((r, &m), &p) in residual.iter_mut().zip(tau).zip(&pushed) {
+                *r = m - f * p;
+            }
+            let chi2 = inner(w, &residual, &residual);
+            normal.cost += chi2;
+            *normal.residuals.get_mut(t)? = chi2;
+            *normal.magnitudes.get_mut(t)? = f;
+            let metric = |x: &[f64], y: &[f64]| {
+                let plain = inner(w, x, y);
+                if profiled {
+                    plain - inner(w, x, &pushed) * inner(w, &pushed, y) / lever
+                } else {
+                    plain
+                }
+            };
+            let places = [d0, d1];
+            let axes = [c0, c1, c2];
+            let f2 = f * f;
+            let block = normal.diagonal.get_mut(t)?;
+            *block += DMat2::from_cols(
+                DVec2::new(metric(d0, d0), metric(d1, d0)),
+                DVec2::new(metric(d0, d1), metric(d1, d1)),
+            ) * f2;
+            *normal.rhs_places.get_mut(t)? += DVec2::new(inner(w, d0, &residual), inner(w, d1, &residual)) * f;
+            if ratio_free {
+                let border = normal.border.get_mut(t)?;
+                for (k, axis) in axes.iter().enumerate() {
+                    border[k] += DVec2::new(metric(places[0], axis), metric(places[1], axis)) * f2;
+                }
+                normal.corner += DMat3::from_cols_array_2d(&std::array::from_fn(|k| {
+                    std::array::from_fn(|l| metric(axes[k], axes[l]) * f2)
+                }));
+                normal.rhs_ratio += DVec3::new(
+                    inner(w, c0, &residual),
+                    inner(w, c1, &residual),
+                    inner(w, c2, &residual),
+                ) * f;
+            }
+            if t > 0 {
+                let earlier = self.frames.get(t - 1)?;
+                let dt_secs = (frame.t_secs - earlier.t_secs).max(MIN_DT_SECS);
+                normal.add_slide(t, 1.0 / (slide * slide * dt_secs))?;
+            }
+        }
+        normal.cost.is_finite().then_some(normal)
+    }
+}
+
+/// Each frame's place covariance from `normal` (see
+/// [`Problem::spreads`]): the diagonal blocks of the inverse of its
+/// matrix, γ marginalised where `ratio_free`.
+fn covariances(normal: &Normal, ratio_free: bool) -> Option<Vec<DMat2>> {
+    let chain = Chain::factor(&normal.diagonal, &normal.lower)?;
+    let mut covariances = chain.inverse_diagonal()?;
+    if ratio_free {
+        // (A - B C⁻¹ Bᵀ)⁻¹ = A⁻¹ + (A⁻¹B) S⁻¹ (A⁻¹B)ᵀ, S the Schur complement.
+        let bordered = Bordered::of(normal, &chain)?;
+        let schur_inverse = bordered.schur_inverse;
+        for (t, covariance) in covariances.iter_mut().enumerate() {
+            let columns: [DVec2; 3] = std::array::from_fn(|k| {
+                bordered
+                    .by_axis
+                    .get(k)
+                    .and_then(|column| column.get(t))
+                    .copied()
+                    .unwrap_or(DVec2::ZERO)
+            });
+            for (k, &x) in columns.iter().enumerate() {
+                for (l, &y) in columns.iter().enumerate() {
+                    let weight = schur_inverse.col(l)[k];
+                    *covariance += DMat2::from_cols(x * y.x, x * y.y) * weight;
+                }
+            }
+        }
+    }
+    covariances.iter().all(DMat2::is_finite).then_some(covariances)
+}
+
+/// The Gauss–Newton step of `normal`: each frame's move (tangent
+/// coordinates, m) and γ's (zero unless `ratio_free`). `None` when the
+/// system is singular.
+fn step(normal: &Normal, ratio_free: bool) -> Option<(Vec<DVec2>, DVec3)> {
+    let chain = Chain::factor(&normal.diagonal, &normal.lower)?;
+    let places = chain.solve(&normal.rhs_places);
+    if !ratio_free {
+        return Some((places, DVec3::ZERO));
+    }
+    // γ by the Schur complement of the chain: (C - Bᵀ A⁻¹ B) dγ = r_γ - Bᵀ A⁻¹ r_p.
+    let bordered = Bordered::of(normal, &chain)?;
+    let mut rhs = normal.rhs_ratio;
+    for (t, border) in normal.border.iter().enumerate() {
+        let place = places.get(t).copied().unwrap_or(DVec2::ZERO);
+        rhs -= DVec3::new(border[0].dot(place), border[1].dot(place), border[2].dot(place));
+    }
+    let ratio_step = bordered.schur_inverse * rhs;
+    let moves = places
+        .iter()
+        .enumerate()
+        .map(|(t, &p)| {
+            let mut d = p;
+            for (column, amount) in bordered.by_axis.iter().zip(ratio_step.to_array()) {
+                d -= column.get(t).copied().unwrap_or(DVec2::ZERO) * amount;
+            }
+            d
+        })
+        .collect();
+    ratio_step.is_finite().then_some((moves, ratio_step))
+}
+
+/// The border's part of the Gauss–Newton system: `A⁻¹ B` (one column of
+/// 2-vectors per axis of γ) and the inverse of the Schur complement
+/// `S = C - Bᵀ A⁻¹ B`.
+struct Bordered {
+    by_axis: Vec<Vec<DVec2>>,
+    schur_inverse: DMat3,
+}
+
+impl Bordered {
+    /// `None` where the Schur complement is singular.
+    fn of(normal: &Normal, chain: &Chain) -> Option<Self> {
+        let by_axis: Vec<Vec<DVec2>> = (0..3)
+            .map(|k| {
+                let column: Vec<DVec2> = normal.border.iter().map(|b| b[k]).collect();
+                chain.solve(&column)
+            })
+            .collect();
+        let mut schur = normal.corner.to_cols_array_2d();
+        for (t, border) in normal.border.iter().enumerate() {
+            for (k, b) in border.iter().enumerate() {
+                for (column, solved) in schur.iter_mut().zip(&by_axis) {
+                    let s = solved.get(t).copied().unwrap_or(DVec2::ZERO);
+                    if let Some(entry) = column.get_mut(k) {
+                        *entry -= b.dot(s);
+                    }
+                }
+            }
+        }
+        let schur = DMat3::from_cols_array_2d(&schur);
+        let det = schur.determinant();
+        if !(det.is_finite() && det.abs() > f64::MIN_POSITIVE) {
+            return None;
+        }
+        Some(Self {
+            by_axis,
+            schur_inverse: schur.inverse(),
+        })
+    }
+}
+
+/// A block tridiagonal symmetric matrix (2×2 blocks) factored for
+/// solving: `diagonal[t] x_t + lower[t] x_{t-1} + lower[t+1]ᵀ x_{t+1}`.
+struct Chain {
+    /// The inverse of each pivot block.
+    pivot_inverse: Vec<DMat2>,
+    /// `lower[t] · pivot_inverse[t-1]`, used forward.
+    gain: Vec<DMat2>,
+    /// The sub-diagonal blocks.
+    lower: Vec<DMat2>,
+}
+
+impl Chain {
+    /// Block elimination from the first frame on. `None` when a pivot is
+    /// singular (a ridge of 1e-12 of its trace keeps flat directions
+    /// from being so).
+    fn factor(diagonal: &[DMat2], lower: &[DMat2]) -> Option<Self> {
+        let n = diagonal.len();
+        let mut pivot_inverse: Vec<DMat2> = Vec::with_capacity(n);
+        let mut gain = vec![DMat2::ZERO; n];
+        for t in 0..n {
+            let mut pivot = *diagonal.get(t)?;
+            if t > 0 {
+                let g = *lower.get(t)? * *pivot_inverse.get(t - 1)?;
+                pivot -= g * lower.get(t)?.transpose();
+                *gain.get_mut(t)? = g;
+            }
+            let ridge = 1e-12 * (pivot.x_axis.x + pivot.y_axis.y).abs();
+            pivot += DMat2::IDENTITY * ridge;
+            let det = pivot.determinant();
+            if !(det.is_finite() && det.abs() > f64::MIN_POSITIVE) {
+                return None;
+            }
+            pivot_inverse.push(pivot.inverse());
+        }
+        Some(Self {
+            pivot_inverse,
+            gain,
+            lower: lower.to_vec(),
+        })
+    }
+
+    /// The diagonal blocks of the matrix's inverse, from the last frame
+    /// back: `X_t = P_t⁻¹ + G_t X_{t+1} G_tᵀ` with `G_t = P_t⁻¹ L_{t+1}ᵀ`
+    /// (`P`: the pivots, `L`: the sub-diagonal blocks).
+    fn inverse_diagonal(&self) -> Option<Vec<DMat2>> {
+        let mut out = vec![DMat2::ZERO; self.pivot_inverse.len()];
+        let mut after: Option<DMat2> = None;
+        for (t, slot) in out.iter_mut().enumerate().rev() {
+            let pivot_inverse = *self.pivot_inverse.get(t)?;
+            let here = match after {
+                None => pivot_inverse,
+                Some(next) => {
+                    let g = pivot_inverse * self.lower.get(t + 1)?.transpose();
+                    pivot_inverse + g * next * g.transpose()
+                }
+            };
+            *slot = here;
+            after = Some(here);
+        }
+        Some(out)
+    }
+
+    /// The solution for the right-hand side `rhs` (one 2-vector a frame).
+    fn solve(&self, rhs: &[DVec2]) -> Vec<DVec2> {
+        let mut forward: Vec<DVec2> = Vec::with_capacity(rhs.len());
+        let mut before = DVec2::ZERO;
+        for (&r, &gain) in rhs.iter().zip(&self.gain) {
+            before = r - gain * before;
+            forward.push(before);
+        }
+        let mut x = vec![DVec2::ZERO; forward.len()];
+        let (mut after, mut after_lower) = (DVec2::ZERO, DMat2::ZERO);
+        for (((slot, &y), &pivot_inverse), &lower) in x
+            .iter_mut()
+            .zip(&forward)
+            .zip(&self.pivot_inverse)
+            .zip(&self.lower)
+            .rev()
+        {
+            after = pivot_inverse * (y - after_lower.transpose() * after);
+            *slot = after;
+            after_lower = lower;
+        }
+        x
+    }
+}
+
+#[cfg(test)]
+#[path = "press_tests.rs"]
+mod tests;

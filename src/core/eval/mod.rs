@@ -1,0 +1,6 @@
+//! Off the estimator's path: the metrics a session is scored by and the
+//! session generator that draws presses with their truth.
+//! Imports the rooms below it.
+
+pub mod metrics;
+pub mod synth;

@@ -1,0 +1,497 @@
+//! Sessions drawn from the model itself, for tests and benchmarks with a
+//! known truth: a robot moving slowly about a random pose, pressed now and
+//! then at random places of its candidate links; each press ramps up,
+//! holds, may slide and may carry friction, and ramps down; the sensors
+//! add a per-joint bias and Gaussian noise. Deterministic per seed.
+
+use glam::DVec3;
+
+use crate::core::numerics::rng::Rng;
+use crate::core::over_time::frame::SequenceFrame;
+use crate::core::robot::kinematics::RobotPose;
+use crate::core::robot::model::{LinkId, Robot, RobotError};
+use crate::core::robot::torque::joint_torques;
+use crate::core::surface::sampling::{Surface, SurfaceError, SurfaceRequest};
+
+/// How a synthetic session is drawn.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SynthSettings {
+    /// Length, s.
+    pub duration_secs: f64,
+    /// Frames per second.
+    pub rate_hz: f64,
+    /// Each press lasts uniformly this long, s (ramps included).
+    pub press_secs: (f64, f64),
+    /// Between presses, uniformly this long, s (also before the first).
+    pub gap_secs: (f64, f64),
+    /// Each press's peak normal force, uniform in this range, N.
+    pub force_newtons: (f64, f64),
+    /// Ramp up and down, s each.
+    pub ramp_secs: f64,
+    /// Each press slides at a speed uniform in `[0, this]`, m/s, in a random
+    /// tangent direction (fixed in the link's frame for the press, its part
+    /// along the surface at each frame).
+    pub slide_m_per_s: f64,
+    /// Each press's tangential force is this fraction of its normal
+    /// force at most (uniform in `[0, this]`), in a random tangent direction
+    /// (fixed in the link's frame for the press, as the slide's).
+    pub friction: f64,
+    /// Each joint's constant sensor offset is uniform in `[-this, this]`, N·m.
+    pub bias_newton_metres: f64,
+    /// Sensor noise, N·m (standard deviation, every joint).
+    pub noise_newton_metres: f64,
+    /// The joints swing about the pose by this much at most, rad (period 4 s).
+    pub motion_rad: f64,
+    /// A press's place is drawn again (up to 100 times) until its peak
+    /// normal force at the start pose makes torques of at least this norm,
+    /// N·m: presses the sensors can feel (a push through the axis of
+    /// the only joint that moves a link makes no torque at all).
+    pub min_torque_newton_metres: f64,
+}
+
+impl Default for SynthSettings {
+    /// Six seconds at 200 Hz; presses of 0.3–1.2 s, 0.3–1 s apart, of
+    /// 5–25 N, ramping in 50 ms, making at least 0.5 N·m; no slide,
+    /// friction or bias; σ = 0.05 N·m; the arm swinging by 0.2 rad.
+    fn default() -> Self {
+        Self {
+            duration_secs: 6.0,
+            rate_hz: 200.0,
+            press_secs: (0.3, 1.2),
+            gap_secs: (0.3, 1.0),
+            force_newtons: (5.0, 25.0),
+            ramp_secs: 0.05,
+            slide_m_per_s: 0.0,
+            friction: 0.0,
+            bias_newton_metres: 0.0,
+            noise_newton_metres: 0.05,
+            motion_rad: 0.2,
+            min_torque_newton_metres: 0.5,
+        }
+    }
+}
+
+/// The contact of a synthetic frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SynthContact {
+    /// The pressed link.
+    pub link: LinkId,
+    /// Where, link frame, m.
+    pub point_in_link: DVec3,
+    /// Where, world frame, m.
+    pub point_world: DVec3,
+    /// The whole force (normal and tangential), world frame, N.
+    pub force_world: DVec3,
+    /// Its normal part, N.
+    pub normal_newtons: f64,
+}
+
+/// One synthetic frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SynthFrame {
+    /// Time, s.
+    pub t_secs: f64,
+    /// Sensed joints' positions, rad.
+    pub q: Vec<f64>,
+    /// Measured torques: the contact's, the bias and noise, N·m.
+    pub tau: Vec<f64>,
+    /// The contact, if any.
+    pub contact: Option<SynthContact>,
+}
+
+/// Every joint's position at each of `frames` (see
+/// [`Robot::joint_positions`]), for [`as_sequence`].
+pub fn joint_positions(robot: &Robot, frames: &[SynthFrame]) -> Result<Vec<Vec<f64>>, RobotError> {
+    frames.iter().map(|f| robot.joint_positions(&f.q, &[])).collect()
+}
+
+/// `frames` as a sequence to estimate
+/// ([`crate::core::over_time::sequence::estimate_sequence`]), with every joint's
+/// position from [`joint_positions`].
+#[must_use]
+pub fn as_sequence<'a>(frames: &'a [SynthFrame], positions: &'a [Vec<f64>]) -> Vec<SequenceFrame<'a>> {
+    frames
+        .iter()
+        .zip(positions)
+        .map(|(f, p)| SequenceFrame {
+            t_secs: f.t_secs,
+            joint_positions: p,
+            tau: &f.tau,
+        })
+        .collect()
+}
+
+/// Why a session could not be drawn.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SynthError {
+    /// A setting is out of range.
+    #[error("synthetic session: {name} = {value} is out of range")]
+    BadSetting {
+        /// The setting.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// The candidate links could not be sampled.
+    #[error(transparent)]
+    Surface(#[from] SurfaceError),
+}
+
+/// Most frames a synthetic session may have.
+pub const MAX_SYNTH_FRAMES: usize = 10_000_000;
+
+impl SynthSettings {
+    fn validate(&self) -> Result<usize, SynthError> {
+        let bad = |name: &'static str, value: f64| Err(SynthError::BadSetting { name, value });
+        for (name, value) in [
+            ("duration", self.duration_secs),
+            ("rate", self.rate_hz),
+            ("ramp", self.ramp_secs),
+            ("slide", self.slide_m_per_s),
+            ("friction", self.friction),
+            ("bias", self.bias_newton_metres),
+            ("noise", self.noise_newton_metres),
+            ("motion", self.motion_rad),
+            ("least torque", self.min_torque_newton_metres),
+        ] {
+            if !value.is_finite() || value < 0.0 {
+                return bad(name, value);
+            }
+        }
+        for (name, (lo, hi)) in [
+            ("press duration", self.press_secs),
+            ("gap", self.gap_secs),
+            ("force", self.force_newtons),
+        ] {
+            if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && hi >= lo) {
+                return bad(name, lo);
+            }
+        }
+        let frames = (self.duration_secs * self.rate_hz).floor();
+        if !(1.0..=MAX_SYNTH_FRAMES as f64).contains(&frames) {
+            return bad("frames (duration × rate)", frames);
+        }
+        Ok(frames as usize)
+    }
+}
+
+/// One press: when, where, how hard, how it slides.
+struct Press {
+    start: f64,
+    end: f64,
+    peak: f64,
+    sample: usize,
+    slide_angle: f64,
+    slide_speed: f64,
+    friction: f64,
+    friction_angle: f64,
+}
+
+/// Presses one after another over the session, each at a place the
+/// sensors can feel at `start_pose` (see
+/// [`SynthSettings::min_torque_newton_metres`]).
+fn draw_presses(
+    robot: &Robot,
+    pool: &Surface,
+    start_pose: &RobotPose,
+    settings: &SynthSettings,
+    rng: &mut Rng,
+) -> Vec<Press> {
+    let felt = |sample: usize, peak: f64| -> f64 {
+        let (Some(&link), Some(&p), Some(&n)) = (
+            pool.link.get(sample),
+            pool.point_in_link.get(sample),
+            pool.inward_normal_in_link.get(sample),
+        ) else {
+            return 0.0;
+        };
+        let world = start_pose.world_from_link.get(link).copied().unwrap_or_default();
+        let tau = joint_torques(
+            robot,
+            start_pose,
+            link,
+            world.transform_point3(p),
+            world.transform_vector3(n) * peak,
+        );
+        tau.iter().map(|t| t * t).sum::<f64>().sqrt()
+    };
+    let mut presses = Vec::new();
+    let mut t = rng.uniform_in(settings.gap_secs.0, settings.gap_secs.1);
+    while t < settings.duration_secs && !pool.is_empty() {
+        let length = rng.uniform_in(settings.press_secs.0, settings.press_secs.1);
+        let peak = rng.uniform_in(settings.force_newtons.0, settings.force_newtons.1);
+        let mut sample = rng.below(pool.len());
+        for _ in 0..100 {
+            if felt(sample, peak) >= settings.min_torque_newton_metres {
+                break;
+            }
+            sample = rng.below(pool.len());
+        }
+        presses.push(Press {
+            start: t,
+            end: t + length,
+            peak,
+            sample,
+            slide_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
+            slide_speed: rng.uniform_in(0.0, settings.slide_m_per_s),
+            friction: rng.uniform_in(0.0, settings.friction),
+            friction_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
+        });
+        t += length + rng.uniform_in(settings.gap_secs.0, settings.gap_secs.1).max(1e-3);
+    }
+    presses
+}
+
+/// Draws a session of `robot` pressed on `links`.
+///
+/// # Errors
+/// [`SynthError`] for settings out of range or links without a surface.
+pub fn synthesize(
+    robot: &Robot,
+    links: &[LinkId],
+    settings: &SynthSettings,
+    seed: u64,
+) -> Result<Vec<SynthFrame>, SynthError> {
+    let frames = settings.validate()?;
+    let mut rng = Rng::new(seed);
+    let pool = Surface::sample_random(
+        robot,
+        &SurfaceRequest {
+            links: links.to_vec(),
+            total_points: 256.max(links.len()),
+            seed: seed ^ 0x5eed_5eed,
+        },
+    )?;
+    // The pose and its swing.
+    let joints = robot.sensed().len();
+    let (base, phase): (Vec<f64>, Vec<f64>) = robot
+        .sensed()
+        .iter()
+        .map(|&j| {
+            let (lo, hi) = robot
+                .joints
+                .get(j)
+                .and_then(|joint| joint.limits)
+                .map_or((-1.0, 1.0), |l| (l.lower, l.upper));
+            let mid = 0.5 * (lo + hi);
+            let half = 0.3 * (hi - lo);
+            (
+                rng.uniform_in(mid - half, mid + half),
+                rng.uniform_in(0.0, std::f64::consts::TAU),
+            )
+        })
+        .unzip();
+    let bias: Vec<f64> = (0..joints)
+        .map(|_| rng.uniform_in(-settings.bias_newton_metres, settings.bias_newton_metres))
+        .collect();
+    let start_pose = RobotPose::new(robot, &robot.joint_positions(&base, &[]).unwrap_or_default());
+    let presses = draw_presses(robot, &pool, &start_pose, settings, &mut rng);
+    let dt = 1.0 / settings.rate_hz;
+    let mut press_index = 0;
+    let mut place = None;
+    // The press's slide and drag directions, link frame: drawn at its
+    // first frame as angles in the tangent plane there, then kept (the
+    // slide takes its part along the surface at each frame). A mesh's
+    // tangents are its triangles' edges, so angles taken anew at every
+    // frame would turn both at every edge the slide crosses.
+    let mut heading: Option<(DVec3, DVec3)> = None;
+    let mut out = Vec::with_capacity(frames);
+    for i in 0..frames {
+        let t = i as f64 * dt;
+        let q: Vec<f64> = base
+            .iter()
+            .zip(&phase)
+            .map(|(q0, ph)| q0 + settings.motion_rad * (std::f64::consts::TAU * t / 4.0 + ph).sin())
+            .collect();
+        while presses.get(press_index).is_some_and(|p| t >= p.end) {
+            press_index += 1;
+            place = None;
+            heading = None;
+        }
+        let pose = RobotPose::new(robot, &robot.joint_positions(&q, &[]).unwrap_or_default());
+        let mut tau = vec![0.0; joints];
+        let mut contact = None;
+        if let Some(p) = presses.get(press_index).filter(|p| t >= p.start) {
+            let ramp = settings.ramp_secs.max(1e-9);
+            let up = ((t - p.start) / ramp).min(1.0);
+            let down = ((p.end - t) / ramp).min(1.0);
+            let magnitude = p.peak * up.min(down).max(0.0);
+            let link = pool.link.get(p.sample).copied();
+            let shape = link.and_then(|l| pool.shape(l));
+            // Slide from where the press is now.
+            let at = place.or_else(|| pool.location.get(p.sample).copied());
+            if let (Some(link), Some(shape), Some(at)) = (link, shape, at)
+                && let Some(f) = shape.frame(at)
+            {
+                let (slide_in_link, drag_in_link) = *heading.get_or_insert_with(|| {
+                    let towards = |angle: f64| f.tangents[0] * angle.cos() + f.tangents[1] * angle.sin();
+                    (towards(p.slide_angle), towards(p.friction_angle))
+                });
+                let on_surface = |v: DVec3| (v - v.dot(f.inward_normal) * f.inward_normal).normalize_or_zero();
+                let direction = on_surface(slide_in_link);
+                place = Some(shape.walk(at, direction * (p.slide_speed * dt)));
+                // The drag as drawn (for a press that holds its place, the
+                // tangent direction of its triangle, as before headings
+                // were kept).
+                let along = drag_in_link;
+                let world = pose.world_from_link.get(link).copied().unwrap_or_default();
+                let point_world = world.transform_point3(f.point);
+                let force_world = world.transform_vector3(f.inward_normal + along * p.friction) * magnitude;
+                if magnitude > 0.0 {
+                    tau = joint_torques(robot, &pose, link, point_world, force_world);
+                    contact = Some(SynthContact {
+                        link,
+                        point_in_link: f.point,
+                        point_world,
+                        force_world,
+                        normal_newtons: magnitude,
+                    });
+                }
+            }
+        }
+        for (t, b) in tau.iter_mut().zip(&bias) {
+            *t += b + settings.noise_newton_metres * rng.normal();
+        }
+        out.push(SynthFrame {
+            t_secs: t,
+            q,
+            tau,
+            contact,
+        });
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::robot::builtin;
+
+    #[test]
+    fn presses_come_and_go_hold_their_place_and_reproduce_per_seed() {
+        let robot = builtin::lwr4plus_generated().unwrap();
+        let links = robot.default_candidate_links();
+        let settings = SynthSettings::default();
+        let a = synthesize(&robot, &links, &settings, 3).unwrap();
+        assert_eq!(a, synthesize(&robot, &links, &settings, 3).unwrap());
+        assert_eq!(a.len(), 1200);
+        let contact = a.iter().filter(|f| f.contact.is_some()).count();
+        assert!(contact > 200 && contact < 1000, "{contact}");
+        // Onsets and releases both happen.
+        let switches = a
+            .windows(2)
+            .filter(|w| w[0].contact.is_some() != w[1].contact.is_some())
+            .count();
+        assert!(switches >= 4, "{switches}");
+        // Without slide, a press keeps its place on its link.
+        for w in a.windows(2) {
+            if let (Some(x), Some(y)) = (w[0].contact, w[1].contact)
+                && x.link == y.link
+                && x.point_in_link.distance(y.point_in_link) > 0.0
+            {
+                assert!(
+                    x.point_in_link.distance(y.point_in_link) > 0.05,
+                    "a press moved without sliding"
+                );
+            }
+        }
+        // Torques are the contact's plus noise: without contact, noise only.
+        let quiet: Vec<f64> = a
+            .iter()
+            .filter(|f| f.contact.is_none())
+            .flat_map(|f| f.tau.clone())
+            .collect();
+        let rms = (quiet.iter().map(|t| t * t).sum::<f64>() / quiet.len() as f64).sqrt();
+        assert!((rms - 0.05).abs() < 0.005, "{rms}");
+    }
+
+    #[test]
+    fn slides_move_the_contact_at_about_the_asked_speed() {
+        let robot = builtin::lwr4plus_generated().unwrap();
+        let links = robot.default_candidate_links();
+        let settings = SynthSettings {
+            slide_m_per_s: 0.04,
+            ..SynthSettings::default()
+        };
+        let a = synthesize(&robot, &links, &settings, 5).unwrap();
+        let steps: Vec<f64> = a
+            .windows(2)
+            .filter_map(|w| match (w[0].contact, w[1].contact) {
+                (Some(x), Some(y)) if x.link == y.link => Some(x.point_in_link.distance(y.point_in_link)),
+                _ => None,
+            })
+            .filter(|d| *d < 0.01)
+            .collect();
+        let fastest = steps.iter().copied().fold(0.0, f64::max);
+        assert!(fastest > 0.0 && fastest <= 0.04 / 200.0 * 1.01, "{fastest}");
+    }
+
+    /// A sliding press keeps its heading: the place moves along a smooth
+    /// path (no turn at the mesh's triangle edges, where the tangents of
+    /// the surface frame change), and the tangential force keeps its
+    /// direction in the link's frame.
+    #[test]
+    fn slides_and_drags_keep_their_heading() {
+        let robot = builtin::lwr4plus_generated().unwrap();
+        let links = robot.default_candidate_links();
+        let settings = SynthSettings {
+            slide_m_per_s: 0.04,
+            friction: 0.3,
+            ..SynthSettings::default()
+        };
+        let frames = synthesize(&robot, &links, &settings, 5).unwrap();
+        let contacts: Vec<Option<(SynthContact, DVec3)>> = frames
+            .iter()
+            .map(|f| {
+                let c = f.contact?;
+                let pose = RobotPose::new(&robot, &robot.joint_positions(&f.q, &[]).ok()?);
+                let link_from_world = pose.world_from_link.get(c.link)?.inverse();
+                Some((c, link_from_world.transform_vector3(c.force_world)))
+            })
+            .collect();
+        let (mut turns, mut drag_turns) = (Vec::new(), Vec::new());
+        for w in contacts.windows(3) {
+            let [Some((a, fa)), Some((b, fb)), Some((c, _))] = w else {
+                continue;
+            };
+            if a.link != b.link || b.link != c.link {
+                continue;
+            }
+            let (s1, s2) = (b.point_in_link - a.point_in_link, c.point_in_link - b.point_in_link);
+            if s1.length() > 1e-6 && s2.length() > 1e-6 && s1.length() < 0.01 && s2.length() < 0.01 {
+                turns.push(s1.angle_between(s2));
+            }
+            // The whole force, link frame: its normal part turns only by
+            // a step over the surface's radius, so a turn of its
+            // tangential part shows.
+            if fa.length() > 1.0 && fb.length() > 1.0 {
+                drag_turns.push(fa.angle_between(*fb));
+            }
+        }
+        let most = |v: &[f64]| v.iter().copied().fold(0.0, f64::max).to_degrees();
+        eprintln!(
+            "{} steps, largest turn {:.1}°; {} forces, largest turn {:.1}°",
+            turns.len(),
+            most(&turns),
+            drag_turns.len(),
+            most(&drag_turns)
+        );
+        assert!(turns.len() > 100 && drag_turns.len() > 100);
+        assert!(most(&turns) < 20.0, "{turns:?}");
+        assert!(most(&drag_turns) < 2.0);
+    }
+
+    #[test]
+    fn bad_settings_are_named() {
+        let robot = builtin::lwr4plus_generated().unwrap();
+        let links = robot.default_candidate_links();
+        let settings = SynthSettings {
+            rate_hz: f64::NAN,
+            ..SynthSettings::default()
+        };
+        assert!(matches!(
+            synthesize(&robot, &links, &settings, 0),
+            Err(SynthError::BadSetting { name: "rate", .. })
+        ));
+    }
+}

@@ -1,0 +1,9 @@
+//! Numbers alone: special functions, fast approximations, vector lanes
+//! and the wide-unit dispatch, the seeded random generator.
+//! Imports nothing of ours.
+
+pub mod fastmath;
+pub mod lanes;
+pub mod rng;
+pub mod simd;
+pub mod special;

@@ -1,0 +1,549 @@
+//! Presses over time: a smoothed press fitted as a whole (one tangential
+//! force fixed on the link while the arm moves under it), checked
+//! against its frames' own contacts, and a filtered press's friction
+//! gated on the press so far.
+
+use std::time::Instant;
+
+use glam::DVec3;
+
+use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms, is_pressed};
+use crate::core::estimate::friction::friction_evidence;
+use crate::core::estimate::measurement::Measurement;
+use crate::core::estimate::press::{
+    FRICTION_GAIN, PressAnswer, PressFrame, PressSettings, explain_press, locate, press_spreads,
+};
+use crate::core::estimate::summary::{ContactEstimate, PlacedContact, Summary};
+use crate::core::geometry::shell::MeshPoint;
+use crate::core::over_time::frame::SequenceFrame;
+use crate::core::robot::model::{LinkId, Robot};
+use crate::core::robot::torque::TorqueModel;
+
+impl Estimator {
+    /// Fits the frames of `press` (consecutive, one link, in order) as
+    /// one press with a tangential force fixed in the link's frame (with
+    /// a friction setting); where the friction model explains it far
+    /// better than none, each frame's reported contact, fit test and
+    /// verdict become the fit's. Then checks the press against its
+    /// frames' own contacts (`alone`, one per frame; see
+    /// [`PRESS_MISFIT_PER_FRAME`]), hands the frames to `each`, each with
+    /// its share of the time, and empties `press` and `alone`.
+    fn settle_press(
+        &self,
+        robot: &Robot,
+        frames: &[SequenceFrame],
+        slide_m_per_sqrt_s: f64,
+        press: &mut Vec<(usize, Update, f64)>,
+        alone: &mut Vec<Option<Summary>>,
+        each: &mut impl FnMut(usize, Update, f64),
+    ) {
+        if press.is_empty() {
+            alone.clear();
+            return;
+        }
+        let t0 = Instant::now();
+        if self.fits_presses() {
+            self.fit_press_of(robot, frames, slide_m_per_sqrt_s, press, alone);
+        }
+        check_press(press, alone);
+        let share_ms = elapsed_ms(t0) / press.len() as f64;
+        for (i, update, cost_ms) in press.drain(..) {
+            each(i, update, cost_ms + share_ms);
+        }
+    }
+
+    /// [`Estimator::settle_press`]'s fit; `None` (nothing changed) where
+    /// the press keeps its estimates.
+    ///
+    /// The press is fitted from the recording's places and, where a few
+    /// of its frames alone (`alone`; [`ALTERNATIVE_MIN_FRAMES`]) place the
+    /// contact elsewhere together (on another link, or on this one
+    /// farther than [`ALTERNATIVE_MIN_M`]), also from theirs; an
+    /// alternative replaces the recording's places only where it explains
+    /// the press by [`FRICTION_GAIN`] better (on another link, by
+    /// [`LINK_SWITCH_GAIN`] unless [`LINK_SWITCH_SHARE`] agree). The
+    /// smoother's model has no friction: where a press drags, it may
+    /// settle on a place (or a link) that the frames alone, placed with
+    /// friction in mind by the fit, contradict.
+    fn fit_press_of(
+        &self,
+        robot: &Robot,
+        frames: &[SequenceFrame],
+        slide_m_per_sqrt_s: f64,
+        press: &mut [(usize, Update, f64)],
+        alone: &[Option<Summary>],
+    ) -> Option<()> {
+        let link = press.first()?.1.summary.map.link;
+        let models: Vec<TorqueModel> = press
+            .iter()
+            .map(|(_, update, _)| TorqueModel::new(robot, &update.pose, &self.links))
+            .collect();
+        let weights = self.settings.weights();
+        let settings = self.press_settings(&weights, slide_m_per_sqrt_s);
+        let recording: Vec<Option<&ContactEstimate>> = press.iter().map(|(_, u, _)| Some(&u.summary.map)).collect();
+        let here = self.explain_on(link, press, &recording, frames, &models, &settings)?;
+        let (mut best_link, mut best) = (link, here);
+        let mut alternative = false;
+        // The frames' own places, in groups (one link, within
+        // `ALTERNATIVE_GROUP_M` of the group's first place in the link's
+        // frame): a group is one coherent place for the whole press.
+        let own: Vec<Option<&ContactEstimate>> = (0..press.len())
+            .map(|k| alone.get(k)?.as_ref().filter(|s| s.refined).map(|s| &s.map))
+            .collect();
+        let mut groups: Vec<Group> = Vec::new();
+        for (k, ((_, update, _), map)) in press.iter().zip(&own).enumerate() {
+            let Some(map) = map else { continue };
+            let Some(point) = update
+                .pose
+                .world_from_link
+                .get(map.link)
+                .map(|world_from_link| world_from_link.inverse().transform_point3(map.point_world))
+            else {
+                continue;
+            };
+            let apart = map.link != update.summary.map.link
+                || map.point_world.distance(update.summary.map.point_world) > ALTERNATIVE_MIN_M;
+            match groups
+                .iter_mut()
+                .find(|g| g.link == map.link && g.center_in_link.distance(point) <= ALTERNATIVE_GROUP_M)
+            {
+                Some(g) => {
+                    g.members.push(k);
+                    g.apart += usize::from(apart);
+                }
+                None => groups.push(Group {
+                    link: map.link,
+                    center_in_link: point,
+                    members: vec![k],
+                    apart: usize::from(apart),
+                }),
+            }
+        }
+        groups.sort_by(|a, b| b.members.len().cmp(&a.members.len()).then(a.members.cmp(&b.members)));
+        // A group on another link places every member elsewhere: its size says how many agree.
+        let many = press.len().div_ceil(LINK_SWITCH_SHARE).max(ALTERNATIVE_MIN_FRAMES);
+        for group in groups
+            .iter()
+            .filter(|g| g.members.len() >= ALTERNATIVE_MIN_FRAMES && g.apart >= ALTERNATIVE_MIN_FRAMES)
+            .take(MAX_ALTERNATIVES)
+        {
+            let mut starts: Vec<Option<&ContactEstimate>> = vec![None; press.len()];
+            for &k in &group.members {
+                if let (Some(start), Some(map)) = (starts.get_mut(k), own.get(k)) {
+                    *start = *map;
+                }
+            }
+            let gain = if group.link == link || group.members.len() >= many {
+                FRICTION_GAIN
+            } else {
+                LINK_SWITCH_GAIN
+            };
+            if let Some(answer) = self.explain_on(group.link, press, &starts, frames, &models, &settings)
+                && answer.1.cost < best.1.cost - gain
+            {
+                (best_link, best) = (group.link, answer);
+                alternative = true;
+            }
+        }
+        let (link, (fallback, answer)) = (best_link, best);
+        // The recording's own places, frictionless: nothing to move.
+        let moved = answer.friction || alternative;
+        for ((((_, update, _), contact), model), &fallback_sample) in
+            press.iter_mut().zip(&answer.contacts).zip(&models).zip(&fallback)
+        {
+            if !moved {
+                if let Some(spread) = &contact.spread {
+                    self.widen_credible(update, link, spread);
+                }
+                continue;
+            }
+            let placed = PlacedContact {
+                link,
+                point_in_link: contact.point_in_link,
+                inward_normal_in_link: contact.inward_normal_in_link,
+                force_newtons: contact.force_newtons,
+                tangential_in_link: contact.tangential_in_link,
+                fallback_sample,
+                residual_chi2: contact.residual_chi2,
+            };
+            self.place(update, &placed, model);
+            if let Some(spread) = &contact.spread {
+                self.widen_credible(update, link, spread);
+            }
+        }
+        Some(())
+    }
+
+    /// The press's frames fitted on `link` (see [`explain_press`]), each
+    /// started at its place in `starts` when that is on `link`, else at
+    /// the place of the nearest frame's that is (a place persists in its
+    /// link's frame); with each frame's sample to fall back on. `None`
+    /// where no start is on `link`.
+    fn explain_on(
+        &self,
+        link: LinkId,
+        press: &[(usize, Update, f64)],
+        starts: &[Option<&ContactEstimate>],
+        frames: &[SequenceFrame],
+        models: &[TorqueModel],
+        settings: &PressSettings,
+    ) -> Option<(Vec<usize>, PressAnswer)> {
+        let shape = self.surface.shape(link)?;
+        let have: Vec<usize> = (0..press.len())
+            .filter(|&k| starts.get(k).copied().flatten().is_some_and(|m| m.link == link))
+            .collect();
+        let mut press_frames = Vec::with_capacity(press.len());
+        let mut fallback = Vec::with_capacity(press.len());
+        for (k, ((i, _, _), torque_model)) in press.iter().zip(models).enumerate() {
+            // The nearest frame with a start (`have` is sorted).
+            let after = have.partition_point(|&j| j < k);
+            let nearest = match (after.checked_sub(1).and_then(|b| have.get(b)), have.get(after)) {
+                (Some(&before), Some(&next)) => {
+                    if k - before <= next - k {
+                        before
+                    } else {
+                        next
+                    }
+                }
+                (Some(&j), None) | (None, Some(&j)) => j,
+                (None, None) => return None,
+            };
+            let map = starts.get(nearest).copied().flatten()?;
+            let (_, update, _) = press.get(nearest)?;
+            let point_in_link = update
+                .pose
+                .world_from_link
+                .get(link)?
+                .inverse()
+                .transform_point3(map.point_world);
+            let sample = *self.surface.location.get(map.point)?;
+            let frame = frames.get(*i)?;
+            press_frames.push(PressFrame {
+                t_secs: frame.t_secs,
+                torque_model,
+                tau: frame.tau,
+                start: locate(shape, sample, point_in_link),
+            });
+            fallback.push(map.point);
+        }
+        let answer = explain_press(shape, link, &press_frames, settings)?;
+        Some((fallback, answer))
+    }
+
+    /// Filtering with friction: a frame's force at the recording's place
+    /// is the friction model's only once the press so far says so, its
+    /// frames' evidence for friction there (the drop in `-2 ln L` from a
+    /// frictionless push) adding up to more than
+    /// [`crate::core::estimate::press::FRICTION_GAIN`]; before, the frictionless
+    /// force. What the filter can know of a press (its frames up to now)
+    /// decides, as the whole press decides when smoothing.
+    ///
+    /// `i` numbers the frames in order, `tau` is this frame's torques and
+    /// `gate` what the frames before left (start from its default).
+    pub fn gate_friction(
+        &self,
+        robot: &Robot,
+        update: &mut Update,
+        (i, t_secs, tau): (usize, f64, &[f64]),
+        slide_m_per_sqrt_s: f64,
+        gate: &mut FrictionGate,
+    ) {
+        if !self.fits_presses() || !is_pressed(update) {
+            *gate = FrictionGate::default();
+            return;
+        }
+        let link = update.summary.map.link;
+        if gate.last != Some((i.wrapping_sub(1), link)) {
+            gate.gain = 0.0;
+            gate.window.clear();
+        }
+        gate.last = Some((i, link));
+        let Some(from_world) = update.pose.world_from_link.get(link).map(glam::DAffine3::inverse) else {
+            return;
+        };
+        let model = TorqueModel::new(robot, &update.pose, &self.links);
+        self.widen_by_press_so_far(update, (t_secs, tau), &model, slide_m_per_sqrt_s, gate);
+        let map = &update.summary.map;
+        let place = (
+            from_world.transform_point3(map.point_world),
+            from_world.transform_vector3(map.inward_normal_world),
+        );
+        let weights = self.settings.weights();
+        let measurement = Measurement {
+            tau,
+            weights: &weights,
+            force_range_newtons: (self.settings.force_min_newtons, self.settings.force_max_newtons),
+            friction: self.settings.friction,
+        };
+        let Some((frictionless, gain)) = friction_evidence(&model, link, place, &measurement, self.settings.friction)
+        else {
+            return;
+        };
+        gate.gain += gain;
+        if gate.gain > FRICTION_GAIN {
+            return;
+        }
+        let placed = PlacedContact {
+            link,
+            point_in_link: place.0,
+            inward_normal_in_link: place.1.normalize_or_zero(),
+            force_newtons: frictionless.normal_newtons,
+            tangential_in_link: DVec3::ZERO,
+            fallback_sample: map.point,
+            residual_chi2: frictionless.residual_chi2,
+        };
+        self.place(update, &placed, &model);
+    }
+
+    /// Filtering with friction: `update`'s credible set widened as a
+    /// smoothed press's is ([`Estimator::widen_credible`]), by the spread
+    /// that the press's latest frames (at most [`PRESS_WINDOW`], this one
+    /// last, at the places the filter chose) leave this frame's place.
+    /// The frame joins `gate`'s window.
+    fn widen_by_press_so_far(
+        &self,
+        update: &mut Update,
+        (t_secs, tau): (f64, &[f64]),
+        model: &TorqueModel,
+        slide_m_per_sqrt_s: f64,
+        gate: &mut FrictionGate,
+    ) {
+        let Some((link, shape, at)) = self.located_contact(update) else {
+            return;
+        };
+        if gate.window.len() >= PRESS_WINDOW {
+            gate.window.pop_front();
+        }
+        gate.window.push_back(WindowFrame {
+            t_secs,
+            torque_model: model.clone(),
+            tau: tau.to_vec(),
+            at,
+        });
+        let weights = self.settings.weights();
+        let settings = self.press_settings(&weights, slide_m_per_sqrt_s);
+        let frames: Vec<PressFrame> = gate
+            .window
+            .iter()
+            .map(|w| PressFrame {
+                t_secs: w.t_secs,
+                torque_model: &w.torque_model,
+                tau: &w.tau,
+                start: w.at,
+            })
+            .collect();
+        if let Some(spread) = press_spreads(shape, link, &frames, &settings).and_then(|s| s.last().copied()) {
+            self.widen_credible(update, link, &spread);
+        }
+        // The window holds γ fixed around places that the frictionless
+        // filter chose, which a drag shifts, and a drag that grows within
+        // the window (the `../shared` link 4 press: 1 to 17 % of the push)
+        // is not one γ: the frame's own spread, γ free, is added.
+        if let Some(spread) = frames.last().and_then(|&last| self.spread_alone(shape, link, last)) {
+            self.widen_credible(update, link, &spread);
+        }
+    }
+}
+
+/// What filtering with friction knows of the press so far
+/// ([`Estimator::gate_friction`]).
+#[derive(Debug, Clone, Default)]
+pub struct FrictionGate {
+    /// The last frame and its link, while a press goes on.
+    last: Option<(usize, LinkId)>,
+    /// Its frames' evidence for friction, summed.
+    gain: f64,
+    /// Its latest frames, oldest first: what the place's spread is
+    /// measured over.
+    window: std::collections::VecDeque<WindowFrame>,
+}
+
+/// A frame of a filtered press, as [`PressFrame`] needs it.
+#[derive(Debug, Clone)]
+struct WindowFrame {
+    t_secs: f64,
+    torque_model: TorqueModel,
+    tau: Vec<f64>,
+    /// The filter's place.
+    at: MeshPoint,
+}
+
+/// Frames of a filtered press whose places measure the spread of the
+/// latest's ([`FrictionGate`]): the press so far, up to about the shortest
+/// press the temporal model expects (0.1 s at 200 Hz, 0.4 s at 50 Hz),
+/// so that a frame costs a bounded amount.
+pub const PRESS_WINDOW: usize = 20;
+
+/// While smoothing with contacts placed on the continuous surface, a
+/// press's frames wait for its end: the press is fitted as a whole (with
+/// friction) and checked against its frames' own contacts (see
+/// [`Estimator::settle_press`]).
+pub(crate) struct PressQueue<'a> {
+    estimator: &'a Estimator,
+    robot: &'a Robot,
+    frames: &'a [SequenceFrame<'a>],
+    /// The temporal model's slide length, m/√s.
+    slide_m_per_sqrt_s: f64,
+    /// The press so far: frame number, update, milliseconds it cost.
+    held: Vec<(usize, Update, f64)>,
+    /// Each held frame's summary from its own posterior alone.
+    alone: Vec<Option<Summary>>,
+}
+
+impl<'a> PressQueue<'a> {
+    /// An empty queue for `frames`, with the temporal model's slide length.
+    pub(crate) fn new(
+        estimator: &'a Estimator,
+        robot: &'a Robot,
+        frames: &'a [SequenceFrame<'a>],
+        slide_m_per_sqrt_s: f64,
+    ) -> Self {
+        Self {
+            estimator,
+            robot,
+            frames,
+            slide_m_per_sqrt_s,
+            held: Vec::new(),
+            alone: Vec::new(),
+        }
+    }
+
+    /// Frame `i`'s `update`: handed on to `each` at once, or held while it
+    /// continues a press (one link, consecutive frames).
+    pub(crate) fn offer(
+        &mut self,
+        i: usize,
+        (update, alone): (Update, Option<Summary>),
+        cost_ms: f64,
+        each: &mut impl FnMut(usize, Update, f64),
+    ) {
+        if !self.estimator.uses_patches() {
+            each(i, update, cost_ms);
+            return;
+        }
+        let in_press = is_pressed(&update);
+        let continues = in_press
+            && self.held.len() < MAX_PRESS_FRAMES
+            && self
+                .held
+                .last()
+                .is_some_and(|(j, last, _)| *j + 1 == i && last.summary.map.link == update.summary.map.link);
+        if !continues {
+            self.settle(each);
+        }
+        if in_press {
+            self.held.push((i, update, cost_ms));
+            self.alone.push(alone);
+        } else {
+            each(i, update, cost_ms);
+        }
+    }
+
+    /// Fits the press held and hands its frames on.
+    pub(crate) fn settle(&mut self, each: &mut impl FnMut(usize, Update, f64)) {
+        self.estimator.settle_press(
+            self.robot,
+            self.frames,
+            self.slide_m_per_sqrt_s,
+            &mut self.held,
+            &mut self.alone,
+            each,
+        );
+    }
+}
+
+/// Frames of a press whose own contacts lie on one link within
+/// [`ALTERNATIVE_GROUP_M`] of the first's (link frame).
+struct Group {
+    link: LinkId,
+    center_in_link: DVec3,
+    /// The frames, by number within the press.
+    members: Vec<usize>,
+    /// How many of them place the contact elsewhere than the recording.
+    apart: usize,
+}
+
+/// The radius of a [`Group`], m.
+pub const ALTERNATIVE_GROUP_M: f64 = 0.03;
+
+/// A frame alone places its press's contact elsewhere when on another
+/// link or farther than this from the recording's place, m (a few patch
+/// widths: closer, both fits start in the same valley).
+pub const ALTERNATIVE_MIN_M: f64 = 0.02;
+
+/// A press is fitted from its frames' own places too when at least this
+/// many of its frames place the contact elsewhere in one group. No share
+/// of the press is asked for: an alternative is kept only where it
+/// explains the whole press by [`FRICTION_GAIN`] better, and where the
+/// smoother settled on a poor place its frames alone scatter (on a
+/// synthetic link 4 press of 46 frames, the largest group near the truth
+/// held 10 and the recording's place cost 3023 against 264 there).
+pub const ALTERNATIVE_MIN_FRAMES: usize = 3;
+
+/// The drop in the press's cost (`-2 ln L`, see [`crate::core::estimate::press`])
+/// an alternative on another link than the recording's must bring to be
+/// kept: moving a press to another link moves its answer by a link, and
+/// with friction a rival link can explain a press's frames better by tens
+/// (on synthetic sessions that drag by up to 30 %, link 7 presses moved to
+/// link 6 for gains of 36 and 60 and landed 117 mm from the truth, while
+/// the presses rightly moved gained 134 and 245), unless at least one in
+/// [`LINK_SWITCH_SHARE`] of the press's frames place it there.
+pub const LINK_SWITCH_GAIN: f64 = 100.0;
+
+/// An alternative on another link that at least one in this many of the
+/// press's frames alone agree on needs only [`FRICTION_GAIN`] (on
+/// `synth --seconds 20 --rate 50 --friction 0.15 --seed 1`, surface seeds
+/// 0 and 2, such a switch places a press 1.3 mm from the truth that
+/// [`LINK_SWITCH_GAIN`] would have left 138 mm off).
+pub const LINK_SWITCH_SHARE: usize = 4;
+
+/// Groups a press is fitted from besides the recording's places, at most
+/// (the largest; four changed nothing on the synthetic sessions).
+pub const MAX_ALTERNATIVES: usize = 2;
+
+/// Longest run of frames fitted as one press (2 s at 200 Hz): a longer
+/// contact is fitted in pieces, so that what waits for a press's end
+/// stays bounded (each frame's posterior is held until then).
+pub const MAX_PRESS_FRAMES: usize = 400;
+
+/// Where a smoothed press's contacts explain its frames far worse than
+/// each frame's own contact does ([`PRESS_MISFIT_PER_FRAME`]), each frame
+/// takes its own contact (the recording's contact probability, shares
+/// and credible set stay). Empties `alone`.
+fn check_press(press: &mut [(usize, Update, f64)], alone: &mut Vec<Option<Summary>>) {
+    let together: f64 = press.iter().map(|(_, u, _)| u.summary.fit.best_residual_chi2).sum();
+    // Every frame must have its own refined contact to compare with.
+    let apart: Option<f64> = alone
+        .iter()
+        .map(|s| s.as_ref().filter(|s| s.refined).map(|s| s.fit.best_residual_chi2))
+        .sum();
+    let frames = press.len() as f64;
+    if alone.len() == press.len()
+        && apart.is_some_and(|apart| together - apart > PRESS_MISFIT_PER_FRAME * frames + PRESS_MISFIT_MARGIN)
+    {
+        for ((_, update, _), own) in press.iter_mut().zip(alone.iter()) {
+            if let Some(own) = own {
+                update.summary.take_contact_of(own);
+            }
+        }
+    }
+    alone.clear();
+}
+
+/// A smoothed press whose contacts' residuals (χ², summed over its
+/// frames) exceed those of each frame's own contact by more than this per
+/// frame, plus [`PRESS_MISFIT_MARGIN`], reports each frame's own contact.
+/// A frame's own place is free to fit its noise, two unknowns more than
+/// the recording's, so the sum's excess is about 2 a frame where the
+/// recording is right (measured 1.2–4.3 on presses without friction,
+/// one press at 47). Where a press drags and the smoother, whose model
+/// has no friction, settles on a place the frames contradict, the excess
+/// is hundreds to thousands a frame (synthetic `--slide 0.03 --friction
+/// 0.15 --seed 1`: a link 7 press at 8988, its force 25 N off), and each
+/// frame alone is the better report. 300 (17σ a frame) leaves every
+/// frictionless press measured alone.
+pub const PRESS_MISFIT_PER_FRAME: f64 = 300.0;
+
+/// See [`PRESS_MISFIT_PER_FRAME`]: a short press must still miss by this
+/// much in all.
+pub const PRESS_MISFIT_MARGIN: f64 = 30.0;

@@ -1,0 +1,312 @@
+//! The temporal model run over frames: the forward filter (what a live
+//! robot can know, frame by frame) and the smoother (a recording: every
+//! frame with all of it, forward and backward).
+
+use crate::core::over_time::offsets::{FrameLikelihood, Offset, PatchInformation};
+use crate::core::over_time::temporal::{
+    Belief, MAX_SMOOTHER_BYTES, TemporalError, TemporalModel, interval, smoother_bytes,
+};
+
+/// The forward filter: each frame's belief from that frame and the ones
+/// before (what a live robot can know).
+#[derive(Debug, Clone)]
+pub struct Filter<'a> {
+    model: &'a TemporalModel,
+    state: FilterState,
+}
+
+/// What a forward filter carries from frame to frame, apart from its
+/// model (for a caller that owns the model beside it, e.g. a live stream).
+#[derive(Debug, Clone, Default)]
+pub struct FilterState {
+    belief: Option<Belief>,
+    last_t_secs: Option<f64>,
+    frames: usize,
+}
+
+impl FilterState {
+    /// Takes the frame at `t_secs` through `model` and returns the belief
+    /// after it.
+    ///
+    /// # Errors
+    /// [`TemporalError::WrongLength`], [`TemporalError::BadTime`].
+    pub fn step(
+        &mut self,
+        model: &TemporalModel,
+        t_secs: f64,
+        likelihood: &FrameLikelihood,
+    ) -> Result<&Belief, TemporalError> {
+        model.check(self.frames, likelihood)?;
+        let dt = interval(self.frames, self.last_t_secs, t_secs)?;
+        let predicted = match &self.belief {
+            Some(b) => model.predict(b, dt),
+            None => model.initial(),
+        };
+        self.frames += 1;
+        self.last_t_secs = Some(t_secs);
+        Ok(self.belief.insert(model.correct(&predicted, likelihood)))
+    }
+}
+
+impl<'a> Filter<'a> {
+    /// A filter that has seen nothing yet.
+    #[must_use]
+    pub fn new(model: &'a TemporalModel) -> Self {
+        Self {
+            model,
+            state: FilterState::default(),
+        }
+    }
+
+    /// Takes the frame at `t_secs` and returns the belief after it.
+    ///
+    /// # Errors
+    /// [`TemporalError::WrongLength`], [`TemporalError::BadTime`].
+    pub fn step(&mut self, t_secs: f64, likelihood: &FrameLikelihood) -> Result<&Belief, TemporalError> {
+        self.state.step(self.model, t_secs, likelihood)
+    }
+}
+
+/// The smoother: frames are pushed in order (the forward pass runs as
+/// they come), then [`Smoother::finish`] gives every frame's belief given
+/// the whole recording. Without offsets it passes messages backwards
+/// (exact); with offsets it runs a second filter backwards in time and
+/// combines the two (exact for a reversible model; ours is up to the
+/// prior's area weights and the moment-matched offsets). It holds each
+/// frame's likelihoods and filtered belief in f32 (8 bytes per sample and
+/// frame, 52 with offsets; at most [`MAX_SMOOTHER_BYTES`]).
+#[derive(Debug, Clone)]
+pub struct Smoother<'a> {
+    filter: Filter<'a>,
+    times: Vec<f64>,
+    frames: Vec<StoredFrame>,
+    filtered: Vec<StoredBelief>,
+}
+
+/// A frame's likelihoods in f32 (relative to `top`).
+#[derive(Debug, Clone)]
+struct StoredFrame {
+    top: f64,
+    no_contact: f32,
+    points: Vec<f32>,
+    patch: Vec<[f32; 6]>,
+}
+
+/// A belief in f32.
+#[derive(Debug, Clone)]
+struct StoredBelief {
+    no_contact: f32,
+    points: Vec<f32>,
+    offsets: Vec<[f32; 5]>,
+}
+
+impl StoredFrame {
+    fn of(likelihood: &FrameLikelihood) -> Self {
+        let top = likelihood.top();
+        // Relative log-likelihoods (f32 keeps 7 digits of a difference of
+        // a few hundred: plenty), -inf as is.
+        let rel = |l: f64| (l - top) as f32;
+        Self {
+            top,
+            no_contact: rel(likelihood.no_contact),
+            points: likelihood.points.iter().map(|&l| rel(l)).collect(),
+            patch: likelihood
+                .patch
+                .iter()
+                .map(|p| {
+                    let [m11, m12, m22] = p.information;
+                    let [n1, n2] = p.shift;
+                    [rel(p.point), m11 as f32, m12 as f32, m22 as f32, n1 as f32, n2 as f32]
+                })
+                .collect(),
+        }
+    }
+
+    fn likelihood(&self) -> FrameLikelihood {
+        FrameLikelihood {
+            no_contact: f64::from(self.no_contact) + self.top,
+            points: self.points.iter().map(|&l| f64::from(l) + self.top).collect(),
+            patch: self
+                .patch
+                .iter()
+                .map(|&[point, m11, m12, m22, n1, n2]| PatchInformation {
+                    point: f64::from(point) + self.top,
+                    information: [m11, m12, m22].map(f64::from),
+                    shift: [n1, n2].map(f64::from),
+                })
+                .collect(),
+        }
+    }
+
+    /// `e^(l - top)` per state, no contact first (the untracked smoother's
+    /// messages).
+    fn scaled(&self) -> Belief {
+        let e = |l: f32| {
+            let d = f64::from(l);
+            if d > -700.0 { d.exp() } else { 0.0 }
+        };
+        Belief {
+            no_contact: e(self.no_contact),
+            points: self.points.iter().map(|&l| e(l)).collect(),
+            offsets: Vec::new(),
+        }
+    }
+}
+
+impl StoredBelief {
+    fn of(belief: &Belief) -> Self {
+        Self {
+            no_contact: belief.no_contact as f32,
+            points: belief.points.iter().map(|&p| p as f32).collect(),
+            offsets: belief
+                .offsets
+                .iter()
+                .map(|o| {
+                    let [l11, l12, l22] = o.precision;
+                    let [n1, n2] = o.shift;
+                    [l11 as f32, l12 as f32, l22 as f32, n1 as f32, n2 as f32]
+                })
+                .collect(),
+        }
+    }
+
+    fn belief(&self) -> Belief {
+        Belief {
+            no_contact: f64::from(self.no_contact),
+            points: self.points.iter().map(|&p| f64::from(p)).collect(),
+            offsets: self
+                .offsets
+                .iter()
+                .map(|&[l11, l12, l22, n1, n2]| Offset {
+                    precision: [l11, l12, l22].map(f64::from),
+                    shift: [n1, n2].map(f64::from),
+                })
+                .collect(),
+        }
+    }
+}
+
+impl<'a> Smoother<'a> {
+    /// A smoother that has seen nothing yet.
+    #[must_use]
+    pub fn new(model: &'a TemporalModel) -> Self {
+        Self {
+            filter: Filter::new(model),
+            times: Vec::new(),
+            frames: Vec::new(),
+            filtered: Vec::new(),
+        }
+    }
+
+    /// Takes the next frame; returns its filtered belief.
+    ///
+    /// # Errors
+    /// As [`Filter::step`], and [`TemporalError::TooLarge`] past the store's limit.
+    pub fn push(&mut self, t_secs: f64, likelihood: &FrameLikelihood) -> Result<&Belief, TemporalError> {
+        let points = likelihood.points.len();
+        let bytes = smoother_bytes(self.times.len() + 1, points, !likelihood.patch.is_empty());
+        if bytes > MAX_SMOOTHER_BYTES {
+            return Err(TemporalError::TooLarge {
+                frames: self.times.len() + 1,
+                points,
+                limit_bytes: MAX_SMOOTHER_BYTES,
+            });
+        }
+        let belief = self.filter.step(t_secs, likelihood)?;
+        self.times.push(t_secs);
+        self.frames.push(StoredFrame::of(likelihood));
+        self.filtered.push(StoredBelief::of(belief));
+        Ok(belief)
+    }
+
+    /// Frames pushed so far.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.times.len()
+    }
+
+    /// True before the first frame.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.times.is_empty()
+    }
+
+    /// Every frame's belief given all frames, in order.
+    #[must_use]
+    pub fn finish(self) -> Vec<Belief> {
+        let tracked = self.filter.model.tracks_offsets() && self.frames.iter().all(|f| !f.patch.is_empty());
+        if tracked { self.two_filters() } else { self.messages() }
+    }
+
+    fn dt(&self, t: usize) -> f64 {
+        match (self.times.get(t + 1), self.times.get(t)) {
+            (Some(a), Some(b)) => (a - b).max(0.0),
+            _ => 0.0,
+        }
+    }
+
+    /// Forward filter × a filter run backwards in time, over the prior.
+    fn two_filters(self) -> Vec<Belief> {
+        let model = self.filter.model;
+        let n = self.times.len();
+        let mut out: Vec<Belief> = Vec::with_capacity(n);
+        let mut backward: Option<Belief> = None;
+        for t in (0..n).rev() {
+            let (Some(forward), Some(frame)) = (self.filtered.get(t), self.frames.get(t)) else {
+                continue;
+            };
+            let predicted = match &backward {
+                Some(b) => model.predict(b, self.dt(t)),
+                None => model.initial(),
+            };
+            out.push(model.combine(&forward.belief(), &predicted));
+            backward = Some(model.correct(&predicted, &frame.likelihood()));
+        }
+        out.reverse();
+        out
+    }
+
+    /// Forward–backward messages (samples as points).
+    fn messages(self) -> Vec<Belief> {
+        let model = self.filter.model;
+        let n = self.times.len();
+        let mut out: Vec<Belief> = Vec::with_capacity(n);
+        // β of the last frame is 1 everywhere.
+        let points = self.filtered.first().map_or(0, |f| f.points.len());
+        let ones = Belief {
+            no_contact: 1.0,
+            points: vec![1.0; points],
+            offsets: Vec::new(),
+        };
+        let mut beta = ones.clone();
+        for t in (0..n).rev() {
+            let (Some(alpha), Some(frame)) = (self.filtered.get(t), self.frames.get(t)) else {
+                continue;
+            };
+            let mut smoothed = alpha.belief();
+            smoothed.no_contact *= beta.no_contact;
+            for (s, b) in smoothed.points.iter_mut().zip(&beta.points) {
+                *s *= b;
+            }
+            if !smoothed.normalize() {
+                smoothed = alpha.belief();
+            }
+            out.push(smoothed);
+            if t > 0 {
+                // The message for frame t-1: this frame's likelihood times β.
+                let mut later = frame.scaled();
+                later.no_contact *= beta.no_contact;
+                for (l, b) in later.points.iter_mut().zip(&beta.points) {
+                    *l *= b;
+                }
+                let mut next = model.backward(&later, self.dt(t - 1));
+                if !next.normalize() {
+                    next = ones.clone();
+                }
+                beta = next;
+            }
+        }
+        out.reverse();
+        out
+    }
+}

@@ -1,0 +1,6 @@
+//! The arm's surface as the estimator sees it: samples drawn over the
+//! candidate links with their patches and cells, and the ray picking of
+//! the posed meshes. Imports `numerics`, `geometry` and `robot`.
+
+pub mod picking;
+pub mod sampling;
