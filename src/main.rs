@@ -250,7 +250,10 @@ fn main() -> std::process::ExitCode {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Some(Command::Torques(args)) => torques(&args),
-        Some(Command::Estimate(args)) => cli::estimate::run(&args),
+        Some(Command::Estimate(args)) => match &args.live {
+            Some(address) => cli::live::run(&args, address),
+            None => cli::estimate::run(&args),
+        },
         Some(Command::Bench(args)) => cli::bench::run(&args),
         Some(Command::Synth(args)) => cli::synth::run(&args),
         Some(Command::Stream(args)) => cli::live::stream(&args),

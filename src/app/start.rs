@@ -95,7 +95,7 @@ pub fn open_target_with(
     if let Some(t) = target
         && is_session_file(Path::new(t))
     {
-        if robot.is_none() && crate::io::session::names_no_robot(Path::new(t)) {
+        if robot.is_none() && crate::io::open::names_no_robot(Path::new(t)) {
             anyhow::bail!(
                 "{t} names no robot (CSV sessions and recordings do not): give it with --robot URDF (or a built-in name)"
             );

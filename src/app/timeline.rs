@@ -56,7 +56,7 @@ impl ProprioscopeApp {
         // robot the user chose; on the default robot it would be a guess.
         let robot = match robot {
             Some(r) => Some(r),
-            None if crate::io::session::names_no_robot(path) => {
+            None if crate::io::open::names_no_robot(path) => {
                 if !self.robot_chosen {
                     self.error = Some(format!(
                         "{} names no robot (CSV sessions and recordings do not): open its robot first \

@@ -23,8 +23,9 @@ use crate::core::estimate::summary::Verdict;
 use crate::core::eval::metrics::{FrameOutcome, Metrics, metrics, metrics_by_sensing_joints};
 use crate::core::robot::model::{LinkId, Robot};
 use crate::io::builtin::load_robot;
+use crate::io::open::OpenError;
 use crate::io::recording::{RecordingError, TopicChoice};
-use crate::io::session::{Frame, FrameProblem, Session, SessionError, Truth};
+use crate::io::session::{Frame, FrameProblem, Session, Truth};
 use crate::io::urdf::{MeshSelection, UrdfOptions};
 
 /// The robot of a session: `robot` when given (a built-in name or a URDF
@@ -226,7 +227,7 @@ pub fn load_session(
     // way to what this file implies.
     let report = |f| progress(0.9 * f);
     let opened = match Session::open(path, choice, &report) {
-        Err(SessionError::Recording(RecordingError::Choice { .. })) if *choice != TopicChoice::default() => {
+        Err(OpenError::Recording(RecordingError::Choice { .. })) if *choice != TopicChoice::default() => {
             Session::open(path, &TopicChoice::default(), &report)
         }
         other => other,
@@ -284,8 +285,8 @@ pub struct TopicPrompt {
 impl TopicPrompt {
     /// The prompt for a recording, when `error` is about its topics.
     fn for_error(path: &Path, robot: Option<String>, error: &anyhow::Error) -> Option<Self> {
-        let Some(SessionError::Recording(choice_error @ RecordingError::Choice { .. })) =
-            error.downcast_ref::<SessionError>()
+        let Some(OpenError::Recording(choice_error @ RecordingError::Choice { .. })) =
+            error.downcast_ref::<OpenError>()
         else {
             return None;
         };

@@ -21,8 +21,9 @@ use proprioscope::core::robot::model::Robot;
 use proprioscope::core::surface::sampling::SurfaceRequest;
 use proprioscope::io::mcap_out::{EstimateMessage, EstimateWriter};
 use proprioscope::io::recording::{is_recording, read_bytes};
-use proprioscope::io::session::{Session, Truth, kept_frame_numbers};
+use proprioscope::io::session::{Session, kept_frame_numbers};
 
+use super::output::frame_json;
 use super::{EstimatorArgs, FrictionArg, TemporalArg, TemporalArgs, TopicArgs};
 
 /// Options of `estimate`.
@@ -281,11 +282,9 @@ fn chosen_temporal(args: &EstimateArgs, session: &Session, points: usize, patche
     chosen
 }
 
-/// Runs the command.
+/// Runs the command on a session file (`--live` is
+/// [`super::live::run`]'s).
 pub fn run(args: &EstimateArgs) -> Result<()> {
-    if let Some(address) = &args.live {
-        return super::live::run(args, address);
-    }
     let Some(path) = args.session.as_deref() else {
         anyhow::bail!("give a session file or --live ADDR");
     };
@@ -448,85 +447,6 @@ pub fn onset_text(delays: &[Option<usize>]) -> String {
         .map(|d| d.map_or_else(|| "missed".to_owned(), |d| d.to_string()))
         .collect();
     format!("{} frames", parts.join(", "))
-}
-
-pub(super) fn frame_json(
-    robot: &Robot,
-    (frame, t): (usize, f64),
-    update: &Update,
-    ms: f64,
-    truth: &Truth,
-    (outcome, held): (Option<&FrameOutcome>, Option<bool>),
-) -> serde_json::Value {
-    let s = &update.summary;
-    let verdict = match s.verdict {
-        Verdict::Contact => "contact",
-        Verdict::NoContact => "no_contact",
-        Verdict::PoorFit => "poor_fit",
-    };
-    let contact = s.verdict != Verdict::NoContact;
-    let mut v = serde_json::json!({
-        "frame": frame,
-        "t": t,
-        "verdict": verdict,
-        "link": contact.then(|| robot.links[s.map.link].name.clone()),
-        "point": contact.then(|| s.map.point_world.to_array()),
-        "force": contact.then(|| s.map.force_world.to_array()),
-        "probability": s.map.probability,
-        "contact_probability": s.contact_probability,
-        "refined": s.refined,
-        "grid": contact.then(|| serde_json::json!({
-            "link": robot.links[s.grid_map.link].name.clone(),
-            "point": s.grid_map.point_world.to_array(),
-            "force": s.grid_map.force_world.to_array(),
-        })),
-        "credible90_points": s.credible90.points.len(),
-        "credible90_radius_m": s.credible90.radius_m,
-        "clusters": s.clusters.len(),
-        "links": contact.then(|| link_shares_json(robot, s)),
-        "fit_p": s.fit.p_value,
-        "no_contact_p": s.fit.no_contact_p,
-        "evaluated": update.posterior.phases.iter().map(|p| [p.points, p.particles]).collect::<Vec<_>>(),
-        "update_ms": ms,
-        "update_parts_ms": update.stages.map(|p| serde_json::json!({
-            "posterior": p.posterior_ms,
-            "refinement": p.refine_ms,
-            "summary": p.summary_ms,
-        })),
-    });
-    if let (Some(o), Truth::Contact { link, .. }) = (outcome, truth) {
-        v["truth"] = serde_json::json!({
-            "link": link,
-            "position_error_m": o.true_point.distance(o.estimated_point),
-            "force_error_n": o.true_force.distance(o.estimated_force),
-            "link_correct": o.link_correct,
-            "in_credible90": held,
-        });
-    } else if *truth == Truth::NoContact {
-        v["truth"] = serde_json::Value::Null;
-    }
-    v
-}
-
-/// Links that hold at least [`LINK_SHARE_SHOWN`] of the posterior given a
-/// contact, most probable first: where one frame (or a recording) cannot
-/// tell the links apart, the shares say so.
-const LINK_SHARE_SHOWN: f64 = 0.01;
-
-/// The `links` field of a frame's JSON line: `[{"link", "probability"}]`,
-/// most probable first (equal shares by name).
-fn link_shares_json(robot: &Robot, s: &proprioscope::core::estimate::summary::Summary) -> serde_json::Value {
-    let mut shares: Vec<(String, f64)> = s
-        .per_link
-        .iter()
-        .filter(|share| share.summed >= LINK_SHARE_SHOWN)
-        .filter_map(|share| Some((robot.links.get(share.link)?.name.clone(), share.summed)))
-        .collect();
-    shares.sort_by(|x, y| y.1.total_cmp(&x.1).then_with(|| x.0.cmp(&y.0)));
-    shares
-        .into_iter()
-        .map(|(link, probability)| serde_json::json!({ "link": link, "probability": probability }))
-        .collect()
 }
 
 /// A table cell: the number to `decimals`, or `–` where there is none

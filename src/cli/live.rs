@@ -18,7 +18,8 @@ use proprioscope::io::live::{LiveEvent, LiveSource};
 use proprioscope::io::session::Session;
 
 use super::TemporalArg;
-use super::estimate::{EstimateArgs, frame_json};
+use super::estimate::EstimateArgs;
+use super::output::frame_json;
 
 /// Options of `stream`.
 #[derive(Debug, clap::Args)]

@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod estimate;
 pub mod live;
+pub mod output;
 pub mod synth;
 pub mod topics;
 

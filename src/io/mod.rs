@@ -1,5 +1,6 @@
 //! Loading and saving: URDF and mesh files, the built-in robots' assets,
-//! scenes. Each reader has its own error type naming the file and element.
+//! scenes, sessions and robot recordings, live sources, MCAP out. Each
+//! reader has its own error type naming the file and element.
 
 pub mod bag;
 pub mod builtin;
@@ -8,6 +9,7 @@ pub mod inflate;
 pub mod live;
 pub mod mcap_out;
 pub mod mesh;
+pub mod open;
 pub mod recording;
 pub mod rosmsg;
 pub mod scene;

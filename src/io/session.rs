@@ -5,7 +5,6 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Deserializer};
 
-use super::recording::{TopicChoice, is_recording};
 use crate::core::config::limits;
 
 /// The true contact of a frame, when known.
@@ -135,9 +134,6 @@ pub enum SessionError {
         /// What is wrong.
         message: String,
     },
-    /// A robot recording (MCAP, ROS 1 bag) could not be read.
-    #[error(transparent)]
-    Recording(#[from] super::recording::RecordingError),
 }
 
 #[derive(Deserialize)]
@@ -219,18 +215,10 @@ struct TruthFile {
 }
 
 impl Session {
-    /// Reads a session file: `.csv` as CSV, `.mcap` and `.bag` as a robot
-    /// recording (the topics it implies; a torque message that makes no
-    /// frame is an error here), anything else as JSON. Frames are checked
-    /// (see [`Session::check`]).
-    pub fn read(path: &Path) -> Result<Self, SessionError> {
-        if is_recording(path) {
-            let (session, problems) = Self::open(path, &TopicChoice::default(), &|_| {})?;
-            if let Some(problem) = problems.into_iter().next() {
-                return Err(problem.into_error(path));
-            }
-            return Ok(session);
-        }
+    /// Reads a session file (`.csv` as CSV, anything else as JSON; a robot
+    /// recording is read by [`Session::read`]). Frames are checked (see
+    /// [`Session::check`]).
+    pub fn read_file(path: &Path) -> Result<Self, SessionError> {
         let text = std::fs::read_to_string(path).map_err(|cause| SessionError::Read {
             path: path.to_owned(),
             cause,
@@ -421,38 +409,14 @@ impl Session {
         problems
     }
 
-    /// Reads a session and skips its bad frames instead of failing: the
-    /// session without them, and one report per skipped frame (numbered as
-    /// in the file). A file cut short while being recorded is read up to
-    /// its last complete frame.
-    pub fn read_skipping_bad_frames(path: &Path) -> Result<(Self, Vec<FrameProblem>), SessionError> {
-        Self::read_skipping_bad_frames_with_progress(path, &|_| {})
-    }
-
-    /// [`Session::read_skipping_bad_frames`], telling `progress` how far it
-    /// is (0 to 1: reading the file to 0.3, then parsing and checking it).
-    pub fn read_skipping_bad_frames_with_progress(
+    /// A session file (JSON, CSV) skipping bad frames (see
+    /// [`Session::read_skipping_bad_frames`]), telling `progress` how far
+    /// it is (0 to 1: reading the file to 0.3, then parsing and checking it).
+    pub fn read_file_skipping_bad_frames(
         path: &Path,
-        progress: &dyn Fn(f64),
-    ) -> Result<(Self, Vec<FrameProblem>), SessionError> {
-        Self::open(path, &TopicChoice::default(), progress)
-    }
-
-    /// A session file, or a robot recording (`.mcap`, `.bag`) read with
-    /// `choice`, skipping bad frames (see
-    /// [`Session::read_skipping_bad_frames`]).
-    pub fn open(
-        path: &Path,
-        choice: &TopicChoice,
         progress: &dyn Fn(f64),
     ) -> Result<(Self, Vec<FrameProblem>), SessionError> {
         use std::io::Read as _;
-        if is_recording(path) {
-            let bytes = super::recording::read_bytes(path)?;
-            progress(0.1);
-            let read = super::recording::read_session(path, &bytes, choice, &|f| progress(0.1 + 0.9 * f))?;
-            return Ok((read.session, read.problems));
-        }
         let read_error = |cause| SessionError::Read {
             path: path.to_owned(),
             cause,
@@ -502,13 +466,6 @@ impl Session {
 pub fn kept_frame_numbers(kept: usize, problems: &[FrameProblem]) -> Vec<usize> {
     let bad: std::collections::BTreeSet<usize> = problems.iter().map(|p| p.frame).collect();
     (0..kept + problems.len()).filter(|i| !bad.contains(i)).collect()
-}
-
-/// Whether the file at `path` names no robot (CSV sessions and robot
-/// recordings): the robot must come from elsewhere.
-#[must_use]
-pub fn names_no_robot(path: &Path) -> bool {
-    is_csv(path) || is_recording(path)
 }
 
 /// Whether `path` names a CSV file (the form that names no robot).

@@ -3,9 +3,9 @@
 //! thesis' particles, optionally coarse-to-fine in phases A/B/C.
 
 use crate::core::estimate::contact::{PatchForms, UnitTorqueSource};
-use crate::core::estimate::evidence::{Quadratic, NEGLIGIBLE_LOG_MASS, Scores, exp_or_zero};
+use crate::core::estimate::evidence::{NEGLIGIBLE_LOG_MASS, Quadratic, Scores, exp_or_zero};
 use crate::core::estimate::phases::PhaseHierarchy;
-use crate::core::estimate::settings::{EstimatorSettings, EstimateError, validate, Mode, ParticleSettings, Sampling};
+use crate::core::estimate::settings::{EstimateError, EstimatorSettings, Mode, ParticleSettings, Sampling, validate};
 use crate::core::numerics::fastmath::{self};
 use crate::core::numerics::lanes;
 use crate::core::numerics::rng::Rng;
