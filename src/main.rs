@@ -590,7 +590,10 @@ fn record_demo(out: &Path, rate: f64, seconds: Option<f64>) -> Result<()> {
         force_newtons: 12.0,
     });
     let settings = StartSettings {
-        surface_points: 1000,
+        config: proprioscope::core::config::estimator::EstimatorConfig {
+            surface_points: 1000,
+            ..proprioscope::core::config::estimator::EstimatorConfig::default()
+        },
         ..StartSettings::default()
     };
     let mut model = Model::from_start(robot, vec![0.0; joints.len()], push, settings, ViewOptions::default());

@@ -152,10 +152,11 @@ fn the_phases_checkbox_runs_phases_a_b_c() {
 /// brings the μ slider, whose value then holds over time too.
 #[test]
 fn the_friction_auto_checkbox_gives_way_to_the_mu_slider() {
+    use proprioscope::core::config::estimator::Friction;
     use proprioscope::core::over_time::sequence::{OVER_TIME_FRICTION, Temporal};
     let mut harness = app_harness();
     settle(&mut harness);
-    assert!(harness.state().model.estimator.friction_auto);
+    assert_eq!(harness.state().model.config.friction, Friction::Auto);
     assert!(harness.query_by_label_contains("over time, 0 per frame").is_some());
     let slider = egui::accesskit::Role::Slider;
     assert!(harness.query_by_role_and_label(slider, "friction μ").is_none());
@@ -165,7 +166,7 @@ fn the_friction_auto_checkbox_gives_way_to_the_mu_slider() {
     harness.run_steps(2);
     settle(&mut harness);
     let model = &harness.state().model;
-    assert!(!model.estimator.friction_auto);
+    assert_eq!(model.config.friction, Friction::Mu(0.0));
     assert!(model.estimator_settings_for(Temporal::Smooth).friction.abs() < 1e-15);
     assert!(harness.query_by_role_and_label(slider, "friction μ").is_some());
 }
@@ -319,7 +320,7 @@ fn a_scene_with_sigma_per_joint_opens_with_it() {
     .unwrap();
     let mut harness = proprioscope::app::headless_harness(open_target(path.to_str()).unwrap(), [800.0, 600.0]);
     settle(&mut harness);
-    assert_eq!(harness.state().model.sigma, vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]);
+    assert_eq!(harness.state().model.sigma(), [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]);
 }
 
 /// A recorded session (the hidden `record-demo` command: the built-in LWR
@@ -481,11 +482,11 @@ fn the_app_records_a_session_that_reads_back_bit_for_bit() {
 fn the_timeline_estimates_equal_the_estimate_command() {
     let path = demo_session("same.session.json", 0.5);
     let out = path.with_file_name("same.jsonl");
-    // The app's defaults: σ 0.1 N·m, 5000 points, 1–30 N, exact.
+    // The defaults the app and the command line share (one configuration).
     let output = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
         .arg("estimate")
         .arg(&path)
-        .args(["--sigma", "0.1", "--out"])
+        .args(["--out"])
         .arg(&out)
         .output()
         .unwrap();
@@ -580,8 +581,8 @@ fn the_slide_length_is_set_in_the_timeline() {
     let before = places(&harness);
     harness.state_mut().apply(Command::SetSlide(0.05));
     settle(&mut harness);
-    let replay = harness.state().model.replay.clone().unwrap();
-    assert!((replay.slide_m_per_sqrt_s - 0.05).abs() < 1e-15);
+    let slide = harness.state().model.config.temporal.slide_m_per_sqrt_s;
+    assert!((slide - 0.05).abs() < 1e-15);
     let after = places(&harness);
     assert!(
         before.iter().zip(&after).any(|(b, a)| b.distance(*a) > 1e-6),
@@ -594,12 +595,8 @@ fn the_slide_length_is_set_in_the_timeline() {
         "{refused}"
     );
     harness.state_mut().apply(Command::SetSlide(f64::NAN));
-    let replay = harness.state().model.replay.clone().unwrap();
-    assert!(
-        (replay.slide_m_per_sqrt_s - 0.05).abs() < 1e-15,
-        "{}",
-        replay.slide_m_per_sqrt_s
-    );
+    let slide = harness.state().model.config.temporal.slide_m_per_sqrt_s;
+    assert!((slide - 0.05).abs() < 1e-15, "{slide}");
     harness.state_mut().apply(Command::SetOverTime(Temporal::None));
     settle(&mut harness);
     assert!(harness.query_all_by_label("slide").next().is_none());
@@ -657,6 +654,9 @@ fn a_package_folder_added_in_the_app_resolves_package_uris() {
 fn changing_sigma_re_estimates_the_session_in_the_background() {
     let path = demo_session("resigma.session.json", 0.5);
     let mut harness = session_harness(&path);
+    // From σ 0.1 N·m (twice the recording's noise: every frame a contact).
+    harness.state_mut().apply(proprioscope::app::Command::SetSigma(0.1));
+    settle(&mut harness);
     let map_probabilities =
         |app: &ProprioscopeApp| -> Vec<f64> { app.session_estimates.iter().map(|e| e.unwrap().probability).collect() };
     let before = map_probabilities(harness.state());
@@ -826,16 +826,12 @@ fn assert_round_trip(harness: &mut Harness<'_, ProprioscopeApp>, name: &str) {
     assert_eq!(after.robot.name, before.robot.name);
     assert_eq!(after.robot.sensed(), before.robot.sensed());
     assert_eq!(after.q, before.q);
-    assert_eq!(after.sigma, before.sigma);
-    assert_eq!(after.surface_points, before.surface_points);
-    assert_eq!(after.surface_seed, before.surface_seed);
+    assert_eq!(after.config, before.config);
     assert_eq!(after.candidate_links, before.candidate_links);
     assert_eq!(
         (after.noise_sigma, after.noise_seed),
         (before.noise_sigma, before.noise_seed)
     );
-    assert_eq!(after.force_range_newtons, before.force_range_newtons);
-    assert_eq!(after.estimator, before.estimator);
     assert_eq!(after.view, before.view);
     assert_eq!(after.other_joints, before.other_joints);
     assert_eq!(after.title, before.title);
@@ -867,8 +863,11 @@ fn a_scene_round_trips_everything_the_app_shows() {
     let mut harness = proprioscope::app::headless_harness(start, [1200.0, 800.0]);
     settle(&mut harness);
     let m = &harness.state().model;
-    assert_eq!(m.estimator.mode, proprioscope::app::ModeChoice::ParticlesRandom);
-    assert_eq!(m.estimator.particles, 18_000);
+    assert_eq!(
+        m.config.mode,
+        proprioscope::core::config::estimator::ModeKind::ParticlesRandom
+    );
+    assert_eq!(m.config.particles, 18_000);
     assert_eq!(m.title.0, "LWR 4+, Gazebo collision 1");
     let mut view = m.view;
     view.red_green = true;
@@ -877,7 +876,7 @@ fn a_scene_round_trips_everything_the_app_shows() {
     harness
         .state_mut()
         .apply(proprioscope::app::Command::SetJointSigma(2, 0.3));
-    harness.state_mut().model.surface_seed = 7;
+    harness.state_mut().model.config.surface_seed = 7;
     assert_round_trip(&mut harness, "gazebo-1");
 }
 

@@ -184,7 +184,7 @@ fn estimate_writes_one_json_line_per_frame_and_a_summary() {
         session.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
-        "--n",
+        "--points",
         "3000",
         "--sigma",
         "0.01",
@@ -251,7 +251,7 @@ fn estimate_over_time_adds_the_contact_probability() {
             session.to_str().unwrap(),
             "--out",
             out.to_str().unwrap(),
-            "--n",
+            "--points",
             "3000",
             "--sigma",
             "0.01",
@@ -315,7 +315,14 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
         "lwr_5_link,lwr_6_link",
     ]);
     assert!(ok, "{err}");
-    let (ok, out, err) = run(&["estimate", session.to_str().unwrap(), "--bias", "auto", "--n", "1000"]);
+    let (ok, out, err) = run(&[
+        "estimate",
+        session.to_str().unwrap(),
+        "--bias",
+        "auto",
+        "--points",
+        "1000",
+    ]);
     assert!(ok, "{err}");
     assert!(
         out.contains("bias (estimated, N·m") && out.contains("lwr_joint_7"),
@@ -330,7 +337,7 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
         "auto",
         "--bias-window",
         "0.5",
-        "--n",
+        "--points",
         "1000",
     ]);
     assert!(ok, "{err}");
@@ -351,11 +358,17 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
         session.to_str().unwrap(),
         "--friction",
         "0.15",
-        "--n",
+        "--points",
         "1000",
     ]);
     assert!(ok && out.contains("median force error"), "{err}");
-    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--friction=-1", "--n", "1000"]);
+    let (ok, _, err) = run(&[
+        "estimate",
+        session.to_str().unwrap(),
+        "--friction=-1",
+        "--points",
+        "1000",
+    ]);
     assert!(!ok && err.contains("friction"), "{err}");
     // The default, `auto`: said on stderr where it takes friction (over
     // time); a word that is neither a number nor `auto` is refused.
@@ -366,7 +379,7 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
         "smooth",
         "--friction",
         "auto",
-        "--n",
+        "--points",
         "1000",
     ]);
     assert!(ok && err.contains("--friction auto: μ = 0.2"), "{err}");
@@ -413,7 +426,7 @@ fn live_frames_are_estimated_and_bad_lines_skipped() {
             &address,
             "--live-frames",
             "3",
-            "--n",
+            "--points",
             "2000",
             "--sigma",
             "0.01",
@@ -471,7 +484,7 @@ fn a_streamed_session_is_estimated_live() {
             &address,
             "--live-frames",
             "2",
-            "--n",
+            "--points",
             "2000",
             "--sigma",
             "0.01",
@@ -618,15 +631,22 @@ fn non_finite_and_out_of_range_inputs_are_named_errors() {
         r#"{"format":"contact-session","version":1,"robot":"lwr4plus","frames":[{"t":0,"q":[0,0,0,0,0,0,0],"tau":[1e5,0,0,0,0,0,0]}]}"#,
     )
     .unwrap();
-    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--n", "1000000000"]);
+    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--particles", "1000000000"]);
     assert!(
-        !ok && err.contains("--n") && err.contains("1000000000") && err.contains("1 to 10000000"),
+        !ok && err.contains("--particles") && err.contains("1000000000") && err.contains("1 to 10000000"),
         "{err}"
     );
-    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--n", "2000000"]);
-    assert!(!ok && err.contains("--n") && err.contains("1 to 1000000"), "{err}");
+    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--points", "2000000"]);
+    assert!(!ok && err.contains("--points") && err.contains("1 to 1000000"), "{err}");
     // Each within its range, together beyond what a frame may hold: 1e5 N·m at σ 1e-4.
-    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--n", "300", "--sigma", "1e-4"]);
+    let (ok, _, err) = run(&[
+        "estimate",
+        session.to_str().unwrap(),
+        "--points",
+        "300",
+        "--sigma",
+        "1e-4",
+    ]);
     assert!(!ok && err.contains("beyond what can be computed"), "{err}");
 }
 
@@ -774,7 +794,7 @@ fn estimates_out_as_mcap_read_back_as_they_were_written() {
         "2",
     ]);
     assert!(ok, "{err}");
-    let common = ["--n", "1000", "--temporal", "filter"];
+    let common = ["--points", "1000", "--temporal", "filter"];
     let (ok, _, err) = run(&[
         &["estimate", &path("synth.session.json"), "--out", &path("est.jsonl")],
         &common[..],
@@ -837,7 +857,7 @@ fn a_session_streamed_over_udp_is_estimated_live() {
             "udp://127.0.0.1:0",
             "--live-frames",
             "2",
-            "--n",
+            "--points",
             "2000",
         ])
         .args([
@@ -1035,12 +1055,12 @@ fn bench_session_points_add_a_refined_row_per_resolution() {
         .filter(|l| l.starts_with("| refined (patches) |"))
         .collect();
     assert_eq!(stage_rows.len(), 3, "{coarser}");
-    // The one contact frame's error as `estimate --n 1000` reports it.
+    // The one contact frame's error as `estimate --points 1000` reports it.
     let out = session.with_extension("points.jsonl");
     let (ok, _, stderr) = run(&[
         "estimate",
         session.to_str().unwrap(),
-        "--n",
+        "--points",
         "1000",
         "--seed",
         "0",

@@ -7,7 +7,6 @@
 use std::path::{Path, PathBuf};
 
 use proprioscope::core::estimate::estimator::{Estimator, Update};
-use proprioscope::core::estimate::settings::Mode;
 use proprioscope::core::estimate::summary::Verdict;
 use proprioscope::core::eval::metrics::percentile;
 use proprioscope::core::surface::sampling::SurfaceRequest;
@@ -28,8 +27,11 @@ fn load(name: &str) -> LoadedScene {
 /// Estimates a scene's push (exact mode, the scene's σ unless given).
 fn estimate_scene(scene: &LoadedScene, sigma: Option<f64>, points: usize) -> (Estimator, Update) {
     let joints = scene.robot.sensed().len();
-    let mut settings = scene.scene.estimator.to_core(joints).unwrap();
-    settings.mode = Mode::Exact;
+    let mut config = scene.scene.config();
+    config.mode = proprioscope::core::config::estimator::ModeKind::Exact;
+    let mut settings = config
+        .settings(joints, proprioscope::core::over_time::sequence::Temporal::None)
+        .unwrap();
     if let Some(s) = sigma {
         settings.sigma = vec![s; joints];
     }

@@ -128,9 +128,9 @@ fn every_numeric_option_documents_its_range_and_refuses_values_outside() {
         );
     }
     for (command, flag, bad, range) in [
-        ("estimate", "--n", "0", "1 to"),
-        ("estimate", "--m", "5000", "1 to 1000"),
         ("estimate", "--points", "0", "1 to"),
+        ("estimate", "--particles", "0", "1 to"),
+        ("estimate", "--m", "5000", "1 to 1000"),
         ("estimate", "--phase-sizes", "0,10", "1 to"),
         ("estimate", "--threads", "0", "1 to 1024"),
         ("bench", "--contacts", "0", "1 to"),
@@ -222,7 +222,7 @@ fn estimates_at_the_edges_of_the_ranges_are_finite_numbers() {
         let mut args = vec![
             "estimate",
             session.to_str().unwrap(),
-            "--n",
+            "--points",
             "600",
             "--temporal",
             temporal,
@@ -357,7 +357,13 @@ fn the_logger_shows_warnings_and_respects_rust_log() {
           {"t": 1, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0, 0, 0]}]}"#,
     )
     .unwrap();
-    let args = ["estimate", path.to_str().unwrap(), "--skip-bad-frames", "--n", "300"];
+    let args = [
+        "estimate",
+        path.to_str().unwrap(),
+        "--skip-bad-frames",
+        "--points",
+        "300",
+    ];
     let by_default = run(&args);
     assert!(by_default.ok, "{}", by_default.err);
     assert!(

@@ -58,12 +58,11 @@ fn taking_off_the_bias_estimates_as_the_command_line_does() {
         "0.3",
     ]);
     let cli_out = dir.join("biased.jsonl");
-    // The app's defaults: σ 0.1 N·m, 5000 points; a recording opens smoothed.
+    // The defaults the app and the command line share (one
+    // configuration); a recording opens smoothed.
     proprioscope(&[
         "estimate",
         path_str,
-        "--sigma",
-        "0.1",
         "--bias",
         "auto",
         "--temporal",

@@ -379,7 +379,7 @@ fn a_session_with_contacts_on_every_link_keeps_the_panels_beside_the_view() {
 #[test]
 fn a_typed_number_counts_on_enter_not_at_every_keystroke() {
     let mut harness = harness_at(None, [1280.0, 720.0]);
-    let before = harness.state().model.surface_points;
+    let before = harness.state().model.config.surface_points;
     let field = harness
         .get_all_by_label("N (surface points)")
         .find(|n| n.accesskit_node().role() == egui::accesskit::Role::SpinButton)
@@ -395,11 +395,11 @@ fn a_typed_number_counts_on_enter_not_at_every_keystroke() {
     for ch in ["2", "0", "0", "0", "0"] {
         harness.event(egui::Event::Text(ch.to_owned()));
         harness.run_steps(1);
-        assert_eq!(harness.state().model.surface_points, before, "after typing {ch}");
+        assert_eq!(harness.state().model.config.surface_points, before, "after typing {ch}");
     }
     harness.key_press(egui::Key::Enter);
     harness.run_steps(3);
-    assert_eq!(harness.state().model.surface_points, 20_000);
+    assert_eq!(harness.state().model.config.surface_points, 20_000);
 }
 
 /// Shift while dragging a joint's slider moves it ten times slower.

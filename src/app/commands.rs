@@ -3,11 +3,11 @@
 
 use glam::DVec3;
 
-use super::{EstimatorChoice, LinkId, Model, Push, Temporal, ViewOptions};
+use super::{EstimatorConfig, LinkId, Model, Push, Sigma, Temporal, ViewOptions};
 use crate::core::config::limits;
 
 /// A change to the [`Model`], sent by the UI and applied in one place.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Command {
     /// Set sensed joint `index` to a position, rad.
     SetJoint(usize, f64),
@@ -33,8 +33,9 @@ pub enum Command {
     SetCandidate(LinkId, bool),
     /// Set the sensor noise, N·m.
     SetNoise(f64),
-    /// Set the estimator's mode and phases.
-    SetEstimator(EstimatorChoice),
+    /// Set the estimator's configuration (mode, particles, phases,
+    /// friction; the panel edits a copy and sends it whole).
+    SetConfig(EstimatorConfig),
     /// Set the force range, N.
     SetForceRange(f64, f64),
     /// Set how the heatmap is drawn.
@@ -66,7 +67,6 @@ fn set_replay(r: &mut super::Replay, command: &Command) {
         Command::SetLoop(on) => r.looping = on,
         Command::SetOverTime(temporal) => r.over_time = temporal,
         Command::SetBias(on) => r.bias_auto = on,
-        Command::SetSlide(slide_m_per_sqrt_s) => r.slide_m_per_sqrt_s = slide_m_per_sqrt_s,
         _ => {}
     }
 }
@@ -79,44 +79,70 @@ impl Model {
     #[must_use]
     pub fn refusal(&self, command: &Command) -> Option<String> {
         let why = |result: Result<f64, limits::OutOfRange>| result.err().map(|e| e.to_string());
-        let count = |result: Result<usize, limits::CountOutOfRange>| result.err().map(|e| e.to_string());
+        // The timeline's slide within its own span first.
+        if let Command::SetSlide(slide) = *command
+            && let Err(e) = super::SLIDE.check(slide)
+        {
+            return Some(e.to_string());
+        }
+        if let Some(config) = self.configured(command) {
+            return config
+                .validate(Some(self.robot.sensed().len()))
+                .err()
+                .map(|e| e.to_string());
+        }
         match *command {
             Command::SetJoint(i, value) => self.joint_refusal(i, value),
             Command::SetForce(f) => why(limits::PUSH_NEWTONS.check(f)),
-            Command::SetSigma(s) | Command::SetJointSigma(_, s) => why(limits::SIGMA.check(s)),
-            Command::SetSurfacePoints(n) => count(limits::SURFACE_POINTS.check(n)),
             Command::SetNoise(s) => why(limits::NOISE.check(s)),
-            Command::SetEstimator(c) => count(limits::PARTICLES.check(c.particles))
-                .or_else(|| count(limits::MAGNITUDES.check(c.magnitudes_per_point)))
-                .or_else(|| count(limits::PHASE_POINTS.check(c.phase_sizes[0])))
-                .or_else(|| count(limits::PHASE_POINTS.check(c.phase_sizes[1])))
-                .or_else(|| why(limits::ALPHA.check(c.alpha)))
-                .or_else(|| why(limits::FRICTION.check(c.friction))),
-            Command::SetForceRange(lo, hi) => why(limits::FORCE_MIN.check(lo))
-                .or_else(|| why(limits::FORCE_MAX.check(hi)))
-                .or_else(|| (lo > hi).then(|| format!("F min {lo} N is above F max {hi} N"))),
             Command::SetView(view) => why(limits::THRESHOLD.check(view.threshold)),
             Command::SetSpeed(speed) => why(super::SPEED.check(speed)),
-            Command::SetSlide(slide) => why(super::SLIDE.check(slide)),
             _ => None,
         }
+    }
+
+    /// The configuration a command sets (σ, the surface's points, the
+    /// force range, the slide, or a whole configuration); `None` for the
+    /// commands that leave it.
+    fn configured(&self, command: &Command) -> Option<EstimatorConfig> {
+        let mut config = self.config.clone();
+        let joints = self.robot.sensed().len();
+        match command {
+            Command::SetSigma(s) => config.sigma = Sigma::PerJoint(vec![*s; joints]),
+            Command::SetJointSigma(i, s) => {
+                let mut sigma = super::per_joint(self.sigma(), joints);
+                *sigma.get_mut(*i)? = *s;
+                config.sigma = Sigma::PerJoint(sigma);
+            }
+            Command::SetSurfacePoints(n) => config.surface_points = *n,
+            Command::SetForceRange(lo, hi) => config.force_range_newtons = (*lo, *hi),
+            Command::SetSlide(slide) => config.temporal.slide_m_per_sqrt_s = *slide,
+            Command::SetConfig(c) => {
+                config = c.clone();
+                // The app keeps σ one per sensed joint.
+                config.sigma = Sigma::PerJoint(match &c.sigma {
+                    Sigma::All(s) => vec![*s; joints],
+                    Sigma::PerJoint(v) => v.clone(),
+                });
+            }
+            _ => return None,
+        }
+        Some(config)
     }
 
     /// The first setting of the model outside its valid range, if any
     /// (none can be: every command that sets one is checked).
     #[must_use]
     pub fn out_of_range(&self) -> Option<String> {
-        let (lo, hi) = self.force_range_newtons;
-        let mut commands = vec![
-            Command::SetSurfacePoints(self.surface_points),
-            Command::SetNoise(self.noise_sigma),
-            Command::SetEstimator(self.estimator),
-            Command::SetForceRange(lo, hi),
-            Command::SetView(self.view),
-        ];
-        commands.extend(self.sigma.iter().map(|&s| Command::SetSigma(s)));
+        if let Err(e) = self.config.validate(Some(self.robot.sensed().len())) {
+            return Some(e.to_string());
+        }
+        let mut commands = vec![Command::SetNoise(self.noise_sigma), Command::SetView(self.view)];
         if let Some(r) = &self.replay {
-            commands.extend([Command::SetSpeed(r.speed), Command::SetSlide(r.slide_m_per_sqrt_s)]);
+            commands.extend([
+                Command::SetSpeed(r.speed),
+                Command::SetSlide(self.config.temporal.slide_m_per_sqrt_s),
+            ]);
         }
         let joint = self
             .q
@@ -156,10 +182,18 @@ impl Model {
     /// Applies a command; true when something changed. A command with a
     /// value outside its range changes nothing and leaves its reason in
     /// [`Model::refused`].
+    // Taken by value: a command is made to be applied, `apply(Command::…)`.
+    #[allow(clippy::needless_pass_by_value)]
     pub fn apply(&mut self, command: Command) -> bool {
         if let Some(why) = self.refusal(&command) {
             self.refused = Some(why);
             return false;
+        }
+        if let Some(config) = self.configured(&command) {
+            let changed = config != self.config;
+            self.config = config;
+            self.refused = None;
+            return changed && !matches!(command, Command::SetSlide(_));
         }
         if !matches!(command, Command::Tick(_)) {
             self.refused = None;
@@ -189,13 +223,6 @@ impl Model {
                 }
             }
             Command::ClearPush => self.push = None,
-            Command::SetSigma(s) => self.sigma.iter_mut().for_each(|v| *v = s),
-            Command::SetJointSigma(i, s) => {
-                if let Some(v) = self.sigma.get_mut(i) {
-                    *v = s;
-                }
-            }
-            Command::SetSurfacePoints(n) => self.surface_points = n,
             Command::SetCandidate(link, on) => {
                 let can_touch = self.robot.default_candidate_links().contains(&link);
                 if on && can_touch && !self.candidate_links.contains(&link) {
@@ -207,8 +234,6 @@ impl Model {
                 }
             }
             Command::SetNoise(s) => self.noise_sigma = s,
-            Command::SetEstimator(choice) => self.estimator = choice,
-            Command::SetForceRange(lo, hi) => self.force_range_newtons = (lo, hi),
             Command::SetView(view) => self.view = view,
             Command::SetFrame(i) => self.show_frame(i),
             Command::StepFrames(by) => {
@@ -230,16 +255,19 @@ impl Model {
                     r.playing = on;
                 }
             }
-            Command::SetSpeed(_)
-            | Command::SetLoop(_)
-            | Command::SetOverTime(_)
-            | Command::SetBias(_)
-            | Command::SetSlide(_) => {
+            Command::SetSpeed(_) | Command::SetLoop(_) | Command::SetOverTime(_) | Command::SetBias(_) => {
                 if let Some(r) = &mut self.replay {
                     set_replay(r, &command);
                 }
             }
             Command::Tick(dt_secs) => self.tick(dt_secs),
+            // Applied above, as configurations.
+            Command::SetSigma(_)
+            | Command::SetJointSigma(..)
+            | Command::SetSurfacePoints(_)
+            | Command::SetForceRange(..)
+            | Command::SetSlide(_)
+            | Command::SetConfig(_) => {}
         }
         before != self.estimate_inputs()
     }

@@ -29,15 +29,15 @@ impl ProprioscopeApp {
     pub fn check_invariants(&self) -> Result<(), String> {
         let m = &self.model;
         let joints = m.robot.sensed().len();
-        if m.q.len() != joints || m.sigma.len() != joints {
+        if m.q.len() != joints || m.sigma().len() != joints {
             return Err(format!(
                 "{} q and {} σ for {joints} sensed joints",
                 m.q.len(),
-                m.sigma.len()
+                m.sigma().len()
             ));
         }
-        if !m.q.iter().chain(&m.sigma).all(|v| v.is_finite()) {
-            return Err(format!("non-finite q {:?} or σ {:?}", m.q, m.sigma));
+        if !m.q.iter().chain(m.sigma()).all(|v| v.is_finite()) {
+            return Err(format!("non-finite q {:?} or σ {:?}", m.q, m.sigma()));
         }
         let links = m.robot.links.len();
         if m.candidate_links.is_empty() || m.candidate_links.iter().any(|&l| l >= links) {

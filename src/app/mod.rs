@@ -34,14 +34,14 @@ use std::sync::Arc;
 use eframe::egui;
 use glam::{DVec3, Vec2};
 
-use crate::core::estimate::settings::{EstimatorSettings, Mode};
+use crate::core::config::estimator::{EstimatorConfig, Friction, ModeKind, Sigma};
+use crate::core::estimate::settings::EstimatorSettings;
 use crate::core::estimate::summary::Verdict;
 use crate::core::over_time::sequence::Temporal;
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::{LinkId, Robot};
 use crate::core::robot::torque::{joint_torques, with_sensor_noise};
 use crate::core::surface::picking::Picker;
-use crate::core::surface::sampling::SurfaceRequest;
 use crate::render::camera::OrbitCamera;
 use crate::render::renderer::{Frame, Renderer};
 use crate::render::scene::{ROBOT_GREY, grid_and_axes, robot_triangles};
@@ -388,13 +388,8 @@ impl ProprioscopeApp {
             robot: self.model.robot.clone(),
             joint_positions: positions,
             tau,
-            surface: SurfaceRequest {
-                links: self.model.candidate_links.clone(),
-                total_points: self.model.surface_points,
-                seed: self.model.surface_seed,
-            },
-            settings: self.model.estimator_settings(),
-            phase_sizes: self.model.estimator.phases.then_some(self.model.estimator.phase_sizes),
+            config: self.model.config.clone(),
+            links: self.model.candidate_links.clone(),
         });
     }
 

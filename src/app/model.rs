@@ -1,6 +1,9 @@
 //! The user's model and the commands that change it: no egui here.
 
-use super::*;
+use super::{
+    Arc, DVec3, EstimatorConfig, EstimatorSettings, LinkId, OrbitCamera, Robot, RobotPose, Sigma, Temporal,
+    joint_torques, per_joint, session, with_sensor_noise,
+};
 
 /// A push on the robot, kept in the link frame so that it moves with the arm.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -25,22 +28,14 @@ pub struct Model {
     pub q: Vec<f64>,
     /// The applied push.
     pub push: Option<Push>,
-    /// Likelihood σ per sensed joint, N·m.
-    pub sigma: Vec<f64>,
-    /// Surface points over the candidate links.
-    pub surface_points: usize,
+    /// The estimator's configuration (σ one per sensed joint).
+    pub config: EstimatorConfig,
     /// Links that can be touched: only these are sampled and evaluated.
     pub candidate_links: Vec<LinkId>,
     /// Sensor noise added to the push's torques, N·m.
     pub noise_sigma: f64,
     /// Seed of that noise.
     pub noise_seed: u64,
-    /// Push magnitudes considered by the estimator, N.
-    pub force_range_newtons: (f64, f64),
-    /// Estimator mode and phases.
-    pub estimator: EstimatorChoice,
-    /// Seed of the surface sampling.
-    pub surface_seed: u64,
     /// Positions of joints that are neither sensed nor fixed, by name.
     pub other_joints: Vec<(String, f64)>,
     /// The scene's title and description (saved with it).
@@ -76,9 +71,6 @@ pub struct Replay {
     /// Take each joint's torque bias, estimated from the session, off
     /// every frame (as `estimate --bias auto`).
     pub bias_auto: bool,
-    /// How far a contact slides, filtered or smoothed: RMS along each
-    /// surface direction after one second, m/√s (as `estimate --slide`).
-    pub slide_m_per_sqrt_s: f64,
 }
 
 /// Slowest and fastest playback.
@@ -92,84 +84,6 @@ pub const SPEED: crate::core::config::limits::Range =
 /// move to ones that wipe along a link.
 pub const SLIDE: crate::core::config::limits::Range =
     crate::core::config::limits::Range::closed("slide", "m/√s", 0.001, 0.1);
-
-/// The estimator's mode as the panel offers it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ModeChoice {
-    /// Closed form per surface point.
-    Exact,
-    /// Thesis particles, m magnitudes per point.
-    ParticlesDeterministic,
-    /// Thesis particles, uniform random.
-    ParticlesRandom,
-}
-
-/// Estimator settings beyond σ and the resolution.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EstimatorChoice {
-    /// The mode.
-    pub mode: ModeChoice,
-    /// N for random particles.
-    pub particles: usize,
-    /// m for deterministic particles.
-    pub magnitudes_per_point: usize,
-    /// Phases A/B/C on.
-    pub phases: bool,
-    /// Sizes of phases A and B.
-    pub phase_sizes: [usize; 2],
-    /// α between phases.
-    pub alpha: f64,
-    /// Seed of random particles.
-    pub particle_seed: u64,
-    /// Friction μ (0: frictionless), when not `friction_auto`.
-    pub friction: f64,
-    /// Friction by how frames are combined
-    /// ([`crate::core::over_time::sequence::Temporal::default_friction`]: 0 for a
-    /// frame alone, [`crate::core::over_time::sequence::OVER_TIME_FRICTION`] filtered
-    /// or smoothed), as `estimate --friction auto`.
-    pub friction_auto: bool,
-}
-
-impl EstimatorChoice {
-    /// The choice a scene's estimator section makes.
-    #[must_use]
-    pub fn from_scene(e: &crate::io::scene::EstimatorSettings) -> Self {
-        use crate::io::scene as sc;
-        Self {
-            mode: match (e.mode, e.sampling) {
-                (sc::Mode::Exact, _) => ModeChoice::Exact,
-                (sc::Mode::Particles, sc::Sampling::Deterministic) => ModeChoice::ParticlesDeterministic,
-                (sc::Mode::Particles, sc::Sampling::Random) => ModeChoice::ParticlesRandom,
-            },
-            particles: e.particles,
-            magnitudes_per_point: e.magnitudes_per_point,
-            phases: e.phases.enabled,
-            phase_sizes: e.phases.sizes,
-            alpha: e.phases.alpha,
-            particle_seed: e.particle_seed,
-            friction: e.friction,
-            // A scene without a friction (0, the field's default) leaves
-            // it to how the frames are combined.
-            friction_auto: e.friction == 0.0,
-        }
-    }
-}
-
-impl Default for EstimatorChoice {
-    fn default() -> Self {
-        Self {
-            mode: ModeChoice::Exact,
-            particles: 20_000,
-            magnitudes_per_point: 5,
-            phases: false,
-            phase_sizes: [200, 1000],
-            alpha: 0.5,
-            particle_seed: 0,
-            friction: 0.0,
-            friction_auto: true,
-        }
-    }
-}
 
 /// How the heatmap is drawn.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -219,35 +133,23 @@ pub(crate) struct ViewKey {
 pub(crate) struct EstimateInputs {
     pub(crate) q: Vec<f64>,
     pub(crate) push: Option<Push>,
-    pub(crate) sigma: Vec<f64>,
-    pub(crate) surface_points: usize,
+    pub(crate) config: EstimatorConfig,
     pub(crate) candidate_links: Vec<LinkId>,
     pub(crate) noise: (f64, u64),
-    pub(crate) estimator: EstimatorChoice,
-    pub(crate) force_range_newtons: (f64, f64),
     pub(crate) frame: Option<usize>,
     pub(crate) bias_auto: bool,
-    pub(crate) surface_seed: u64,
     pub(crate) other_joints: Vec<(String, f64)>,
 }
 
 /// Estimator and sensor settings to start the app with.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StartSettings {
-    /// Likelihood σ, N·m: one value for every joint, or one per sensed joint.
-    pub sigma: Vec<f64>,
-    /// Surface points.
-    pub surface_points: usize,
+    /// The estimator's configuration.
+    pub config: EstimatorConfig,
     /// Sensor noise σ, N·m, and its seed.
     pub noise: (f64, u64),
-    /// Push magnitudes considered, N.
-    pub force_range_newtons: (f64, f64),
     /// Candidate links by name; `None`: every link a revolute joint moves.
     pub candidate_links: Option<Vec<LinkId>>,
-    /// Mode, particles and phases.
-    pub estimator: EstimatorChoice,
-    /// Seed of the surface sampling.
-    pub surface_seed: u64,
     /// Positions of joints that are neither sensed nor fixed, by name.
     pub other_joints: Vec<(String, f64)>,
     /// How to show the posterior (`None`: keep the app's current choice).
@@ -257,16 +159,12 @@ pub struct StartSettings {
 }
 
 impl Default for StartSettings {
-    /// σ 0.1 N·m, 5000 points, 0.05 N·m of sensor noise, 1–30 N.
+    /// The configuration's defaults, 0.05 N·m of sensor noise.
     fn default() -> Self {
         Self {
-            sigma: vec![0.1],
-            surface_points: 5000,
+            config: EstimatorConfig::default(),
             noise: (0.05, 1),
-            force_range_newtons: (1.0, 30.0),
             candidate_links: None,
-            estimator: EstimatorChoice::default(),
-            surface_seed: 0,
             other_joints: Vec::new(),
             view: None,
             title: (String::new(), String::new()),
@@ -290,87 +188,39 @@ impl Model {
         EstimateInputs {
             q: self.q.clone(),
             push: self.push,
-            sigma: self.sigma.clone(),
-            surface_points: self.surface_points,
+            config: self.config.clone(),
             candidate_links: self.candidate_links.clone(),
             noise: (self.noise_sigma, self.noise_seed),
-            estimator: self.estimator,
-            force_range_newtons: self.force_range_newtons,
             frame: self.replay.as_ref().map(|r| r.frame),
             bias_auto: self.replay.as_ref().is_some_and(|r| r.bias_auto),
-            surface_seed: self.surface_seed,
             other_joints: self.other_joints.clone(),
         }
     }
 
-    /// The estimator settings as a scene file writes them: what the
-    /// panel shows, mapped once (see [`crate::io::scene::EstimatorSettings::to_core`]).
+    /// Likelihood σ per sensed joint, N·m.
     #[must_use]
-    pub fn scene_estimator(&self) -> crate::io::scene::EstimatorSettings {
-        use crate::io::scene as sc;
-        let e = self.estimator;
-        sc::EstimatorSettings {
-            mode: if e.mode == ModeChoice::Exact {
-                sc::Mode::Exact
-            } else {
-                sc::Mode::Particles
-            },
-            sigma_newton_metres: if self.sigma.iter().all(|v| (v - self.sigma[0]).abs() < 1e-15) {
-                sc::Sigma::All(self.sigma.first().copied().unwrap_or(0.1))
-            } else {
-                sc::Sigma::PerJoint(self.sigma.clone())
-            },
-            sampling: if e.mode == ModeChoice::ParticlesRandom {
-                sc::Sampling::Random
-            } else {
-                sc::Sampling::Deterministic
-            },
-            particles: e.particles,
-            magnitudes_per_point: e.magnitudes_per_point,
-            phases: sc::Phases {
-                enabled: e.phases,
-                sizes: e.phase_sizes,
-                alpha: e.alpha,
-            },
-            force_min_newtons: self.force_range_newtons.0,
-            force_max_newtons: self.force_range_newtons.1,
-            particle_seed: e.particle_seed,
-            // Auto is written as 0, which reads back as auto.
-            friction: if e.friction_auto { 0.0 } else { e.friction },
+    pub fn sigma(&self) -> &[f64] {
+        match &self.config.sigma {
+            Sigma::PerJoint(v) => v,
+            Sigma::All(s) => std::slice::from_ref(s),
         }
     }
 
-    /// The core estimator's settings for frames combined by `temporal`
-    /// (the friction follows it when `friction_auto`).
+    /// The estimator's settings for frames combined by `temporal`.
     #[must_use]
-    pub fn estimator_settings_for(&self, temporal: crate::core::over_time::sequence::Temporal) -> EstimatorSettings {
-        let mut settings = self.estimator_settings();
-        if self.estimator.friction_auto && settings.mode == Mode::Exact {
-            settings.friction = temporal.default_friction();
-        }
-        settings
+    pub fn estimator_settings_for(&self, temporal: Temporal) -> EstimatorSettings {
+        let joints = self.robot.sensed().len();
+        // The commands keep the configuration valid, σ one per joint: the
+        // fallback is never taken.
+        self.config
+            .settings(joints, temporal)
+            .unwrap_or_else(|_| EstimatorSettings::exact(per_joint(self.sigma(), joints)))
     }
 
-    /// The core estimator's settings (for a frame alone).
+    /// The estimator's settings for a frame alone.
     #[must_use]
     pub fn estimator_settings(&self) -> EstimatorSettings {
-        let joints = self.robot.sensed().len();
-        let mut scene = self.scene_estimator();
-        // One σ per sensed joint (an invariant the monkey checks), so the
-        // mapping cannot fail on the σ count, its only error.
-        scene.sigma_newton_metres = crate::io::scene::Sigma::PerJoint(per_joint(&self.sigma, joints));
-        match scene.to_core(joints) {
-            Ok(settings) => settings,
-            Err(_) => EstimatorSettings {
-                sigma: vec![0.1; joints],
-                force_min_newtons: self.force_range_newtons.0,
-                force_max_newtons: self.force_range_newtons.1,
-                mode: Mode::Exact,
-                phase_alpha: None,
-                patches: true,
-                friction: 0.0,
-            },
-        }
+        self.estimator_settings_for(Temporal::None)
     }
 
     /// The robot posed at the model's joint positions.
@@ -402,18 +252,19 @@ impl Model {
         let candidate_links = settings
             .candidate_links
             .unwrap_or_else(|| robot.default_candidate_links());
+        let mut config = settings.config;
+        config.sigma = Sigma::PerJoint(match &config.sigma {
+            Sigma::All(s) => vec![*s; joints],
+            Sigma::PerJoint(v) => per_joint(v, joints),
+        });
         Self {
             robot: Arc::new(robot),
             q,
             push,
-            sigma: per_joint(&settings.sigma, joints),
-            surface_points: settings.surface_points,
+            config,
             candidate_links,
             noise_sigma: settings.noise.0,
             noise_seed: settings.noise.1,
-            force_range_newtons: settings.force_range_newtons,
-            estimator: settings.estimator,
-            surface_seed: settings.surface_seed,
             other_joints: settings.other_joints,
             title: settings.title,
             view: settings.view.unwrap_or(view),
@@ -447,6 +298,8 @@ impl Model {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::app::Command;
+    use crate::core::config::estimator::{Friction, ModeKind};
     use crate::core::over_time::sequence::{OVER_TIME_FRICTION, Temporal};
 
     fn model() -> Model {
@@ -455,14 +308,14 @@ mod tests {
         Model {
             q: vec![0.0; 7],
             push: None,
-            sigma: vec![0.1; 7],
-            surface_points: 1000,
+            config: EstimatorConfig {
+                sigma: Sigma::PerJoint(vec![0.1; 7]),
+                surface_points: 1000,
+                ..EstimatorConfig::default()
+            },
             candidate_links,
             noise_sigma: 0.0,
             noise_seed: 1,
-            force_range_newtons: (1.0, 30.0),
-            estimator: EstimatorChoice::default(),
-            surface_seed: 0,
             other_joints: Vec::new(),
             title: (String::new(), String::new()),
             view: ViewOptions::default(),
@@ -476,44 +329,56 @@ mod tests {
     fn sigma_commands_set_all_joints_or_one() {
         let mut m = model();
         assert!(m.apply(Command::SetSigma(0.3)));
-        assert!(m.sigma.iter().all(|s| (s - 0.3).abs() < 1e-15));
+        assert!(m.sigma().iter().all(|s| (s - 0.3).abs() < 1e-15));
         assert!(m.apply(Command::SetJointSigma(2, 0.05)));
-        assert!((m.sigma[2] - 0.05).abs() < 1e-15 && (m.sigma[1] - 0.3).abs() < 1e-15);
+        assert!((m.sigma()[2] - 0.05).abs() < 1e-15 && (m.sigma()[1] - 0.3).abs() < 1e-15);
         assert!(
             !m.apply(Command::SetJointSigma(99, 0.05)),
             "no such joint: nothing changes"
         );
-        assert_eq!(m.estimator_settings().sigma, m.sigma);
+        assert_eq!(m.estimator_settings().sigma, m.sigma());
     }
 
-    /// The panel's settings reach the core through the scene's mapping:
-    /// a scene written from them maps to the very same settings, random
-    /// particles' seed included, and reads back as the same choice.
+    /// The panel's configuration written to a scene reads back as the same
+    /// configuration, random particles' seed included, and maps to the
+    /// core's settings once.
     #[test]
     fn the_panel_maps_to_the_estimator_as_a_scene_does() {
+        use crate::io::scene::{EstimatorSettings as SceneEstimator, Scene};
         let mut m = model();
-        m.estimator = EstimatorChoice {
-            mode: ModeChoice::ParticlesRandom,
+        m.config = EstimatorConfig {
+            mode: ModeKind::ParticlesRandom,
             particles: 1234,
             phases: true,
             particle_seed: 3,
-            friction: 0.3,
-            friction_auto: false,
-            ..EstimatorChoice::default()
+            friction: Friction::Mu(0.3),
+            ..m.config.clone()
         };
-        m.sigma[2] = 0.3;
-        let scene = m.scene_estimator();
-        assert_eq!(m.estimator_settings(), scene.to_core(7).unwrap());
-        assert_eq!(EstimatorChoice::from_scene(&scene), m.estimator);
+        if let Sigma::PerJoint(v) = &mut m.config.sigma {
+            v[2] = 0.3;
+        }
+        let scene = Scene {
+            estimator: SceneEstimator::from_config(&m.config),
+            surface_points: m.config.surface_points,
+            surface_seed: m.config.surface_seed,
+            ..Scene::parse(
+                r#"{"version": 1, "robot": "lwr4plus", "q": [0, 0, 0, 0, 0, 0, 0]}"#,
+                std::path::Path::new("s.json"),
+            )
+            .unwrap()
+        };
+        assert_eq!(scene.config(), m.config);
         match m.estimator_settings().mode {
-            Mode::Particles(p) => assert_eq!(
+            crate::core::estimate::settings::Mode::Particles(p) => assert_eq!(
                 p.sampling,
                 crate::core::estimate::settings::Sampling::Random { count: 1234, seed: 3 }
             ),
-            Mode::Exact => panic!("random particles expected"),
+            crate::core::estimate::settings::Mode::Exact => panic!("random particles expected"),
         }
         assert!((m.estimator_settings().sigma[2] - 0.3).abs() < 1e-15);
-        assert!((m.estimator_settings().friction - 0.3).abs() < 1e-15);
+        // Particle modes take no friction.
+        assert!(m.estimator_settings_for(Temporal::Smooth).friction.abs() < 1e-15);
+        m.config.mode = ModeKind::Exact;
         // A chosen μ holds however frames are combined.
         assert!((m.estimator_settings_for(Temporal::Smooth).friction - 0.3).abs() < 1e-15);
     }
@@ -524,15 +389,13 @@ mod tests {
     #[test]
     fn auto_friction_follows_how_frames_are_combined() {
         let m = model();
-        assert!(m.estimator.friction_auto);
+        assert_eq!(m.config.friction, Friction::Auto);
         let mu = |t| m.estimator_settings_for(t).friction;
         assert!(mu(Temporal::None).abs() < 1e-15);
         assert!((mu(Temporal::Filter) - OVER_TIME_FRICTION).abs() < 1e-15);
         assert!((mu(Temporal::Smooth) - OVER_TIME_FRICTION).abs() < 1e-15);
-        assert!(m.estimator_settings().friction.abs() < 1e-15);
-        let scene = m.scene_estimator();
+        let scene = crate::io::scene::EstimatorSettings::from_config(&m.config);
         assert!(scene.friction.abs() < 1e-15);
-        assert_eq!(EstimatorChoice::from_scene(&scene), m.estimator);
     }
 
     #[test]

@@ -3,7 +3,7 @@
 
 use crate::core::over_time::sequence::OVER_TIME_FRICTION;
 
-use super::{Command, EstimatorChoice, HeatLayer, ModeChoice, ProprioscopeApp, Verdict, egui, phase_report};
+use super::{Command, EstimatorConfig, Friction, HeatLayer, ModeKind, ProprioscopeApp, Verdict, egui, phase_report};
 
 /// Adds `slider` labelled `label`, its width chosen so that the slider,
 /// its value and the label fit the panel (a narrow window keeps every row
@@ -18,23 +18,28 @@ fn fitted_slider(ui: &mut egui::Ui, slider: egui::Slider<'_>, label: &str) -> eg
 }
 
 /// The friction controls of the estimator panel (exact mode): auto, or
-/// one μ.
-fn friction_ui(ui: &mut egui::Ui, choice: &mut EstimatorChoice) {
-    ui.checkbox(&mut choice.friction_auto, "friction auto")
-        .on_hover_text(format!(
-            "Friction by how frames are combined: none for a frame alone (one frame cannot pin \
+/// one μ (from 0 when auto is unticked).
+fn friction_ui(ui: &mut egui::Ui, config: &mut EstimatorConfig) {
+    let mut auto = config.friction == Friction::Auto;
+    let mut mu = match config.friction {
+        Friction::Auto => 0.0,
+        Friction::Mu(mu) => mu,
+    };
+    ui.checkbox(&mut auto, "friction auto").on_hover_text(format!(
+        "Friction by how frames are combined: none for a frame alone (one frame cannot pin \
          a tangential force and its place suffers), μ = {OVER_TIME_FRICTION} for a filtered or \
          smoothed session, where a press takes friction only where it explains the torques far \
          better than none."
-        ));
-    if choice.friction_auto {
+    ));
+    if auto {
+        config.friction = Friction::Auto;
         // What auto takes, in place of a slider that would read 0.
         ui.weak(format!("friction μ: {OVER_TIME_FRICTION} over time, 0 per frame"));
         return;
     }
     fitted_slider(
         ui,
-        egui::Slider::new(&mut choice.friction, 0.0..=1.0).update_while_editing(false),
+        egui::Slider::new(&mut mu, 0.0..=1.0).update_while_editing(false),
         "friction μ",
     )
     .on_hover_text(
@@ -44,6 +49,7 @@ fn friction_ui(ui: &mut egui::Ui, choice: &mut EstimatorChoice) {
          fixed on the link, kept where it explains the press far better than none; filtered, \
          the friction model's force is taken once the press so far supports it.",
     );
+    config.friction = Friction::Mu(mu);
 }
 
 /// How wide `text` is laid out on one line in the body font, points.
@@ -62,7 +68,7 @@ impl ProprioscopeApp {
     pub(super) fn estimator_panel_ui(&mut self, ui: &mut egui::Ui) -> Vec<Command> {
         let mut commands = Vec::new();
         ui.heading("Estimator");
-        let mut sigma = self.model.sigma.iter().copied().fold(0.0, f64::max);
+        let mut sigma = self.model.sigma().iter().copied().fold(0.0, f64::max);
         if fitted_slider(
             ui,
             egui::Slider::new(&mut sigma, 0.005..=1.0)
@@ -75,7 +81,7 @@ impl ProprioscopeApp {
             commands.push(Command::SetSigma(sigma));
         }
         egui::CollapsingHeader::new("σ per joint").show(ui, |ui| {
-            for (i, value) in self.model.sigma.iter().enumerate() {
+            for (i, value) in self.model.sigma().iter().enumerate() {
                 let mut v = *value;
                 let name = &self.model.robot.joints[self.model.robot.sensed()[i]].name;
                 if ui
@@ -92,7 +98,7 @@ impl ProprioscopeApp {
                 }
             }
         });
-        let mut points = self.model.surface_points;
+        let mut points = self.model.config.surface_points;
         if fitted_slider(
             ui,
             egui::Slider::new(&mut points, 200..=50_000)
@@ -188,62 +194,62 @@ impl ProprioscopeApp {
 
     /// Mode, particles, phases and force range.
     pub(super) fn estimator_options_ui(&self, ui: &mut egui::Ui) -> Vec<Command> {
-        let mut choice = self.model.estimator;
+        let mut config = self.model.config.clone();
         egui::ComboBox::from_label("mode")
-            .selected_text(match choice.mode {
-                ModeChoice::Exact => "exact",
-                ModeChoice::ParticlesDeterministic => "particles, deterministic",
-                ModeChoice::ParticlesRandom => "particles, random",
+            .selected_text(match config.mode {
+                ModeKind::Exact => "exact",
+                ModeKind::ParticlesDeterministic => "particles, deterministic",
+                ModeKind::ParticlesRandom => "particles, random",
             })
             .show_ui(ui, |ui| {
-                ui.selectable_value(&mut choice.mode, ModeChoice::Exact, "exact");
+                ui.selectable_value(&mut config.mode, ModeKind::Exact, "exact");
                 ui.selectable_value(
-                    &mut choice.mode,
-                    ModeChoice::ParticlesDeterministic,
+                    &mut config.mode,
+                    ModeKind::ParticlesDeterministic,
                     "particles, deterministic",
                 );
-                ui.selectable_value(&mut choice.mode, ModeChoice::ParticlesRandom, "particles, random");
+                ui.selectable_value(&mut config.mode, ModeKind::ParticlesRandom, "particles, random");
             });
-        match choice.mode {
-            ModeChoice::Exact => {}
-            ModeChoice::ParticlesDeterministic => {
+        match config.mode {
+            ModeKind::Exact => {}
+            ModeKind::ParticlesDeterministic => {
                 fitted_slider(
                     ui,
-                    egui::Slider::new(&mut choice.magnitudes_per_point, 1..=20),
+                    egui::Slider::new(&mut config.magnitudes_per_point, 1..=20),
                     "m (magnitudes per point)",
                 );
             }
-            ModeChoice::ParticlesRandom => {
+            ModeKind::ParticlesRandom => {
                 fitted_slider(
                     ui,
-                    egui::Slider::new(&mut choice.particles, 1000..=200_000)
+                    egui::Slider::new(&mut config.particles, 1000..=200_000)
                         .update_while_editing(false)
                         .logarithmic(true),
                     "N (particles)",
                 );
             }
         }
-        if choice.mode == ModeChoice::Exact {
-            friction_ui(ui, &mut choice);
+        if config.mode == ModeKind::Exact {
+            friction_ui(ui, &mut config);
         }
-        ui.checkbox(&mut choice.phases, "phases A/B/C");
-        if choice.phases {
-            fitted_slider(ui, egui::Slider::new(&mut choice.alpha, 0.0..=0.99), "α");
+        ui.checkbox(&mut config.phases, "phases A/B/C");
+        if config.phases {
+            fitted_slider(ui, egui::Slider::new(&mut config.alpha, 0.0..=0.99), "α");
             ui.horizontal(|ui| {
                 ui.add(
-                    egui::DragValue::new(&mut choice.phase_sizes[0])
+                    egui::DragValue::new(&mut config.phase_sizes[0])
                         .update_while_editing(false)
                         .prefix("A: "),
                 );
                 ui.add(
-                    egui::DragValue::new(&mut choice.phase_sizes[1])
+                    egui::DragValue::new(&mut config.phase_sizes[1])
                         .update_while_editing(false)
                         .prefix("B: "),
                 );
                 ui.label("points");
             });
         }
-        let (mut lo, mut hi) = self.model.force_range_newtons;
+        let (mut lo, mut hi) = self.model.config.force_range_newtons;
         let mut commands = Vec::new();
         ui.horizontal_wrapped(|ui| {
             let a = ui.add(
@@ -263,8 +269,8 @@ impl ProprioscopeApp {
                 commands.push(Command::SetForceRange(lo, hi));
             }
         });
-        if choice != self.model.estimator {
-            commands.push(Command::SetEstimator(choice));
+        if config != self.model.config {
+            commands.push(Command::SetConfig(config));
         }
         commands
     }

@@ -1,7 +1,7 @@
 //! Start-up: what the app opens on (scene, URDF, robot, session), and
 //! the headless harness behind `proprioscope screenshot` and the UI tests.
 
-use super::{EstimatorChoice, ProprioscopeApp, Push, Robot, StartSettings, ViewOptions, egui, timeline};
+use super::{ProprioscopeApp, Push, Robot, StartSettings, ViewOptions, egui, timeline};
 
 /// Renders the app headless (Mesa's software Vulkan or a GPU, no window):
 /// runs frames until the estimate for the current model has arrived, then
@@ -153,7 +153,7 @@ pub fn open_target_with(
 
 /// What a scene file opens on: its robot, pose, push and every setting.
 fn scene_start(path: &std::path::Path, package_paths: &[std::path::PathBuf]) -> anyhow::Result<AppStart> {
-    use crate::io::scene::{Scene, Sigma};
+    use crate::io::scene::Scene;
     use std::path::Path;
     let loaded = Scene::read(path)?.load(path)?;
     let push = loaded.push.and_then(|p| {
@@ -165,22 +165,14 @@ fn scene_start(path: &std::path::Path, package_paths: &[std::path::PathBuf]) -> 
             force_newtons: p.force_world.length(),
         })
     });
-    let e = &loaded.scene.estimator;
     let settings = StartSettings {
-        sigma: match &e.sigma_newton_metres {
-            Sigma::All(s) => vec![*s],
-            Sigma::PerJoint(v) => v.clone(),
-        },
-        surface_points: loaded.scene.surface_points,
+        config: loaded.scene.config(),
         noise: (loaded.scene.noise.sigma_newton_metres, loaded.scene.noise.seed),
-        force_range_newtons: (e.force_min_newtons, e.force_max_newtons),
         candidate_links: loaded
             .scene
             .candidate_links
             .is_some()
             .then(|| loaded.candidate_links.clone()),
-        estimator: EstimatorChoice::from_scene(e),
-        surface_seed: loaded.scene.surface_seed,
         other_joints: loaded.scene.other_joints.iter().map(|(k, v)| (k.clone(), *v)).collect(),
         view: loaded.scene.view.map(|v| ViewOptions {
             log_scale: v.log_scale,
@@ -269,8 +261,8 @@ impl ProprioscopeApp {
                     .map(|&l| m.robot.links[l].name.clone())
                     .collect()
             }),
-            surface_points: m.surface_points,
-            surface_seed: m.surface_seed,
+            surface_points: m.config.surface_points,
+            surface_seed: m.config.surface_seed,
             push: m.push_world(&pose).map(|(link, point, force)| sc::Push {
                 link: m.robot.links[link].name.clone(),
                 point_in_link: None,
@@ -282,7 +274,7 @@ impl ProprioscopeApp {
                 sigma_newton_metres: m.noise_sigma,
                 seed: m.noise_seed,
             },
-            estimator: m.scene_estimator(),
+            estimator: sc::EstimatorSettings::from_config(&m.config),
             view: Some(sc::View {
                 log_scale: m.view.log_scale,
                 threshold: m.view.threshold,

@@ -8,11 +8,10 @@ use eframe::egui;
 
 use super::session::{self, EstimateJob, FrameEstimate, LoadFailure, Loader, SessionData};
 use super::{Command, Model, ProprioscopeApp, Replay, SPEED_RANGE, per_joint};
+use crate::core::config::estimator::{EstimatorConfig, ModeKind, Sigma};
 use crate::core::estimate::summary::Verdict;
 use crate::core::over_time::sequence::{Temporal, automatic_temporal};
-use crate::core::over_time::temporal::TemporalSettings;
 use crate::core::robot::model::{LinkId, Robot};
-use crate::core::surface::sampling::SurfaceRequest;
 use crate::io::session::{Frame, Truth};
 
 pub use super::recorder::interactive_frame;
@@ -33,14 +32,9 @@ pub(super) struct SessionKey {
     /// While live: the live session's epoch (it grows in place, so its
     /// address says nothing).
     live_epoch: Option<u64>,
-    sigma: Vec<f64>,
-    surface_points: usize,
+    config: EstimatorConfig,
     candidate_links: Vec<LinkId>,
-    estimator: super::EstimatorChoice,
-    force_range_newtons: (f64, f64),
-    surface_seed: u64,
     over_time: Temporal,
-    slide_m_per_sqrt_s: f64,
     bias_auto: bool,
     /// Whether the bias taken off is known (it is estimated on a thread:
     /// the frames are estimated once it is there).
@@ -108,9 +102,9 @@ impl ProprioscopeApp {
         let times: Vec<f64> = data.frames.iter().map(|f| f.t).collect();
         let (over_time, _) = automatic_temporal(
             &times,
-            &TemporalSettings::default(),
-            self.model.surface_points,
-            self.model.estimator.mode == super::ModeChoice::Exact,
+            &self.model.config.temporal,
+            self.model.config.surface_points,
+            self.model.config.mode == ModeKind::Exact,
         );
         let candidate_links = robot.default_candidate_links();
         let q = data.frames.first().map_or_else(|| vec![0.0; joints], |f| f.q.clone());
@@ -119,14 +113,14 @@ impl ProprioscopeApp {
             robot: Arc::new(robot),
             q,
             push: None,
-            sigma: per_joint(&[old.sigma.iter().copied().fold(0.0, f64::max)], joints),
-            surface_points: old.surface_points,
+            // The largest σ of the robot before, for every joint of this one.
+            config: EstimatorConfig {
+                sigma: Sigma::PerJoint(per_joint(&[old.sigma().iter().copied().fold(0.0, f64::max)], joints)),
+                ..old.config.clone()
+            },
             candidate_links,
             noise_sigma: old.noise_sigma,
             noise_seed: old.noise_seed,
-            force_range_newtons: old.force_range_newtons,
-            estimator: old.estimator,
-            surface_seed: old.surface_seed,
             other_joints: Vec::new(),
             title: (String::new(), String::new()),
             view: old.view,
@@ -139,7 +133,6 @@ impl ProprioscopeApp {
                 clock_secs: 0.0,
                 over_time,
                 bias_auto: false,
-                slide_m_per_sqrt_s: TemporalSettings::default().slide_m_per_sqrt_s,
             }),
             refused: None,
         };
@@ -191,19 +184,10 @@ impl ProprioscopeApp {
                 generation: self.session_generation,
                 robot: m.robot.clone(),
                 session: replay.session.clone(),
-                surface: SurfaceRequest {
-                    links: m.candidate_links.clone(),
-                    total_points: m.surface_points,
-                    seed: m.surface_seed,
-                },
-                settings: m.estimator_settings_for(replay.over_time),
-                phase_sizes: m.estimator.phases.then_some(m.estimator.phase_sizes),
+                config: m.config.clone(),
+                links: m.candidate_links.clone(),
                 first: replay.frame,
                 over_time: replay.over_time,
-                temporal: TemporalSettings {
-                    slide_m_per_sqrt_s: replay.slide_m_per_sqrt_s,
-                    ..TemporalSettings::default()
-                },
                 bias: self.session_bias().cloned(),
             });
             self.session_key = Some(key);
@@ -251,17 +235,8 @@ impl ProprioscopeApp {
                 generation: self.session_generation,
                 robot: m.robot.clone(),
                 frames: frames.clone(),
-                surface: SurfaceRequest {
-                    links: m.candidate_links.clone(),
-                    total_points: m.surface_points,
-                    seed: m.surface_seed,
-                },
-                settings: m.estimator_settings_for(Temporal::Filter),
-                phase_sizes: m.estimator.phases.then_some(m.estimator.phase_sizes),
-                temporal: TemporalSettings {
-                    slide_m_per_sqrt_s: replay.slide_m_per_sqrt_s,
-                    ..TemporalSettings::default()
-                },
+                config: m.config.clone(),
+                links: m.candidate_links.clone(),
             });
             live.filtered_sent = frames.len();
             self.session_key = Some(key);
@@ -317,14 +292,9 @@ impl ProprioscopeApp {
                 Arc::as_ptr(&replay.session) as usize
             },
             live_epoch,
-            sigma: m.sigma.clone(),
-            surface_points: m.surface_points,
+            config: m.config.clone(),
             candidate_links: m.candidate_links.clone(),
-            estimator: m.estimator,
-            force_range_newtons: m.force_range_newtons,
-            surface_seed: m.surface_seed,
             over_time: replay.over_time,
-            slide_m_per_sqrt_s: replay.slide_m_per_sqrt_s,
             // Live frames are filtered as they come, bias and all; the
             // bias is taken off once the stream stops.
             bias_auto: replay.bias_auto && live_epoch.is_none(),
@@ -428,7 +398,12 @@ impl ProprioscopeApp {
             if ui.checkbox(&mut looping, "loop").changed() {
                 commands.push(Command::SetLoop(looping));
             }
-            commands.extend(Self::over_time_ui(ui, replay, self.bias_pending()));
+            commands.extend(Self::over_time_ui(
+                ui,
+                replay,
+                self.model.config.temporal.slide_m_per_sqrt_s,
+                self.bias_pending(),
+            ));
             if let Some(frame) = frames.get(replay.frame) {
                 let file_frame = replay.session.file_frames.get(replay.frame).copied().unwrap_or(0);
                 ui.label(format!(
@@ -476,7 +451,7 @@ impl ProprioscopeApp {
     /// Four plots over session time, sharing the x axis, with the current
     /// frame marked; returns the time clicked.
     /// How the frames are estimated over time, and the bias.
-    fn over_time_ui(ui: &mut egui::Ui, replay: &Replay, bias_pending: bool) -> Vec<Command> {
+    fn over_time_ui(ui: &mut egui::Ui, replay: &Replay, slide_m_per_sqrt_s: f64, bias_pending: bool) -> Vec<Command> {
         let mut commands = Vec::new();
         let name = |t: Temporal| match t {
             Temporal::None => "each frame alone",
@@ -499,7 +474,7 @@ impl ProprioscopeApp {
         if replay.over_time != Temporal::None {
             // In cm/√s: the range reads 0.1–10 rather than 0.001–0.1. A
             // drag value: the row has no room for another slider.
-            let mut slide_cm = replay.slide_m_per_sqrt_s * 100.0;
+            let mut slide_cm = slide_m_per_sqrt_s * 100.0;
             let hover = "how far a contact may slide, RMS along the surface after one second (as estimate --slide): \
                          1 cm/√s for presses that stay put, 2–3 for contacts that slide a few centimetres a second";
             ui.label("slide").on_hover_text(hover);

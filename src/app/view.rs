@@ -280,7 +280,7 @@ impl ProprioscopeApp {
                 &self.model.robot,
                 &update.pose,
                 surface,
-                &self.model.sigma,
+                self.model.sigma(),
                 self.model.push.map_or(OBSERVABILITY_PUSH_NEWTONS, |p| p.force_newtons),
                 view.red_green,
             ),

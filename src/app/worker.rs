@@ -8,8 +8,10 @@ use std::time::Instant;
 
 pub use crate::batch::Background;
 use crate::batch::{Latest, Serving};
+use crate::core::config::estimator::EstimatorConfig;
 use crate::core::estimate::estimator::{Estimator, Update};
 use crate::core::estimate::settings::EstimatorSettings;
+use crate::core::over_time::sequence::Temporal;
 use crate::core::robot::model::{LinkId, Robot};
 use crate::core::surface::sampling::{Surface, SurfaceRequest};
 use crate::render::scene::{VertexSamples, nearest_samples};
@@ -22,6 +24,7 @@ struct Cached {
     robot: Arc<Robot>,
     links: Vec<LinkId>,
     points: usize,
+    seed: u64,
     phase_sizes: Option<[usize; 2]>,
     estimator: Arc<Estimator>,
     nearest: Arc<Vec<Vec<VertexSamples>>>,
@@ -38,13 +41,25 @@ pub struct Request {
     pub joint_positions: Vec<f64>,
     /// Measured torques.
     pub tau: Vec<f64>,
-    /// Candidate links and surface resolution.
-    pub surface: SurfaceRequest,
-    /// Likelihood settings.
-    pub settings: EstimatorSettings,
-    /// Sizes of phases A and B when phases are on (the hierarchy is built
-    /// with the surface).
-    pub phase_sizes: Option<[usize; 2]>,
+    /// The estimator's configuration (a frame alone).
+    pub config: EstimatorConfig,
+    /// Candidate links.
+    pub links: Vec<LinkId>,
+}
+
+impl Request {
+    /// The surface the request samples.
+    fn surface(&self) -> SurfaceRequest {
+        self.config.surface_request(self.links.clone())
+    }
+
+    /// The estimator's settings for a frame alone (the model keeps its
+    /// configuration valid; an invalid one estimates nothing).
+    fn settings(&self) -> Result<EstimatorSettings, String> {
+        self.config
+            .settings(self.robot.sensed().len(), Temporal::None)
+            .map_err(|e| e.to_string())
+    }
 }
 
 /// A finished estimate.
@@ -125,7 +140,9 @@ fn failed(request: &Request, message: String) -> Outcome {
             surface: Surface::default(),
             links: Vec::new(),
             hierarchy: None,
-            settings: request.settings.clone(),
+            settings: request
+                .settings()
+                .unwrap_or_else(|_| EstimatorSettings::exact(vec![0.0; request.robot.sensed().len()])),
         }),
         nearest: Arc::new(Vec::new()),
         update: Err(message),
@@ -137,28 +154,31 @@ fn failed(request: &Request, message: String) -> Outcome {
 /// robot, links, resolution and phases are those it was made for. A
 /// panic leaves `cache` empty (it is rebuilt by the next request).
 fn serve(cache: &mut Option<Cached>, request: &Request) -> Outcome {
+    let settings = match request.settings() {
+        Ok(settings) => settings,
+        Err(e) => return failed(request, e),
+    };
+    let surface = request.surface();
+    let phase_sizes = request.config.phase_sizes();
     let reuse = cache.as_ref().is_some_and(|c| {
         Arc::ptr_eq(&c.robot, &request.robot)
-            && c.links == request.surface.links
-            && c.points == request.surface.total_points
-            && c.phase_sizes == request.phase_sizes
+            && c.links == surface.links
+            && c.points == surface.total_points
+            && c.seed == surface.seed
+            && c.phase_sizes == phase_sizes
     });
     if !reuse {
         // Dropped first: a panic below leaves no half-made cache behind.
         *cache = None;
-        match Estimator::new(
-            &request.robot,
-            &request.surface,
-            request.settings.clone(),
-            request.phase_sizes,
-        ) {
+        match Estimator::new(&request.robot, &surface, settings.clone(), phase_sizes) {
             Ok(estimator) => {
                 let nearest = nearest_samples(&request.robot, &estimator.surface);
                 *cache = Some(Cached {
                     robot: request.robot.clone(),
-                    links: request.surface.links.clone(),
-                    points: request.surface.total_points,
-                    phase_sizes: request.phase_sizes,
+                    links: surface.links.clone(),
+                    points: surface.total_points,
+                    seed: surface.seed,
+                    phase_sizes,
                     estimator: Arc::new(estimator),
                     nearest: Arc::new(nearest),
                 });
@@ -169,9 +189,9 @@ fn serve(cache: &mut Option<Cached>, request: &Request) -> Outcome {
     let Some(Cached { estimator, nearest, .. }) = cache.as_mut() else {
         return failed(request, "no surface".to_owned());
     };
-    if estimator.settings != request.settings {
+    if estimator.settings != settings {
         let mut changed = (**estimator).clone();
-        changed.settings = request.settings.clone();
+        changed.settings = settings;
         *estimator = Arc::new(changed);
     }
     let estimator = estimator.clone();
@@ -197,7 +217,7 @@ fn serve(cache: &mut Option<Cached>, request: &Request) -> Outcome {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::estimate::settings::EstimatorSettings;
+    use crate::core::config::estimator::Sigma;
 
     fn request(generation: u64) -> Request {
         Request {
@@ -205,16 +225,13 @@ mod tests {
             robot: Arc::new(crate::core::robot::builtin::simple6().unwrap_or_else(|e| panic!("{e}"))),
             joint_positions: vec![0.0; 6],
             tau: vec![0.0; 6],
-            surface: SurfaceRequest {
-                links: vec![1],
-                total_points: 16,
-                seed: 0,
+            config: EstimatorConfig {
+                sigma: Sigma::All(0.1),
+                force_range_newtons: (1.0, 2.0),
+                surface_points: 16,
+                ..EstimatorConfig::default()
             },
-            settings: EstimatorSettings {
-                force_max_newtons: 2.0,
-                ..EstimatorSettings::exact(vec![0.1; 6])
-            },
-            phase_sizes: None,
+            links: vec![1],
         }
     }
 

@@ -8,13 +8,11 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::{FrameEstimate, Latest, Serving, SessionData};
+use crate::core::config::estimator::EstimatorConfig;
 use crate::core::estimate::estimator::Estimator;
-use crate::core::estimate::settings::EstimatorSettings;
 use crate::core::over_time::frame::SequenceFrame;
 use crate::core::over_time::sequence::{Temporal, estimate_sequence_while};
-use crate::core::over_time::temporal::{TemporalModel, TemporalSettings};
-use crate::core::robot::model::Robot;
-use crate::core::surface::sampling::SurfaceRequest;
+use crate::core::robot::model::{LinkId, Robot};
 
 /// Everything the background estimation of a session depends on.
 #[derive(Debug, Clone)]
@@ -25,19 +23,16 @@ pub struct EstimateJob {
     pub robot: Arc<Robot>,
     /// The session.
     pub session: Arc<SessionData>,
-    /// Candidate surface.
-    pub surface: SurfaceRequest,
-    /// Estimator settings.
-    pub settings: EstimatorSettings,
-    /// Phase sizes, with phases.
-    pub phase_sizes: Option<[usize; 2]>,
+    /// The estimator's configuration (its temporal settings for frames
+    /// filtered or smoothed).
+    pub config: EstimatorConfig,
+    /// Candidate links.
+    pub links: Vec<LinkId>,
     /// The frame to start from (the one on screen); the rest follow in
     /// order, wrapping around (frames estimated together go in order).
     pub first: usize,
     /// Each frame alone, or together (filtered, smoothed).
     pub over_time: Temporal,
-    /// The temporal model's settings, filtered or smoothed.
-    pub temporal: TemporalSettings,
     /// A torque bias per frame to take off (`bias[frame][joint]`, N·m).
     pub bias: Option<Arc<Vec<Vec<f64>>>>,
 }
@@ -100,7 +95,9 @@ impl SessionWorker {
 /// screen, or together in order; a newer job stops it.
 fn serve(job: &EstimateJob, serving: &Serving<'_, EstimateJob, Estimated>) {
     let made = crate::io::guard::isolated(|| {
-        Estimator::new(&job.robot, &job.surface, job.settings.clone(), job.phase_sizes).map_err(|e| e.to_string())
+        job.config
+            .estimator(&job.robot, job.links.clone(), job.over_time)
+            .map_err(|e| e.to_string())
     })
     .and_then(|r| r);
     let estimator = match made {
@@ -194,7 +191,9 @@ fn estimate_together(job: &EstimateJob, estimator: &Estimator, serving: &Serving
                 tau,
             })
             .collect();
-        let model = TemporalModel::new(&estimator.surface, job.temporal, estimator.uses_patches())
+        let model = job
+            .config
+            .temporal_model(&estimator.surface, estimator.uses_patches())
             .map_err(|e| e.to_string())?;
         estimate_sequence_while(
             estimator,

@@ -8,12 +8,11 @@ use std::sync::mpsc::{Receiver, Sender, TryIter, channel};
 use std::time::Instant;
 
 use super::{Estimated, FrameEstimate};
+use crate::core::config::estimator::EstimatorConfig;
 use crate::core::estimate::estimator::Estimator;
-use crate::core::estimate::settings::EstimatorSettings;
-use crate::core::over_time::sequence::StreamFilter;
-use crate::core::over_time::temporal::{TemporalModel, TemporalSettings};
-use crate::core::robot::model::Robot;
-use crate::core::surface::sampling::SurfaceRequest;
+use crate::core::over_time::sequence::{StreamFilter, Temporal};
+use crate::core::over_time::temporal::TemporalModel;
+use crate::core::robot::model::{LinkId, Robot};
 use crate::io::session::Frame;
 
 /// What filtering a live session depends on; a new one starts over from
@@ -26,14 +25,10 @@ pub struct LiveJob {
     pub robot: Arc<Robot>,
     /// The frames received so far (more follow with [`LiveFilterWorker::append`]).
     pub frames: Vec<Frame>,
-    /// Candidate surface.
-    pub surface: SurfaceRequest,
-    /// Estimator settings.
-    pub settings: EstimatorSettings,
-    /// Phase sizes, with phases.
-    pub phase_sizes: Option<[usize; 2]>,
-    /// The temporal model's settings.
-    pub temporal: TemporalSettings,
+    /// The estimator's configuration (its temporal settings included).
+    pub config: EstimatorConfig,
+    /// Candidate links.
+    pub links: Vec<LinkId>,
 }
 
 /// What the thread is told.
@@ -150,9 +145,13 @@ fn serve(inbox: &Receiver<Message>, outbox: &Sender<Estimated>, wake: &dyn Fn())
 fn begin(mut job: LiveJob) -> Result<Running, (u64, String)> {
     let generation = job.generation;
     let made = crate::io::guard::isolated(|| -> Result<(Estimator, TemporalModel), String> {
-        let estimator = Estimator::new(&job.robot, &job.surface, job.settings.clone(), job.phase_sizes)
+        let estimator = job
+            .config
+            .estimator(&job.robot, job.links.clone(), Temporal::Filter)
             .map_err(|e| e.to_string())?;
-        let model = TemporalModel::new(&estimator.surface, job.temporal, estimator.uses_patches())
+        let model = job
+            .config
+            .temporal_model(&estimator.surface, estimator.uses_patches())
             .map_err(|e| e.to_string())?;
         Ok((estimator, model))
     });
@@ -242,17 +241,17 @@ mod tests {
             })
             .collect();
         assert_eq!(frames.len(), 50);
-        let surface = SurfaceRequest {
-            links: links.clone(),
-            total_points: 600,
-            seed: 0,
+        let config = EstimatorConfig {
+            surface_points: 600,
+            ..EstimatorConfig::default()
         };
-        let settings = EstimatorSettings::exact(vec![0.05; robot.sensed().len()]);
-        let temporal = TemporalSettings::default();
 
         // The whole recording at once.
-        let estimator = Estimator::new(&robot, &surface, settings.clone(), None).unwrap_or_else(|e| panic!("{e}"));
-        let model = TemporalModel::new(&estimator.surface, temporal, estimator.uses_patches())
+        let estimator = config
+            .estimator(&robot, links.clone(), Temporal::Filter)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let model = config
+            .temporal_model(&estimator.surface, estimator.uses_patches())
             .unwrap_or_else(|e| panic!("{e}"));
         let positions: Vec<Vec<f64>> = frames
             .iter()
@@ -286,10 +285,8 @@ mod tests {
             generation,
             robot: robot.clone(),
             frames: frames.to_vec(),
-            surface: surface.clone(),
-            settings: settings.clone(),
-            phase_sizes: None,
-            temporal,
+            config: config.clone(),
+            links: links.clone(),
         };
         worker.start(job(1, &frames[..5]));
         worker.start(job(2, &frames[..12]));

@@ -7,6 +7,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use proprioscope::batch::{FrameEstimate, credible_set_holds_truth, frame_outcome, session_robot};
+use proprioscope::core::config::estimator::{EstimatorConfig, Friction};
 use proprioscope::core::config::limits;
 use proprioscope::core::estimate::estimator::{Estimator, Update};
 use proprioscope::core::estimate::summary::Verdict;
@@ -16,15 +17,13 @@ use proprioscope::core::eval::metrics::{
 use proprioscope::core::over_time::bias::{estimate_drifting_bias, without_drifting_bias};
 use proprioscope::core::over_time::frame::SequenceFrame;
 use proprioscope::core::over_time::sequence::{Temporal, automatic_temporal, estimate_sequence};
-use proprioscope::core::over_time::temporal::TemporalModel;
 use proprioscope::core::robot::model::Robot;
-use proprioscope::core::surface::sampling::SurfaceRequest;
 use proprioscope::io::mcap_out::{EstimateMessage, EstimateWriter};
 use proprioscope::io::recording::{is_recording, read_bytes};
 use proprioscope::io::session::{Session, kept_frame_numbers};
 
 use super::output::frame_json;
-use super::{EstimatorArgs, FrictionArg, TemporalArg, TemporalArgs, TopicArgs};
+use super::{EstimatorArgs, TemporalArg, TemporalArgs, TopicArgs, option_error};
 
 /// Options of `estimate`.
 #[derive(Debug, clap::Args)]
@@ -291,14 +290,17 @@ pub fn run(args: &EstimateArgs) -> Result<()> {
     run_session(args, path)
 }
 
-/// `--friction` for frames combined by `temporal` (`auto` said on stderr
-/// where it takes friction).
-fn friction_for(args: &EstimateArgs, temporal: Temporal) -> f64 {
-    let mu = args.estimator.friction.for_temporal(temporal);
-    if args.estimator.friction == FrictionArg::Auto && mu > 0.0 {
+/// The friction μ of `config` for frames combined by `temporal` (`auto`
+/// said on stderr where it takes friction).
+fn friction_for(config: &EstimatorConfig, joints: usize, temporal: Temporal) -> Result<f64> {
+    let mu = config
+        .settings(joints, temporal)
+        .map_err(|e| option_error(&e))?
+        .friction;
+    if config.friction == Friction::Auto && mu > 0.0 {
         log::info!("--friction auto: μ = {mu} over time (choose with --friction μ; 0: frictionless)");
     }
-    mu
+    Ok(mu)
 }
 
 /// Estimates the session file at `path`.
@@ -310,14 +312,10 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
         &args.package_paths,
         &args.estimator.links,
     )?;
-    let resolved = args.estimator.resolve(&robot)?;
+    let config = args.estimator.config(&args.temporal)?;
     let started = Instant::now();
-    let request = SurfaceRequest {
-        links: resolved.links.clone(),
-        total_points: resolved.surface_points,
-        seed: args.estimator.seed,
-    };
-    let mut estimator = Estimator::new(&robot, &request, resolved.settings, resolved.phase_sizes)?;
+    // Frames alone until it is known how they are combined (below).
+    let mut estimator = args.estimator.estimator(&robot, &config, Temporal::None)?;
     log::info!(
         "{}: {} frames; {} surface points on {} links, sampled in {:.0} ms",
         path.display(),
@@ -331,11 +329,12 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
         None => None,
     };
     let temporal = chosen_temporal(args, &session, estimator.surface.len(), estimator.uses_patches());
-    estimator.settings.friction = friction_for(args, temporal);
+    estimator.settings.friction = friction_for(&config, robot.sensed().len(), temporal)?;
     let model = match temporal {
         Temporal::None => None,
         Temporal::Filter | Temporal::Smooth => Some(
-            TemporalModel::new(&estimator.surface, args.temporal.settings(), estimator.uses_patches())
+            config
+                .temporal_model(&estimator.surface, estimator.uses_patches())
                 .context("--temporal")?,
         ),
     };

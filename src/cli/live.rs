@@ -13,7 +13,6 @@ use proprioscope::core::config::limits;
 use proprioscope::core::estimate::estimator::Estimator;
 use proprioscope::core::over_time::sequence::{SequenceError, StreamFilter, Temporal};
 use proprioscope::core::over_time::temporal::TemporalModel;
-use proprioscope::core::surface::sampling::SurfaceRequest;
 use proprioscope::io::live::{LiveEvent, LiveSource};
 use proprioscope::io::session::Session;
 
@@ -233,21 +232,11 @@ fn start(args: &EstimateArgs, robot: Option<&str>, temporal: Temporal) -> Result
         frames: Vec::new(),
     };
     let robot = session_robot(&empty, None, &args.package_paths, &args.estimator.links)?;
-    let mut resolved = args.estimator.resolve(&robot)?;
-    resolved.settings.friction = args.estimator.friction.for_temporal(temporal);
-    let request = SurfaceRequest {
-        links: resolved.links.clone(),
-        total_points: resolved.surface_points,
-        seed: args.estimator.seed,
-    };
-    let estimator = Estimator::new(&robot, &request, resolved.settings, resolved.phase_sizes)?;
+    let config = args.estimator.config(&args.temporal)?;
+    let estimator = args.estimator.estimator(&robot, &config, temporal)?;
     let model = match temporal {
         Temporal::None => None,
-        _ => Some(TemporalModel::new(
-            &estimator.surface,
-            args.temporal.settings(),
-            estimator.uses_patches(),
-        )?),
+        _ => Some(config.temporal_model(&estimator.surface, estimator.uses_patches())?),
     };
     Ok(Live {
         robot,

@@ -11,13 +11,17 @@ use std::path::Path;
 
 use anyhow::{Result, bail};
 use glam::DVec3;
+use proprioscope::core::config::estimator::{
+    BuildError, ConfigError, DEFAULT_FORCE_RANGE_NEWTONS, DEFAULT_SIGMA_NEWTON_METRES, EstimatorConfig, Friction,
+    ModeKind, Sigma,
+};
 use proprioscope::core::config::limits::{self, CountRange, Range};
-use proprioscope::core::estimate::settings::{DEFAULT_FORCE_RANGE_NEWTONS, EstimatorSettings};
+use proprioscope::core::estimate::estimator::Estimator;
 use proprioscope::core::over_time::sequence::Temporal;
 use proprioscope::core::over_time::temporal::TemporalSettings;
 use proprioscope::core::robot::model::{LinkId, Robot};
 use proprioscope::io::recording::{self, TopicChoice, is_recording};
-use proprioscope::io::scene::{self as sc, Sigma};
+
 use proprioscope::io::session::{FrameProblem, Session};
 
 /// Topics of a robot recording (MCAP, ROS 1 bag); each left out is
@@ -202,29 +206,30 @@ impl TemporalArgs {
     }
 }
 
-/// Estimator options shared by `estimate` and `bench`.
+/// Estimator options shared by `estimate` and `bench`: mapped straight
+/// into the one [`EstimatorConfig`], whose defaults they show.
 #[derive(Debug, Clone, clap::Args)]
 pub struct EstimatorArgs {
     /// `exact` or `particles`.
     #[arg(long, value_enum, default_value = "exact")]
     pub mode: ModeArg,
-    /// Particle sampling: `deterministic` or `random`.
+    /// Particle sampling: `deterministic` (`--m` magnitudes per surface
+    /// point) or `random` (`--particles` over the surface).
     #[arg(long, value_enum, default_value = "deterministic")]
     pub sampling: SamplingArg,
-    /// N: surface points in exact mode, particles in particle mode
-    /// (valid: 1 to 1000000 surface points, 1 to 10000000 particles).
-    #[arg(long, value_parser = counted(&limits::PARTICLES))]
-    pub n: Option<usize>,
-    /// Magnitudes per point m (deterministic particles; valid: 1 to 1000).
-    #[arg(long, default_value_t = 5, value_parser = counted(&limits::MAGNITUDES))]
-    pub m: usize,
-    /// Surface points when N counts particles (random sampling; valid: 1
-    /// to 1000000).
-    #[arg(long, default_value_t = 5000, value_parser = counted(&limits::SURFACE_POINTS))]
+    /// Surface points over the candidate links (valid: 1 to 1000000).
+    #[arg(long, default_value_t = EstimatorConfig::default().surface_points, value_parser = counted(&limits::SURFACE_POINTS))]
     pub points: usize,
+    /// Random particles over the surface (particle mode, random
+    /// sampling; valid: 1 to 10000000).
+    #[arg(long, default_value_t = EstimatorConfig::default().particles, value_parser = counted(&limits::PARTICLES))]
+    pub particles: usize,
+    /// Magnitudes per point m (deterministic particles; valid: 1 to 1000).
+    #[arg(long, default_value_t = EstimatorConfig::default().magnitudes_per_point, value_parser = counted(&limits::MAGNITUDES))]
+    pub m: usize,
     /// Likelihood σ, N·m: one value, or one per sensed joint (comma
     /// separated; valid: [1e-4, 100] N·m).
-    #[arg(long, value_delimiter = ',', default_value = "0.05", value_parser = within(&limits::SIGMA))]
+    #[arg(long, value_delimiter = ',', default_values_t = [DEFAULT_SIGMA_NEWTON_METRES], value_parser = within(&limits::SIGMA))]
     pub sigma: Vec<f64>,
     /// Smallest push magnitude considered, N (valid: [0, 10000] N, not above --fmax).
     #[arg(long, default_value_t = DEFAULT_FORCE_RANGE_NEWTONS.0, value_parser = within(&limits::FORCE_MIN))]
@@ -239,7 +244,7 @@ pub struct EstimatorArgs {
     #[arg(long, value_delimiter = ',', default_value = "200,1000", value_parser = counted(&limits::PHASE_POINTS))]
     pub phase_sizes: Vec<usize>,
     /// Keep clusters with P ≥ α `P_max` between phases (valid: [0, 0.99]).
-    #[arg(long, default_value_t = 0.5, value_parser = within(&limits::ALPHA))]
+    #[arg(long, default_value_t = EstimatorConfig::default().alpha, value_parser = within(&limits::ALPHA))]
     pub alpha: f64,
     /// Candidate links (comma separated); default: every link a revolute joint moves.
     #[arg(long, value_delimiter = ',')]
@@ -260,127 +265,82 @@ pub struct EstimatorArgs {
     /// frames alone, 0.2 over time (`--temporal filter|smooth`, where
     /// friction is taken only where a press says so; valid: [0, 2]).
     #[arg(long, default_value = "auto", value_parser = friction_arg)]
-    pub friction: FrictionArg,
+    pub friction: Friction,
 }
 
-/// `--friction`: a μ, or `auto`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum FrictionArg {
-    /// By how frames are combined ([`Temporal::default_friction`]).
-    Auto,
-    /// This μ everywhere.
-    Mu(f64),
-}
-
-impl FrictionArg {
-    /// μ for frames combined by `temporal`.
-    pub fn for_temporal(self, temporal: Temporal) -> f64 {
-        match self {
-            Self::Auto => temporal.default_friction(),
-            Self::Mu(mu) => mu,
-        }
-    }
-}
-
-/// Parses `--friction`: `auto` or a finite number.
-fn friction_arg(text: &str) -> Result<FrictionArg, String> {
+/// Parses `--friction`: `auto` or a μ within its range.
+fn friction_arg(text: &str) -> Result<Friction, String> {
     if text.trim().eq_ignore_ascii_case("auto") {
-        return Ok(FrictionArg::Auto);
+        return Ok(Friction::Auto);
     }
     within(&limits::FRICTION)(text)
-        .map(FrictionArg::Mu)
+        .map(Friction::Mu)
         .map_err(|e| format!("{e} (or give auto)"))
 }
 
-/// What the options ask for, resolved against a robot.
-pub struct Resolved {
-    /// Candidate links.
-    pub links: Vec<LinkId>,
-    /// Surface points.
-    pub surface_points: usize,
-    /// Estimator settings.
-    pub settings: EstimatorSettings,
-    /// Phase sizes when phases are on.
-    pub phase_sizes: Option<[usize; 2]>,
+/// A configuration's error as the command line says it: by option.
+pub fn option_error(e: &ConfigError) -> anyhow::Error {
+    anyhow::anyhow!("{}: {e}", e.field().option())
 }
 
 impl EstimatorArgs {
-    /// Resolves links, σ per joint and the mode for `robot`.
-    pub fn resolve(&self, robot: &Robot) -> Result<Resolved> {
-        let links = if self.links.is_empty() {
-            robot.default_candidate_links()
-        } else {
-            self.links
-                .iter()
-                .map(|n| robot.link_id(n))
-                .collect::<Result<Vec<_>, _>>()?
-        };
-        let joints = robot.sensed().len();
+    /// The options (and the temporal model's, `temporal`) as the one
+    /// configuration, checked.
+    pub fn config(&self, temporal: &TemporalArgs) -> Result<EstimatorConfig> {
         let sigma = match self.sigma.as_slice() {
             [s] => Sigma::All(*s),
-            v if v.len() == joints => Sigma::PerJoint(v.to_vec()),
-            v => bail!(
-                "--sigma has {} values; give one, or one per sensed joint ({joints})",
-                v.len()
-            ),
+            v => Sigma::PerJoint(v.to_vec()),
         };
-        let (mode, sampling) = match (self.mode, self.sampling) {
-            (ModeArg::Exact, _) => (sc::Mode::Exact, sc::Sampling::Deterministic),
-            (ModeArg::Particles, SamplingArg::Deterministic) => (sc::Mode::Particles, sc::Sampling::Deterministic),
-            (ModeArg::Particles, SamplingArg::Random) => (sc::Mode::Particles, sc::Sampling::Random),
+        let mode = match (self.mode, self.sampling) {
+            (ModeArg::Exact, _) => ModeKind::Exact,
+            (ModeArg::Particles, SamplingArg::Deterministic) => ModeKind::ParticlesDeterministic,
+            (ModeArg::Particles, SamplingArg::Random) => ModeKind::ParticlesRandom,
         };
-        let surface_points = match (self.mode, self.sampling) {
-            (ModeArg::Exact, _) => self.n.unwrap_or(self.points),
-            (ModeArg::Particles, SamplingArg::Deterministic) => {
-                self.n.map_or(self.points, |n| n.div_ceil(self.m.max(1)))
-            }
-            (ModeArg::Particles, SamplingArg::Random) => self.points,
+        let [a, b] = self.phase_sizes.as_slice() else {
+            bail!("--phase-sizes needs two numbers (A,B), got {}", self.phase_sizes.len());
         };
-        if let ModeArg::Exact = self.mode {
-            limits::SURFACE_POINTS
-                .check(surface_points)
-                .map_err(|e| anyhow::anyhow!("--n: {e}"))?;
-        }
-        if self.fmin > self.fmax {
-            bail!(
-                "--fmin {} N is above --fmax {} N: the smallest push considered must not exceed the largest",
-                self.fmin,
-                self.fmax
-            );
-        }
-        let phase_sizes = match (self.phases, self.phase_sizes.as_slice()) {
-            (false, _) => None,
-            (true, [a, b]) => Some([*a, *b]),
-            (true, v) => bail!("--phase-sizes needs two numbers (A,B), got {}", v.len()),
-        };
-        // The options as a scene's estimator section: mapped to the core's
-        // settings in one place, as scenes and the app are.
-        let scene = sc::EstimatorSettings {
+        let config = EstimatorConfig {
+            sigma,
+            force_range_newtons: (self.fmin, self.fmax),
             mode,
-            sigma_newton_metres: sigma,
-            sampling,
-            particles: self.n.unwrap_or(20_000),
-            magnitudes_per_point: self.m.max(1),
-            phases: sc::Phases {
-                enabled: self.phases,
-                sizes: phase_sizes.unwrap_or([200, 1000]),
-                alpha: self.alpha,
-            },
-            force_min_newtons: self.fmin,
-            force_max_newtons: self.fmax,
+            particles: self.particles,
+            magnitudes_per_point: self.m,
             particle_seed: self.seed,
-            // Frames alone until the caller knows how frames are
-            // combined (`FrictionArg::for_temporal`).
-            friction: self.friction.for_temporal(Temporal::None),
+            phases: self.phases,
+            phase_sizes: [*a, *b],
+            alpha: self.alpha,
+            friction: self.friction,
+            patches: !self.points_only,
+            surface_points: self.points,
+            surface_seed: self.seed,
+            temporal: temporal.settings(),
         };
-        let mut settings = scene.to_core(joints).map_err(|e| anyhow::anyhow!(e))?;
-        settings.patches = !self.points_only;
-        Ok(Resolved {
-            links,
-            surface_points,
-            settings,
-            phase_sizes,
-        })
+        config.validate(None).map_err(|e| option_error(&e))?;
+        Ok(config)
+    }
+
+    /// The candidate links on `robot`: `--links`, or every link a
+    /// revolute joint moves.
+    pub fn links(&self, robot: &Robot) -> Result<Vec<LinkId>> {
+        if self.links.is_empty() {
+            return Ok(robot.default_candidate_links());
+        }
+        Ok(self
+            .links
+            .iter()
+            .map(|n| robot.link_id(n))
+            .collect::<Result<Vec<_>, _>>()?)
+    }
+
+    /// The estimator `config` builds on `robot` for frames combined by
+    /// `temporal`.
+    pub fn estimator(&self, robot: &Robot, config: &EstimatorConfig, temporal: Temporal) -> Result<Estimator> {
+        config
+            .estimator(robot, self.links(robot)?, temporal)
+            .map_err(|e| match e {
+                BuildError::Config(e) => option_error(&e),
+                other => other.into(),
+            })
     }
 
     /// Runs `f` on a thread pool of `--threads` workers.

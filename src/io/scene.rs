@@ -11,6 +11,9 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
+use crate::core::config::estimator::{
+    DEFAULT_SIGMA_NEWTON_METRES, EstimatorConfig, Friction, ModeKind, Sigma as ConfigSigma,
+};
 use crate::core::config::limits;
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::{LinkId, Robot, RobotError};
@@ -160,7 +163,7 @@ pub fn relative_path(target: &Path, base: &Path) -> PathBuf {
 }
 
 fn default_surface_points() -> usize {
-    5000
+    EstimatorConfig::default().surface_points
 }
 
 /// A push on the robot. Give the point as `point_in_link` or `point_world`,
@@ -232,112 +235,111 @@ pub enum Sigma {
 
 impl Default for Sigma {
     fn default() -> Self {
-        Self::All(0.1)
+        Self::All(DEFAULT_SIGMA_NEWTON_METRES)
     }
 }
 
 /// Coarse-to-fine phases A/B/C (§2.4).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct Phases {
     /// Use them. Default: false.
-    #[serde(default)]
     pub enabled: bool,
     /// Sizes of phases A and B (C is every point). Default: [200, 1000].
-    #[serde(default = "default_phase_sizes")]
     pub sizes: [usize; 2],
     /// Keep clusters with P ≥ α·`P_max`. Default: 0.5.
-    #[serde(default = "default_alpha")]
     pub alpha: f64,
 }
 
 impl Default for Phases {
     fn default() -> Self {
+        let config = EstimatorConfig::default();
         Self {
-            enabled: false,
-            sizes: default_phase_sizes(),
-            alpha: default_alpha(),
+            enabled: config.phases,
+            sizes: config.phase_sizes,
+            alpha: config.alpha,
         }
     }
 }
 
-fn default_phase_sizes() -> [usize; 2] {
-    [200, 1000]
-}
-
-fn default_alpha() -> f64 {
-    0.5
-}
-
-/// Estimator settings (used by the estimator and the app).
+/// A scene's estimator section: the file's form of the
+/// [`EstimatorConfig`], whose defaults fill what it leaves out.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct EstimatorSettings {
     /// Default: exact.
-    #[serde(default)]
     pub mode: Mode,
-    /// Likelihood σ, N·m. Default: 0.1.
-    #[serde(default)]
+    /// Likelihood σ, N·m. Default: 0.05.
     pub sigma_newton_metres: Sigma,
     /// Particle sampling. Default: deterministic.
-    #[serde(default)]
     pub sampling: Sampling,
-    /// Number of particles N (particle mode). Default: 20000.
-    #[serde(default = "default_particles")]
+    /// Number of particles N (random sampling). Default: 20000.
     pub particles: usize,
     /// Magnitudes per point m (deterministic sampling). Default: 5.
-    #[serde(default = "default_magnitudes")]
     pub magnitudes_per_point: usize,
     /// Default: off, sizes [200, 1000], α 0.5.
-    #[serde(default)]
     pub phases: Phases,
     /// Smallest push considered, N. Default: 1.
-    #[serde(default = "default_force_min")]
     pub force_min_newtons: f64,
     /// Largest push considered, N. Default: 30.
-    #[serde(default = "default_force_max")]
     pub force_max_newtons: f64,
     /// Seed of random particles. Default: 0.
-    #[serde(default)]
     pub particle_seed: u64,
     /// μ of the friction model: the tangential force's spread per newton
-    /// of push (see `core::friction`). Default: 0, frictionless.
-    #[serde(default)]
+    /// of push (see `core::estimate::friction`). Default: 0, which leaves
+    /// it to how frames are combined (none for a frame alone).
     pub friction: f64,
 }
 
 impl Default for EstimatorSettings {
     fn default() -> Self {
+        Self::from_config(&EstimatorConfig::default())
+    }
+}
+
+impl EstimatorSettings {
+    /// The section a scene writes for `config` (its surface's points and
+    /// seed go to the scene's own fields; friction *auto* is written 0).
+    #[must_use]
+    pub fn from_config(config: &EstimatorConfig) -> Self {
         Self {
-            particle_seed: 0,
-            friction: 0.0,
-            mode: Mode::default(),
-            sigma_newton_metres: Sigma::default(),
-            sampling: Sampling::default(),
-            particles: default_particles(),
-            magnitudes_per_point: default_magnitudes(),
-            phases: Phases::default(),
-            force_min_newtons: default_force_min(),
-            force_max_newtons: default_force_max(),
+            mode: if config.mode == ModeKind::Exact {
+                Mode::Exact
+            } else {
+                Mode::Particles
+            },
+            sigma_newton_metres: match &config.sigma {
+                ConfigSigma::PerJoint(v) if v.windows(2).any(|w| w[0].total_cmp(&w[1]).is_ne()) => {
+                    Sigma::PerJoint(v.clone())
+                }
+                ConfigSigma::PerJoint(v) => Sigma::All(v.first().copied().unwrap_or(DEFAULT_SIGMA_NEWTON_METRES)),
+                ConfigSigma::All(s) => Sigma::All(*s),
+            },
+            sampling: if config.mode == ModeKind::ParticlesRandom {
+                Sampling::Random
+            } else {
+                Sampling::Deterministic
+            },
+            particles: config.particles,
+            magnitudes_per_point: config.magnitudes_per_point,
+            phases: Phases {
+                enabled: config.phases,
+                sizes: config.phase_sizes,
+                alpha: config.alpha,
+            },
+            force_min_newtons: config.force_range_newtons.0,
+            force_max_newtons: config.force_range_newtons.1,
+            particle_seed: config.particle_seed,
+            friction: match config.friction {
+                Friction::Auto => 0.0,
+                Friction::Mu(mu) => mu,
+            },
         }
     }
 }
 
 /// The largest friction μ accepted ([`limits::FRICTION`]).
 pub const MAX_FRICTION: f64 = limits::FRICTION.max;
-
-fn default_particles() -> usize {
-    20_000
-}
-fn default_magnitudes() -> usize {
-    5
-}
-fn default_force_min() -> f64 {
-    1.0
-}
-fn default_force_max() -> f64 {
-    30.0
-}
 
 /// Why a scene could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -420,55 +422,6 @@ pub struct LoadedScene {
     pub push: Option<ResolvedPush>,
 }
 
-impl EstimatorSettings {
-    /// The core estimator's settings for `joints` sensed joints (a single
-    /// σ is repeated; a per-joint list must have one value per joint).
-    ///
-    /// The one place where estimator settings are mapped to the core's: a
-    /// scene file, the command line's options and the app's panel all
-    /// make these settings first, so that the same choice estimates the
-    /// same everywhere (random particles included: one seed field).
-    pub fn to_core(&self, joints: usize) -> Result<crate::core::estimate::settings::EstimatorSettings, String> {
-        use crate::core::estimate::settings as est;
-        let sigma = match &self.sigma_newton_metres {
-            Sigma::All(s) => vec![*s; joints],
-            Sigma::PerJoint(v) if v.len() == joints => v.clone(),
-            Sigma::PerJoint(v) => {
-                return Err(format!(
-                    "estimator.sigma_newton_metres has {} values for {joints} sensed joints",
-                    v.len()
-                ));
-            }
-        };
-        let mode = match (self.mode, self.sampling) {
-            (Mode::Exact, _) => est::Mode::Exact,
-            (Mode::Particles, Sampling::Deterministic) => est::Mode::Particles(est::ParticleSettings {
-                sampling: est::Sampling::Deterministic {
-                    magnitudes_per_point: self.magnitudes_per_point,
-                },
-            }),
-            (Mode::Particles, Sampling::Random) => est::Mode::Particles(est::ParticleSettings {
-                sampling: est::Sampling::Random {
-                    count: self.particles,
-                    seed: self.particle_seed,
-                },
-            }),
-        };
-        if let Some(problem) = self.friction_problem() {
-            return Err(format!("estimator.friction: {problem}"));
-        }
-        Ok(est::EstimatorSettings {
-            sigma,
-            force_min_newtons: self.force_min_newtons,
-            force_max_newtons: self.force_max_newtons,
-            mode,
-            phase_alpha: self.phases.enabled.then_some(self.phases.alpha),
-            patches: true,
-            friction: self.friction,
-        })
-    }
-}
-
 impl LoadedScene {
     /// Exact torques of the push on the sensed joints (zeros without push).
     #[must_use]
@@ -544,9 +497,6 @@ impl Scene {
         for (name, &v) in &self.other_joints {
             in_range(path, &format!("other_joints.{name}"), &limits::JOINT_POSITION, v)?;
         }
-        limits::SURFACE_POINTS
-            .check(self.surface_points)
-            .map_err(|e| invalid("surface_points", e.to_string()))?;
         if let Some(push) = &self.push {
             push.validate(path)?;
         }
@@ -559,7 +509,44 @@ impl Scene {
         if let Some(view) = &self.view {
             in_range(path, "view.threshold", &limits::THRESHOLD, view.threshold)?;
         }
-        self.estimator.validate(path)
+        self.config()
+            .validate(None)
+            .map_err(|e| invalid(e.field().scene_field(), e.to_string()))
+    }
+
+    /// The scene's estimator configuration: its estimator section, its
+    /// surface's points and seed, the temporal model's defaults. A
+    /// friction of 0 (the field's default) leaves it to how frames are
+    /// combined.
+    #[must_use]
+    pub fn config(&self) -> EstimatorConfig {
+        let e = &self.estimator;
+        EstimatorConfig {
+            sigma: match &e.sigma_newton_metres {
+                Sigma::All(s) => ConfigSigma::All(*s),
+                Sigma::PerJoint(v) => ConfigSigma::PerJoint(v.clone()),
+            },
+            force_range_newtons: (e.force_min_newtons, e.force_max_newtons),
+            mode: match (e.mode, e.sampling) {
+                (Mode::Exact, _) => ModeKind::Exact,
+                (Mode::Particles, Sampling::Deterministic) => ModeKind::ParticlesDeterministic,
+                (Mode::Particles, Sampling::Random) => ModeKind::ParticlesRandom,
+            },
+            particles: e.particles,
+            magnitudes_per_point: e.magnitudes_per_point,
+            particle_seed: e.particle_seed,
+            phases: e.phases.enabled,
+            phase_sizes: e.phases.sizes,
+            alpha: e.phases.alpha,
+            friction: if e.friction == 0.0 {
+                Friction::Auto
+            } else {
+                Friction::Mu(e.friction)
+            },
+            surface_points: self.surface_points,
+            surface_seed: self.surface_seed,
+            ..EstimatorConfig::default()
+        }
     }
 
     /// Loads the robot (relative to `scene_path`'s folder), poses it and
@@ -586,6 +573,9 @@ impl Scene {
         if let Some(names) = &self.sensed_joints {
             robot.set_sensed(names).map_err(model("sensed_joints"))?;
         }
+        self.config()
+            .validate(Some(robot.sensed().len()))
+            .map_err(|e| invalid(scene_path, e.field().scene_field(), e.to_string()))?;
         let others: Vec<(String, f64)> = self.other_joints.iter().map(|(k, v)| (k.clone(), *v)).collect();
         let joint_positions = robot.joint_positions(&self.q, &others).map_err(model("q"))?;
         let pose = RobotPose::new(&robot, &joint_positions);
@@ -653,62 +643,6 @@ impl Push {
                 "give exactly one of force_world and force_newtons".to_owned(),
             )),
         }
-    }
-}
-
-impl EstimatorSettings {
-    /// What is wrong with the friction μ, if anything (NaN and infinities
-    /// fall outside the range too).
-    fn friction_problem(&self) -> Option<String> {
-        limits::FRICTION
-            .check(self.friction)
-            .err()
-            .map(|e| format!("{e} (0: frictionless)"))
-    }
-
-    fn validate(&self, path: &Path) -> Result<(), SceneError> {
-        let sigmas: Vec<f64> = match &self.sigma_newton_metres {
-            Sigma::All(s) => vec![*s],
-            Sigma::PerJoint(v) => v.clone(),
-        };
-        for &s in &sigmas {
-            in_range(path, "estimator.sigma_newton_metres", &limits::SIGMA, s)?;
-        }
-        let lo = in_range(
-            path,
-            "estimator.force_min_newtons",
-            &limits::FORCE_MIN,
-            self.force_min_newtons,
-        )?;
-        let hi = in_range(
-            path,
-            "estimator.force_max_newtons",
-            &limits::FORCE_MAX,
-            self.force_max_newtons,
-        )?;
-        if lo > hi {
-            return Err(invalid(
-                path,
-                "estimator.force_min_newtons",
-                format!("{lo} is above force_max_newtons {hi}"),
-            ));
-        }
-        if let Some(problem) = self.friction_problem() {
-            return Err(invalid(path, "estimator.friction", problem));
-        }
-        in_range(path, "estimator.phases.alpha", &limits::ALPHA, self.phases.alpha)?;
-        for (i, &size) in self.phases.sizes.iter().enumerate() {
-            limits::PHASE_POINTS
-                .check(size)
-                .map_err(|e| invalid(path, &format!("estimator.phases.sizes[{i}]"), e.to_string()))?;
-        }
-        limits::PARTICLES
-            .check(self.particles)
-            .map_err(|e| invalid(path, "estimator.particles", e.to_string()))?;
-        limits::MAGNITUDES
-            .check(self.magnitudes_per_point)
-            .map_err(|e| invalid(path, "estimator.magnitudes_per_point", e.to_string()))?;
-        Ok(())
     }
 }
 

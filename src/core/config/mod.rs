@@ -2,4 +2,5 @@
 //! estimator configuration with its defaults and its validation.
 //! Imports the rooms below it.
 
+pub mod estimator;
 pub mod limits;
