@@ -1,4 +1,4 @@
-//! Every command the README shows runs as written (against `../shared`):
+//! Every command README.md and docs/*.md show runs as written (against `../shared`):
 //! `view` as `screenshot` (the same target, robot and options, no
 //! window), files written to a temporary folder instead of the paths
 //! shown. Illustrations that name files the reader brings (`robot.bag`),
@@ -12,10 +12,23 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// The README's shell commands: lines of `sh` code blocks that run
+/// The documents whose commands run: README.md and docs/*.md, sorted.
+fn documents() -> Vec<PathBuf> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut docs: Vec<PathBuf> = std::fs::read_dir(root.join("docs"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "md"))
+        .collect();
+    docs.sort();
+    docs.insert(0, root.join("README.md"));
+    docs
+}
+
+/// A document's shell commands: lines of `sh` code blocks that run
 /// `proprioscope` or `cargo run --release --`, continuation lines joined.
-fn readme_commands() -> Vec<(usize, Vec<String>)> {
-    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
+fn readme_commands(path: &Path) -> Vec<(usize, Vec<String>)> {
+    let text = std::fs::read_to_string(path).unwrap();
     let mut out = Vec::new();
     let mut in_sh = false;
     let mut pending: Option<(usize, String)> = None;
@@ -84,16 +97,29 @@ fn skipped(args: &[String]) -> Option<String> {
 
 #[test]
 #[ignore = "needs ../shared"]
-fn every_readme_command_runs() {
+fn every_documented_command_runs() {
     let tmp = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("readme");
     std::fs::create_dir_all(&tmp).unwrap();
-    let commands = readme_commands();
-    assert!(commands.len() >= 15, "{commands:?}");
     let mut ran = 0;
-    for (line, args) in commands {
+    for doc in documents() {
+        let name = doc.file_name().unwrap().to_string_lossy().into_owned();
+        let commands = readme_commands(&doc);
+        if name == "README.md" {
+            assert!(commands.len() >= 10, "{commands:?}");
+        }
+        for (line, args) in commands {
+            ran += run_documented(&tmp, &format!("{name} line {line}"), args);
+        }
+    }
+    assert!(ran >= 20, "only {ran} documented commands ran");
+}
+
+/// Runs one documented command (1), or says why not (0).
+fn run_documented(tmp: &Path, at: &str, args: Vec<String>) -> usize {
+    {
         if let Some(why) = skipped(&args) {
-            eprintln!("README line {line}: skipped ({why}): {}", args.join(" "));
-            continue;
+            eprintln!("{at}: skipped ({why}): {}", args.join(" "));
+            return 0;
         }
         let mut args = args;
         // `view` (or no command: the app) as a screenshot.
@@ -103,7 +129,11 @@ fn every_readme_command_runs() {
             }
             args.insert(0, "screenshot".to_owned());
             args.push("--out".to_owned());
-            args.push(tmp.join(format!("line{line}.png")).display().to_string());
+            args.push(
+                tmp.join(format!("{}.png", at.replace([' ', '.'], "-")))
+                    .display()
+                    .to_string(),
+            );
         } else if let Some(i) = args.iter().position(|a| a == "--out") {
             let name = Path::new(&args[i + 1]).file_name().unwrap().to_owned();
             args[i + 1] = tmp.join(name).display().to_string();
@@ -116,11 +146,10 @@ fn every_readme_command_runs() {
             .unwrap();
         assert!(
             out.status.success(),
-            "README line {line}: proprioscope {}\n{}",
+            "{at}: proprioscope {}\n{}",
             args.join(" "),
             String::from_utf8_lossy(&out.stderr)
         );
-        ran += 1;
+        1
     }
-    assert!(ran >= 10, "only {ran} README commands ran");
 }

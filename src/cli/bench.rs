@@ -67,13 +67,14 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100))]
     pub repeat: u32,
     /// Where to write the plot of update time against error (PNG); none
-    /// is written unless asked for (or with --readme, which links it).
+    /// is written unless asked for (or with --doc, which links it).
     #[arg(long)]
     pub plot: Option<PathBuf>,
     /// Replace the text between `<!-- bench:begin -->` and
-    /// `<!-- bench:end -->` in this file with the table and the plot.
+    /// `<!-- bench:end -->` in this Markdown file (`docs/validation.md`)
+    /// with the table and the plot.
     #[arg(long)]
-    pub readme: Option<PathBuf>,
+    pub doc: Option<PathBuf>,
     /// A TrueType font for the plot's text.
     #[arg(long, default_value = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf")]
     pub font: PathBuf,
@@ -257,11 +258,11 @@ fn run_config(robot: &Robot, config: &Config, contacts: &[Contact], seed: u64) -
 
 /// Runs the command.
 pub fn run(args: &BenchArgs) -> Result<()> {
-    // The README's table and plot are committed: quick figures (fewer
+    // The document's table and plot are committed: quick figures (fewer
     // contacts and configurations) must not replace them.
-    if args.quick && args.readme.is_some() {
+    if args.quick && args.doc.is_some() {
         return Err(anyhow!(
-            "--quick with --readme would put a quick run's figures in the README and screenshots/bench.png: drop --quick, or write the plot elsewhere with --plot"
+            "--quick with --doc would put a quick run's figures in the document and screenshots/bench.png: drop --quick, or write the plot elsewhere with --plot"
         ));
     }
     let mut robots = vec![load_robot("lwr4plus", Path::new("."), &UrdfOptions::default())?];
@@ -300,27 +301,31 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     let plot_path = args
         .plot
         .clone()
-        .or_else(|| args.readme.as_ref().map(|_| PathBuf::from("screenshots/bench.png")));
+        .or_else(|| args.doc.as_ref().map(|_| PathBuf::from("screenshots/bench.png")));
     if let Some(path) = &plot_path {
         plot(&rows, path, &args.font)?;
         log::info!("wrote {}", path.display());
     }
-    if let Some(readme) = &args.readme {
-        let text = std::fs::read_to_string(readme).with_context(|| format!("reading {}", readme.display()))?;
+    if let Some(doc) = &args.doc {
+        let text = std::fs::read_to_string(doc).with_context(|| format!("reading {}", doc.display()))?;
         let (begin, end) = ("<!-- bench:begin -->", "<!-- bench:end -->");
         let (Some(i), Some(j)) = (text.find(begin), text.find(end)) else {
-            return Err(anyhow!("{}: no {begin} … {end} section to replace", readme.display()));
+            return Err(anyhow!("{}: no {begin} … {end} section to replace", doc.display()));
         };
+        // The plot named from the document's folder.
+        let plot = plot_path.as_deref().unwrap_or(Path::new("screenshots/bench.png"));
+        let folder = doc.parent().unwrap_or(Path::new("."));
+        let link = proprioscope::io::scene::relative_path(
+            &proprioscope::io::scene::normalized_path(&std::env::current_dir()?.join(plot)),
+            &proprioscope::io::scene::normalized_path(&std::env::current_dir()?.join(folder)),
+        );
         let section = format!(
             "{begin}\n{table}\n![Update time against position error]({})\n",
-            plot_path
-                .as_deref()
-                .unwrap_or(Path::new("screenshots/bench.png"))
-                .display()
+            link.display()
         );
         let updated = format!("{}{section}{}", &text[..i], &text[j..]);
-        std::fs::write(readme, updated).with_context(|| format!("writing {}", readme.display()))?;
-        log::info!("updated {}", readme.display());
+        std::fs::write(doc, updated).with_context(|| format!("writing {}", doc.display()))?;
+        log::info!("updated {}", doc.display());
     }
     Ok(())
 }

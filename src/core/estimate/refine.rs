@@ -478,7 +478,7 @@ fn posterior_regions(surface: &Surface, posterior: &Posterior) -> Vec<Region> {
 /// magnitude there (with friction, the friction model's force). No
 /// search: the place is the whole recording's, the force this frame's.
 /// (A search from there with friction was tried: each frame's place then
-/// wandered along its own valley again; `README`, *Friction*.)
+/// wandered along its own valley again; `docs/validation.md`, *Friction*.)
 #[must_use]
 pub fn contact_at_offsets(
     model: &TorqueModel,

@@ -175,7 +175,7 @@ pub enum Temporal {
 /// presses keep their estimate; on synthetic presses dragging by up to
 /// 15 % and 30 % of the push, smoothing at μ = 0.2 places them better
 /// than at 0.1 (30 %, `synth` seed 1: 10.8 → 4.2 mm at the median) and
-/// 0.3 lost a `../shared` press at one surface seed (README, *Friction*).
+/// 0.3 lost a `../shared` press at one surface seed (`docs/validation.md`, *Friction*).
 pub const OVER_TIME_FRICTION: f64 = 0.2;
 
 impl Temporal {
