@@ -614,7 +614,7 @@ fn record_demo(out: &Path, rate: f64, seconds: Option<f64>) -> Result<()> {
             *q = 0.5 * (t + 0.3 * j as f64).sin();
         }
         model.noise_seed = u64::from(i);
-        recorder.write(&proprioscope::app::timeline::interactive_frame(&model, t))?;
+        recorder.write(&proprioscope::app::recorder::interactive_frame(&model, t))?;
         if !announced {
             outln!("recording {}", out.display());
             std::io::Write::flush(&mut std::io::stdout())?;

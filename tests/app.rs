@@ -498,8 +498,8 @@ fn the_timeline_estimates_equal_the_estimate_command() {
         .collect();
     let harness = session_harness(&path);
     let app = harness.state();
-    assert_eq!(app.session_estimates.len(), cli.len());
-    for (i, (e, c)) in app.session_estimates.iter().zip(&cli).enumerate() {
+    assert_eq!(app.session.estimates.len(), cli.len());
+    for (i, (e, c)) in app.session.estimates.iter().zip(&cli).enumerate() {
         let e = e.unwrap();
         assert_eq!(c["link"], app.model.robot.links[e.link].name.as_str(), "frame {i}");
         for (field, ours) in [("point", e.point_world), ("force", e.force_world)] {
@@ -537,11 +537,12 @@ fn a_recording_is_smoothed_and_can_be_estimated_frame_by_frame() {
         let app = harness.state();
         assert_eq!(app.model.replay.as_ref().unwrap().over_time, Temporal::Smooth);
         assert!(
-            app.session_estimates
+            app.session
+                .estimates
                 .iter()
                 .all(|e| e.is_some_and(|e| e.contact_probability.is_some_and(|p| (0.0..=1.0).contains(&p)))),
             "{:?}",
-            app.session_estimates
+            app.session.estimates
         );
     }
     harness.get_by_label("over time").click();
@@ -551,11 +552,12 @@ fn a_recording_is_smoothed_and_can_be_estimated_frame_by_frame() {
     let app = harness.state();
     assert_eq!(app.model.replay.as_ref().unwrap().over_time, Temporal::None);
     assert!(
-        app.session_estimates
+        app.session
+            .estimates
             .iter()
             .all(|e| e.is_some_and(|e| e.contact_probability.is_none())),
         "{:?}",
-        app.session_estimates
+        app.session.estimates
     );
 }
 
@@ -573,7 +575,8 @@ fn the_slide_length_is_set_in_the_timeline() {
     let places = |harness: &Harness<'_, ProprioscopeApp>| -> Vec<glam::DVec3> {
         harness
             .state()
-            .session_estimates
+            .session
+            .estimates
             .iter()
             .map(|e| e.unwrap().point_world)
             .collect()
@@ -644,7 +647,7 @@ fn a_package_folder_added_in_the_app_resolves_package_uris() {
     open_and_wait(&mut harness, urdf.to_str().unwrap());
     let error = harness.state().error.clone().unwrap();
     assert!(error.contains("tet.stl"), "{error}");
-    harness.state_mut().package_paths.push(packages);
+    harness.state_mut().files.package_paths.push(packages);
     open_and_wait(&mut harness, urdf.to_str().unwrap());
     assert_eq!(harness.state().error, None);
     assert_eq!(harness.state().model.robot.name, "tet");
@@ -658,7 +661,7 @@ fn changing_sigma_re_estimates_the_session_in_the_background() {
     harness.state_mut().apply(proprioscope::app::Command::SetSigma(0.1));
     settle(&mut harness);
     let map_probabilities =
-        |app: &ProprioscopeApp| -> Vec<f64> { app.session_estimates.iter().map(|e| e.unwrap().probability).collect() };
+        |app: &ProprioscopeApp| -> Vec<f64> { app.session.estimates.iter().map(|e| e.unwrap().probability).collect() };
     let before = map_probabilities(harness.state());
     harness
         .get_by_role_and_label(egui::accesskit::Role::Slider, "σ [N·m]")
@@ -942,20 +945,21 @@ fn an_ambiguous_recording_asks_for_its_topics_once() {
     harness.state_mut().open(path.to_str().unwrap());
     for _ in 0..500 {
         harness.step();
-        if harness.state().topic_prompt.is_some() {
+        if harness.state().topics.prompt.is_some() {
             break;
         }
         std::thread::sleep(std::time::Duration::from_millis(10));
     }
     let prompt = harness
         .state()
-        .topic_prompt
+        .topics
+        .prompt
         .clone()
         .expect("the app asks for the topics");
     assert!(prompt.message.contains("several"), "{}", prompt.message);
     assert_eq!(prompt.position_topics, ["/left/joint_states", "/right/joint_states"]);
     assert!(harness.state().model.replay.is_none());
-    harness.state_mut().topic_prompt.as_mut().unwrap().choice = TopicChoice {
+    harness.state_mut().topics.prompt.as_mut().unwrap().choice = TopicChoice {
         q_topic: Some("/right/joint_states".into()),
         tau_topic: Some("/right/joint_states".into()),
         tau_field: Some("effort".into()),
@@ -965,7 +969,7 @@ fn an_ambiguous_recording_asks_for_its_topics_once() {
     settle(&mut harness);
     {
         let app = harness.state();
-        assert!(app.topic_prompt.is_none());
+        assert!(app.topics.prompt.is_none());
         let replay = app.model.replay.as_ref().expect("the recording opened");
         assert_eq!(replay.session.frames.len(), session.frames.len());
         // The right arm's torques, not the left's zeros.
@@ -974,7 +978,7 @@ fn an_ambiguous_recording_asks_for_its_topics_once() {
     harness.state_mut().close_session();
     harness.state_mut().open(path.to_str().unwrap());
     settle(&mut harness);
-    assert!(harness.state().topic_prompt.is_none());
+    assert!(harness.state().topics.prompt.is_none());
     assert!(harness.state().model.replay.is_some(), "{:?}", harness.state().error);
 }
 
@@ -1042,10 +1046,7 @@ fn a_live_session_fills_the_timeline_and_follows_the_newest_frame() {
 /// verdict, credible radius), the times aside: bit for bit, hence exact
 /// comparisons.
 #[allow(clippy::float_cmp)]
-fn assert_same_estimates(
-    a: &[proprioscope::app::session::FrameEstimate],
-    b: &[proprioscope::app::session::FrameEstimate],
-) {
+fn assert_same_estimates(a: &[proprioscope::batch::FrameEstimate], b: &[proprioscope::batch::FrameEstimate]) {
     assert_eq!(a.len(), b.len());
     for (i, (a, b)) in a.iter().zip(b).enumerate() {
         assert_eq!(a.point_world, b.point_world, "frame {i}");
@@ -1093,10 +1094,10 @@ fn a_live_session_is_filtered_as_its_frames_arrive() {
                 .replay
                 .as_ref()
                 .is_some_and(|r| r.session.frames.len() == frames)
-                && app.session_estimates.len() == frames
-                && app.session_estimates.iter().all(Option::is_some)
+                && app.session.estimates.len() == frames
+                && app.session.estimates.iter().all(Option::is_some)
             {
-                return app.session_estimates.iter().flatten().copied().collect::<Vec<_>>();
+                return app.session.estimates.iter().flatten().copied().collect::<Vec<_>>();
             }
             std::thread::sleep(std::time::Duration::from_millis(10));
         }
@@ -1117,7 +1118,7 @@ fn a_live_session_is_filtered_as_its_frames_arrive() {
     harness.run_steps(2);
     harness.get_by_label("each frame alone").click();
     harness.run_steps(3);
-    assert!(harness.state().session_estimates.is_empty());
+    assert!(harness.state().session.estimates.is_empty());
     assert!(harness.query_by_label_contains("over time: ").is_none());
     harness.get_by_label("over time").click();
     harness.run_steps(2);
@@ -1125,7 +1126,7 @@ fn a_live_session_is_filtered_as_its_frames_arrive() {
     assert_same_estimates(&wait_filtered(&mut harness), &filtered);
     harness.get_by_label("Stop live").click();
     settle(&mut harness);
-    let whole: Vec<_> = harness.state().session_estimates.iter().flatten().copied().collect();
+    let whole: Vec<_> = harness.state().session.estimates.iter().flatten().copied().collect();
     assert_eq!(whole.len(), frames);
     assert_same_estimates(&filtered, &whole);
 }

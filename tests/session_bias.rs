@@ -29,7 +29,7 @@ fn settle_session(harness: &mut Harness<'_, ProprioscopeApp>) {
     for _ in 0..3000 {
         harness.step();
         let app = harness.state();
-        if app.is_up_to_date() && app.session_estimates.iter().all(Option::is_some) {
+        if app.is_up_to_date() && app.session.estimates.iter().all(Option::is_some) {
             harness.run_steps(2);
             return;
         }
@@ -81,7 +81,7 @@ fn taking_off_the_bias_estimates_as_the_command_line_does() {
     assert!(harness.state().session_bias().is_none());
     // With the bias left on, the frames estimate otherwise (so that the
     // comparison below can fail).
-    let differs = harness.state().session_estimates.iter().zip(&cli).any(|(e, c)| {
+    let differs = harness.state().session.estimates.iter().zip(&cli).any(|(e, c)| {
         let e = e.unwrap();
         match c["point"].as_array() {
             None => e.verdict != proprioscope::core::estimate::summary::Verdict::NoContact,
@@ -100,8 +100,8 @@ fn taking_off_the_bias_estimates_as_the_command_line_does() {
     let bias = app.session_bias().unwrap();
     assert_eq!(bias.len(), replay.session.frames.len());
     assert!(bias[0].iter().any(|b| b.abs() > 0.05), "{:?}", bias[0]);
-    assert_eq!(cli.len(), app.session_estimates.len());
-    for (i, (e, c)) in app.session_estimates.iter().zip(&cli).enumerate() {
+    assert_eq!(cli.len(), app.session.estimates.len());
+    for (i, (e, c)) in app.session.estimates.iter().zip(&cli).enumerate() {
         let e = e.unwrap();
         // The command line writes no contact as nulls.
         if c["verdict"] == "no_contact" {

@@ -112,6 +112,34 @@ fn imports(module: &str, text: &str, modules: &BTreeSet<String>) -> BTreeSet<Str
             }
         }
     }
+    // `super::x` in a file of a folder module: its sibling `x`, where
+    // `x` is a module (an item of the folder's `mod.rs` is the parent's,
+    // which declares its children and is left out of the circles).
+    if let Some((parent, _)) = module.rsplit_once("::") {
+        for line in code(text) {
+            let mut rest = line;
+            while let Some(i) = rest.find("super::") {
+                rest = &rest[i + "super::".len()..];
+                let names: Vec<String> = if let Some(group) = rest.strip_prefix('{') {
+                    group
+                        .split('}')
+                        .next()
+                        .unwrap_or_default()
+                        .split(',')
+                        .map(|n| n.trim().split("::").next().unwrap_or_default().to_owned())
+                        .collect()
+                } else {
+                    vec![rest.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect()]
+                };
+                for name in names {
+                    let sibling = format!("{parent}::{name}");
+                    if modules.contains(&sibling) && sibling != module {
+                        out.insert(sibling);
+                    }
+                }
+            }
+        }
+    }
     out
 }
 

@@ -358,7 +358,7 @@ fn a_session_with_contacts_on_every_link_keeps_the_panels_beside_the_view() {
     settle(&mut harness);
     for _ in 0..300 {
         harness.step();
-        if harness.state().session_estimates.iter().all(Option::is_some) {
+        if harness.state().session.estimates.iter().all(Option::is_some) {
             break;
         }
         std::thread::sleep(std::time::Duration::from_millis(10));

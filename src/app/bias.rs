@@ -14,7 +14,7 @@ pub const BIAS_WINDOW_SECS: f64 = 30.0;
 
 /// What a session's bias was estimated from.
 #[derive(Debug, Clone, PartialEq)]
-pub(super) struct BiasKey {
+pub(crate) struct BiasKey {
     session: usize,
     sigma: Vec<f64>,
 }
@@ -23,7 +23,7 @@ pub(super) struct BiasKey {
 pub(super) type SessionBias = Result<Arc<Vec<Vec<f64>>>, String>;
 
 /// A session's bias: being estimated, or known.
-pub(super) enum BiasState {
+pub(crate) enum BiasState {
     /// On its thread.
     Pending(worker::Background<Arc<Vec<Vec<f64>>>>),
     /// Done.
@@ -37,14 +37,14 @@ impl ProprioscopeApp {
     /// drops it when it is not asked for.
     pub(super) fn update_session_bias(&mut self) {
         let Some(replay) = self.model.replay.as_ref().filter(|r| r.bias_auto) else {
-            self.session_bias = None;
+            self.session.bias = None;
             return;
         };
         let key = BiasKey {
             session: Arc::as_ptr(&replay.session) as usize,
             sigma: self.model.sigma().to_vec(),
         };
-        match &self.session_bias {
+        match &self.session.bias {
             Some((k, BiasState::Done(_))) if *k == key => {}
             Some((k, BiasState::Pending(job))) if *k == key => {
                 let Some(done) = job.poll() else {
@@ -53,7 +53,7 @@ impl ProprioscopeApp {
                 if let Err(e) = &done {
                     self.error = Some(format!("the torque bias could not be estimated: {e}"));
                 }
-                self.session_bias = Some((key, BiasState::Done(done)));
+                self.session.bias = Some((key, BiasState::Done(done)));
                 self.request_estimate();
             }
             _ => {
@@ -71,7 +71,7 @@ impl ProprioscopeApp {
                     },
                     move || ctx.request_repaint(),
                 );
-                self.session_bias = Some((key, BiasState::Pending(job)));
+                self.session.bias = Some((key, BiasState::Pending(job)));
             }
         }
     }
@@ -79,7 +79,7 @@ impl ProprioscopeApp {
     /// Whether the bias is asked for and still being estimated.
     #[must_use]
     pub fn bias_pending(&self) -> bool {
-        matches!(self.session_bias, Some((_, BiasState::Pending(_))))
+        matches!(self.session.bias, Some((_, BiasState::Pending(_))))
     }
 
     /// The bias of session frame `frame`, when it is taken off.
@@ -91,7 +91,7 @@ impl ProprioscopeApp {
     /// The session's bias per frame, when it is taken off (and known).
     #[must_use]
     pub fn session_bias(&self) -> Option<&Arc<Vec<Vec<f64>>>> {
-        match &self.session_bias {
+        match &self.session.bias {
             Some((_, BiasState::Done(Ok(bias)))) => Some(bias),
             _ => None,
         }

@@ -5,6 +5,21 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+/// Files' part: the path typed under Scenes → Open path, the package
+/// folders, the recorder, and whether the user chose the robot.
+#[derive(Default)]
+pub struct Files {
+    /// The path typed under Scenes → Open path.
+    pub(crate) path_input: String,
+    /// The interactive mode being recorded.
+    pub(crate) recording: Option<super::recorder::Recording>,
+    /// Folders for `package://` URIs when opening URDFs and sessions.
+    pub package_paths: Vec<std::path::PathBuf>,
+    /// The robot was chosen by the user (a scene, URDF or name), not the
+    /// default one: sessions that name no robot are shown on it.
+    pub robot_chosen: bool,
+}
+
 /// What a file dialog gave.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Picked {

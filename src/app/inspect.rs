@@ -10,15 +10,15 @@ impl ProprioscopeApp {
     pub fn pixel_of_link(&self, name: &str) -> Option<egui::Pos2> {
         let link = self.model.robot.link_id(name).ok()?;
         let pose = self.model.pose();
-        let rect = self.view_rect?;
+        let rect = self.view.rect?;
         let mesh = &self.model.robot.links[link].mesh;
         let (lo, hi) = mesh.bounds()?;
         let centre = pose.point_to_world(link, 0.5 * (lo + hi));
         // Aim at the centre, then walk towards the eye until the ray hits this link.
         let size = Vec2::new(rect.width(), rect.height());
-        let pixel = self.camera.project(centre.as_vec3(), size)?;
-        let (origin, dir) = self.camera.ray(pixel, size);
-        let hit = self.picker.pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
+        let pixel = self.view.camera.project(centre.as_vec3(), size)?;
+        let (origin, dir) = self.view.camera.ray(pixel, size);
+        let hit = self.view.picker.pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
         (hit.link == link).then(|| rect.min + egui::vec2(pixel.x, pixel.y))
     }
 
@@ -75,19 +75,19 @@ impl ProprioscopeApp {
     /// The 3-D view's camera.
     #[must_use]
     pub fn camera(&self) -> &OrbitCamera {
-        &self.camera
+        &self.view.camera
     }
 
     /// The sensed joint whose torque bar the pointer is over.
     #[must_use]
     pub fn hovered_joint(&self) -> Option<usize> {
-        self.hovered_joint
+        self.view.hovered_joint
     }
 
     /// Where the 3-D view was last drawn in the window.
     #[must_use]
     pub fn view_rect(&self) -> Option<egui::Rect> {
-        self.view_rect
+        self.view.rect
     }
 
     /// How the robot was named when opened: a built-in name or the

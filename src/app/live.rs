@@ -13,10 +13,32 @@ use std::sync::Arc;
 
 use eframe::egui;
 
-use super::session::SessionData;
 use super::{Command, ProprioscopeApp};
+use crate::batch::SessionData;
 use crate::io::live::{LiveEvent, LiveSource};
 use crate::io::session::Frame;
+
+/// Live input's part: the source listened to, the thread filtering its
+/// frames, and the address typed in the Session menu.
+pub(crate) struct LivePart {
+    /// A live source being listened to.
+    pub(crate) view: Option<LiveView>,
+    /// The thread filtering a live session's frames as they arrive
+    /// (started on first use).
+    pub(crate) filter: Option<crate::batch::LiveFilterWorker>,
+    /// The address typed in the Session menu for listening.
+    pub(crate) address_input: String,
+}
+
+impl Default for LivePart {
+    fn default() -> Self {
+        Self {
+            view: None,
+            filter: None,
+            address_input: "127.0.0.1:7878".to_owned(),
+        }
+    }
+}
 
 /// A live source and what the app knows of it.
 pub struct LiveView {
@@ -63,7 +85,7 @@ impl ProprioscopeApp {
         match LiveSource::listen(address, move || ctx.request_repaint()) {
             Ok(source) => {
                 let note = format!("listening on {}", source.address);
-                self.live = Some(LiveView {
+                self.live.view = Some(LiveView {
                     source,
                     follow: true,
                     joints: Vec::new(),
@@ -76,7 +98,7 @@ impl ProprioscopeApp {
                     epoch: 0,
                     filtered_sent: 0,
                 });
-                self.live_filter = None;
+                self.live.filter = None;
             }
             Err(e) => self.error = Some(format!("could not listen: {e}")),
         }
@@ -84,22 +106,22 @@ impl ProprioscopeApp {
 
     /// Stops listening; the frames received stay as a session.
     pub fn stop_live(&mut self) {
-        self.live = None;
+        self.live.view = None;
         // Its thread ends with the handle; the frames are estimated anew.
-        self.live_filter = None;
+        self.live.filter = None;
         // Estimated as a whole from now on.
-        self.session_key = None;
+        self.session.key = None;
     }
 
     /// The address listened on, while live.
     #[must_use]
     pub fn live_address(&self) -> Option<&str> {
-        self.live.as_ref().map(|l| l.source.address.as_str())
+        self.live.view.as_ref().map(|l| l.source.address.as_str())
     }
 
     /// Takes what the live source sent since the last frame.
     pub(super) fn poll_live(&mut self) {
-        let Some(live) = self.live.as_mut() else {
+        let Some(live) = self.live.view.as_mut() else {
             return;
         };
         let width = self.model.robot.sensed().len();
@@ -160,7 +182,7 @@ impl ProprioscopeApp {
                 problems: Vec::new(),
             };
             let spec = self.robot_spec.clone();
-            self.first_frame = Some(data.frames.len().saturating_sub(1));
+            self.session.first_frame = Some(data.frames.len().saturating_sub(1));
             self.install_session(data, robot, spec);
             // Live, only the frames before can be used (as `estimate
             // --live`): filtered, unless the user picks each frame alone.
@@ -181,7 +203,7 @@ impl ProprioscopeApp {
         data.file_frames.extend(start..start + frames.len());
         data.frames.extend(frames);
         let last = data.frames.len().saturating_sub(1);
-        if let Some(live) = self.live.as_mut() {
+        if let Some(live) = self.live.view.as_mut() {
             // Moving back from the newest frame stops following.
             live.follow &= shown_last;
             if live.follow {
@@ -198,7 +220,7 @@ impl ProprioscopeApp {
             .session
             .frames
             .len()
-            .saturating_sub(self.session_done + self.session_failures.len());
+            .saturating_sub(self.session.done + self.session.failures.len());
         let what = match replay.over_time {
             Temporal::None => return None,
             Temporal::Filter => "filtered as they arrive",
@@ -213,7 +235,7 @@ impl ProprioscopeApp {
 
     /// The live row above the timeline: where from, how many, follow.
     pub(super) fn live_ui(&mut self, ui: &mut egui::Ui) {
-        let Some(live) = self.live.as_ref() else {
+        let Some(live) = self.live.view.as_ref() else {
             return;
         };
         let mut follow = false;
@@ -247,7 +269,7 @@ impl ProprioscopeApp {
             }
         });
         if follow {
-            if let Some(live) = self.live.as_mut() {
+            if let Some(live) = self.live.view.as_mut() {
                 live.follow = true;
             }
             let last = self

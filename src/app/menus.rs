@@ -23,7 +23,7 @@ impl ProprioscopeApp {
                 {
                     ui.close();
                     if let Some(folder) = self.picked(files::pick(|| rfd::FileDialog::new().pick_folder())) {
-                        self.package_paths.push(folder);
+                        self.files.package_paths.push(folder);
                     }
                 }
                 if ui.button("Save scene…").clicked() {
@@ -36,13 +36,13 @@ impl ProprioscopeApp {
                 }
                 ui.horizontal(|ui| {
                     ui.add(
-                        egui::TextEdit::singleline(&mut self.path_input)
+                        egui::TextEdit::singleline(&mut self.files.path_input)
                             .hint_text("path of a scene, URDF, session or recording")
                             .desired_width(220.0),
                     );
                     if ui.button("Open path").clicked() {
                         ui.close();
-                        let path = self.path_input.trim().to_owned();
+                        let path = self.files.path_input.trim().to_owned();
                         if !path.is_empty() {
                             self.open(&path);
                         }
@@ -66,7 +66,7 @@ impl ProprioscopeApp {
                 ui.checkbox(&mut self.panels.estimator, "Estimator panel");
                 if ui.button("Fit the robot in view (R)").clicked() {
                     ui.close();
-                    self.fit_pending = true;
+                    self.view.fit_pending = true;
                 }
             });
             ui.menu_button("Robot", |ui| {
@@ -100,10 +100,10 @@ impl ProprioscopeApp {
                 }
             }
             ui.horizontal(|ui| {
-                ui.add(egui::TextEdit::singleline(&mut self.live_address_input).desired_width(160.0));
-                if self.live.is_none() && ui.button("Listen live").on_hover_text("frames as JSON lines over TCP (host:port) or UDP (udp://host:port), e.g. from `proprioscope stream`").clicked() {
+                ui.add(egui::TextEdit::singleline(&mut self.live.address_input).desired_width(160.0));
+                if self.live.view.is_none() && ui.button("Listen live").on_hover_text("frames as JSON lines over TCP (host:port) or UDP (udp://host:port), e.g. from `proprioscope stream`").clicked() {
                     ui.close();
-                    let address = self.live_address_input.clone();
+                    let address = self.live.address_input.clone();
                     self.start_live(&address);
                 }
             });
@@ -112,7 +112,7 @@ impl ProprioscopeApp {
                 self.close_session();
             }
             ui.separator();
-            if self.recording.is_some() {
+            if self.files.recording.is_some() {
                 if ui.button("Stop recording").clicked() {
                     ui.close();
                     self.stop_recording();
@@ -132,7 +132,7 @@ impl ProprioscopeApp {
         if let Some(frames) = self.recorded_frames() {
             ui.colored_label(egui::Color32::from_rgb(230, 70, 70), format!("REC {frames} frames"));
         }
-        if let Some(loader) = &self.loader {
+        if let Some(loader) = &self.session.loader {
             ui.add(egui::Spinner::new());
             ui.add(
                 egui::ProgressBar::new(loader.progress() as f32)

@@ -4,6 +4,7 @@
 
 pub mod bias;
 mod commands;
+mod estimator_panel;
 pub mod files;
 pub mod heat;
 mod inspect;
@@ -11,16 +12,14 @@ pub mod live;
 mod menus;
 mod model;
 pub mod overlay;
-mod panels;
-mod recorder;
+pub mod recorder;
 mod robot_panel;
 mod session_panel;
 mod start;
+pub mod timeline;
 mod topic_prompt;
 mod torques;
 mod view;
-pub use crate::batch as session;
-pub mod timeline;
 pub mod worker;
 
 pub use commands::Command;
@@ -28,7 +27,6 @@ pub use model::*;
 pub use start::*;
 pub use view::robot_bounds;
 
-use std::fmt::Write as _;
 use std::sync::Arc;
 
 use eframe::egui;
@@ -105,87 +103,43 @@ struct PanelsShown {
     estimator: bool,
 }
 
-/// The app.
+/// The app: the model, the estimate of the frame on screen, and the parts
+/// that own their state and draw themselves (the view, the side panels,
+/// the session and its timeline, live input, files and topics).
 pub struct ProprioscopeApp {
     /// The user's model.
     pub model: Model,
-    camera: OrbitCamera,
-    picker: Picker,
     worker: Worker,
     generation: u64,
     /// The latest estimate shown.
     pub outcome: Option<Outcome>,
-    renderer: Option<Renderer>,
-    texture: Option<egui::TextureId>,
-    view_rect: Option<egui::Rect>,
     robot_spec: String,
     /// The last failed open or save, shown until the next success.
     pub error: Option<String>,
-    /// The joint whose torque bar the pointer is over (sensed index).
-    hovered_joint: Option<usize>,
-    /// Seed of the last random pose.
-    pose_seed: u64,
-    /// What the view texture last showed: it is redrawn only when this changes.
-    drawn: Option<ViewKey>,
     status: String,
     ctx: egui::Context,
-    session_worker: session::SessionWorker,
-    /// Background estimates of the session's frames (`None`: not yet).
-    pub session_estimates: Vec<Option<session::FrameEstimate>>,
-    /// How many of them are there (counted as they arrive, not per frame).
-    session_done: usize,
-    /// Frames whose estimate failed, with why.
-    session_failures: std::collections::BTreeMap<usize, String>,
-    session_generation: u64,
-    session_key: Option<timeline::SessionKey>,
-    loader: Option<session::Loader>,
-    /// A live source being listened to.
-    live: Option<live::LiveView>,
-    /// The thread filtering a live session's frames as they arrive
-    /// (started on first use).
-    live_filter: Option<crate::batch::LiveFilterWorker>,
-    /// The address typed in the Session menu for listening.
-    live_address_input: String,
-    /// A recording whose topics the user is asked to choose.
-    pub topic_prompt: Option<session::TopicPrompt>,
-    /// Topics chosen per recording, and the last choice (tried first on
-    /// the next recording).
-    topic_choices: std::collections::HashMap<std::path::PathBuf, crate::io::recording::TopicChoice>,
-    last_topic_choice: Option<crate::io::recording::TopicChoice>,
-    recording: Option<recorder::Recording>,
-    /// Folders for `package://` URIs when opening URDFs and sessions.
-    pub package_paths: Vec<std::path::PathBuf>,
-    /// The frame a session being loaded opens on.
-    first_frame: Option<usize>,
     /// Estimates of session frames shown recently, by what they depend on.
     visited: std::collections::VecDeque<(EstimateInputs, Outcome)>,
     /// The estimate asked of the worker last, and what it depends on.
     pending: Option<(u64, EstimateInputs)>,
     /// Session frames shown again from [`Self::visited`] (for tests).
     pub visited_hits: usize,
-    /// The session's metrics, with the estimation run they belong to.
-    session_metrics: Option<((u64, usize), Option<session_panel::SessionMetrics>)>,
     /// A scene, URDF or robot being opened in the background.
     opening: Option<worker::Background<AppStart>>,
-    /// The legend of the heat last drawn.
-    legend: Option<Legend>,
-    /// A push being dragged: the contact found where the drag started.
-    push_drag: Option<crate::core::surface::picking::Pick>,
-    /// The session's torque bias, when it is taken off, with what it was
-    /// estimated from.
-    session_bias: Option<(bias::BiasKey, bias::BiasState)>,
-    /// The path typed under Scenes → Open path.
-    path_input: String,
-    /// The robot was chosen by the user (a scene, URDF or name), not the
-    /// default one: sessions that name no robot are shown on it.
-    pub robot_chosen: bool,
-    /// Fit the camera to the robot when the view is next laid out (its
-    /// aspect is known then).
-    fit_pending: bool,
     /// Side panels shown (View menu).
     panels: PanelsShown,
-    /// What the sample under the pointer explains (shown in the view).
-    hover_text: Option<String>,
+    /// The 3-D view.
+    view: view::ViewPart,
+    /// The robot panel.
+    robot_panel: robot_panel::RobotPanel,
+    /// The session on the timeline and its background estimation.
+    pub session: timeline::SessionPart,
+    /// A live source and its filter.
+    live: live::LivePart,
+    /// Files: paths typed, package folders, the recorder.
+    pub files: files::Files,
+    /// Recordings' topics chosen and asked for.
+    pub topics: topic_prompt::TopicPrompts,
 }
 
 impl ProprioscopeApp {
@@ -206,56 +160,27 @@ impl ProprioscopeApp {
         let picker = Picker::new(&robot);
         let mut app = Self {
             model: Model::from_start(robot, q, push, settings, ViewOptions::default()),
-            camera: OrbitCamera::default(),
-            picker,
             worker: Worker::spawn(move || ctx.request_repaint()),
             generation: 0,
             outcome: None,
-            renderer,
-            texture: None,
-            view_rect: None,
             robot_spec: String::new(),
             error: None,
-            hovered_joint: None,
-            pose_seed: 0,
-            drawn: None,
             status: String::new(),
-            session_worker: session::SessionWorker::spawn({
-                let ctx = cc.egui_ctx.clone();
-                move || ctx.request_repaint()
-            }),
             ctx: cc.egui_ctx.clone(),
-            session_estimates: Vec::new(),
-            session_done: 0,
-            session_failures: std::collections::BTreeMap::new(),
-            session_generation: 0,
-            session_key: None,
-            loader: None,
-            topic_prompt: None,
-            live: None,
-            live_filter: None,
-            live_address_input: "127.0.0.1:7878".to_owned(),
-            topic_choices: std::collections::HashMap::new(),
-            last_topic_choice: None,
-            recording: None,
-            package_paths: Vec::new(),
-            first_frame: None,
-            session_metrics: None,
             visited: std::collections::VecDeque::new(),
             pending: None,
             visited_hits: 0,
             opening: None,
-            legend: None,
-            path_input: String::new(),
-            session_bias: None,
-            push_drag: None,
-            robot_chosen: false,
-            hover_text: None,
-            fit_pending: true,
             panels: PanelsShown {
                 robot: true,
                 estimator: true,
             },
+            view: view::ViewPart::new(picker, renderer),
+            robot_panel: robot_panel::RobotPanel::default(),
+            session: timeline::SessionPart::spawn(&cc.egui_ctx),
+            live: live::LivePart::default(),
+            files: files::Files::default(),
+            topics: topic_prompt::TopicPrompts::default(),
         };
         app.request_estimate();
         app
@@ -267,10 +192,10 @@ impl ProprioscopeApp {
         let spec = start.robot_spec.clone();
         let mut app = Self::new(cc, start.robot, start.q, start.push, start.settings);
         app.robot_spec = spec;
-        app.robot_chosen = start.robot_chosen;
-        app.package_paths = start.package_paths;
+        app.files.robot_chosen = start.robot_chosen;
+        app.files.package_paths = start.package_paths;
         if let Some(session) = start.session {
-            app.first_frame = session.frame;
+            app.session.first_frame = session.frame;
             app.open_session(&session.path, session.robot);
         }
         if let Some(address) = start.live {
@@ -289,7 +214,7 @@ impl ProprioscopeApp {
         // Reading a URDF and its meshes can take seconds: on a thread of
         // its own, the current scene staying until it is there.
         let owned = target.to_owned();
-        let package_paths = self.package_paths.clone();
+        let package_paths = self.files.package_paths.clone();
         let ctx = self.ctx.clone();
         self.opening = Some(worker::Background::spawn(
             target.to_owned(),
@@ -326,8 +251,8 @@ impl ProprioscopeApp {
         match done {
             Ok(start) => {
                 let model = Model::from_start(start.robot, start.q, start.push, start.settings, self.model.view);
-                self.package_paths = start.package_paths;
-                self.robot_chosen |= start.robot_chosen;
+                self.files.package_paths = start.package_paths;
+                self.files.robot_chosen |= start.robot_chosen;
                 self.replace_model(model, start.robot_spec);
             }
             Err(e) => self.error = Some(format!("could not open {target}: {e}")),
@@ -427,21 +352,21 @@ impl ProprioscopeApp {
     /// estimate, the frames estimated, the picker, the hovered joint, the
     /// drawn view) is dropped or rebuilt here, and a new estimate asked for.
     pub(crate) fn replace_model(&mut self, model: Model, robot_spec: String) {
-        self.picker = Picker::new(&model.robot);
+        self.view.picker = Picker::new(&model.robot);
         self.model = model;
         self.robot_spec = robot_spec;
         self.outcome = None;
         self.pending = None;
         self.visited.clear();
-        self.hovered_joint = None;
-        self.push_drag = None;
-        self.drawn = None;
-        self.fit_pending = true;
-        self.session_key = None;
-        self.session_estimates.clear();
-        self.session_done = 0;
-        self.session_failures.clear();
-        self.session_metrics = None;
+        self.view.hovered_joint = None;
+        self.view.push_drag = None;
+        self.view.drawn = None;
+        self.view.fit_pending = true;
+        self.session.key = None;
+        self.session.estimates.clear();
+        self.session.done = 0;
+        self.session.failures.clear();
+        self.session.metrics = None;
         self.error = None;
         self.request_estimate();
     }
@@ -486,7 +411,7 @@ impl eframe::App for ProprioscopeApp {
         // least half of it both ways, from 1280×720 up.
         let window = ui.ctx().content_rect().size();
         let side_max = (0.25 * window.x).max(200.0);
-        let in_session = self.model.replay.is_some() || self.live.is_some();
+        let in_session = self.model.replay.is_some() || self.live.view.is_some();
         // Below the menu and across the whole width: a session's timeline.
         if in_session {
             egui::Panel::bottom("timeline")
@@ -505,7 +430,7 @@ impl eframe::App for ProprioscopeApp {
                 .default_size(side_max.min(290.0))
                 .max_size(side_max)
                 .show(ui, |ui| {
-                    egui::ScrollArea::vertical().show(ui, |ui| commands.extend(self.robot_panel_ui(ui)));
+                    egui::ScrollArea::vertical().show(ui, |ui| commands.extend(self.robot_panel.ui(ui, &self.model)));
                 });
         }
         if self.panels.estimator {
@@ -515,7 +440,11 @@ impl eframe::App for ProprioscopeApp {
                 .max_size(side_max)
                 .show(ui, |ui| {
                     egui::ScrollArea::vertical().show(ui, |ui| {
-                        commands.extend(self.estimator_panel_ui(ui));
+                        commands.extend(estimator_panel::EstimatorPanel::ui(
+                            ui,
+                            &self.model,
+                            self.current_outcome(),
+                        ));
                         self.session_summary_ui(ui);
                         // In a session the bottom belongs to the timeline.
                         if in_session {

@@ -2,7 +2,7 @@
 
 use super::{
     Arc, DVec3, EstimatorConfig, EstimatorSettings, LinkId, OrbitCamera, Robot, RobotPose, Sigma, Temporal,
-    joint_torques, per_joint, session, with_sensor_noise,
+    joint_torques, per_joint, with_sensor_noise,
 };
 
 /// A push on the robot, kept in the link frame so that it moves with the arm.
@@ -54,7 +54,7 @@ pub struct Model {
 #[derive(Debug, Clone)]
 pub struct Replay {
     /// The session (good frames only).
-    pub session: Arc<session::SessionData>,
+    pub session: Arc<crate::batch::SessionData>,
     /// The frame shown (index into the good frames).
     pub frame: usize,
     /// Playing (else paused).

@@ -3,12 +3,14 @@
 use std::path::Path;
 use std::time::Instant;
 
-use super::timeline::RECORD_RATE_HZ;
 use super::{Model, ProprioscopeApp, egui};
 use crate::io::session::{Frame, Recorder, Truth};
 
+/// While recording, a frame at least this often even when nothing moves.
+pub const RECORD_RATE_HZ: f64 = 10.0;
+
 /// A recording under way.
-pub(super) struct Recording {
+pub(crate) struct Recording {
     pub(super) recorder: Recorder,
     pub(super) started: Instant,
     /// What the last frame showed, and when it was written.
@@ -34,7 +36,7 @@ impl ProprioscopeApp {
         };
         match Recorder::create(path, &robot, &joints) {
             Ok(recorder) => {
-                self.recording = Some(Recording {
+                self.files.recording = Some(Recording {
                     recorder,
                     started: Instant::now(),
                     last: None,
@@ -47,7 +49,7 @@ impl ProprioscopeApp {
 
     /// Stops recording and closes the file; the frames written.
     pub fn stop_recording(&mut self) -> Option<usize> {
-        let recording = self.recording.take()?;
+        let recording = self.files.recording.take()?;
         match recording.recorder.finish() {
             Ok(frames) => Some(frames),
             Err(e) => {
@@ -60,12 +62,12 @@ impl ProprioscopeApp {
     /// Frames recorded so far, when recording.
     #[must_use]
     pub fn recorded_frames(&self) -> Option<usize> {
-        self.recording.as_ref().map(|r| r.recorder.frames())
+        self.files.recording.as_ref().map(|r| r.recorder.frames())
     }
 
     /// Writes a frame when the pose or push changed, or at the steady rate.
     pub(super) fn record_tick(&mut self, ctx: &egui::Context) {
-        let Some(recording) = &mut self.recording else {
+        let Some(recording) = &mut self.files.recording else {
             return;
         };
         let model = &self.model;
@@ -80,7 +82,7 @@ impl ProprioscopeApp {
         let frame = interactive_frame(model, now.duration_since(recording.started).as_secs_f64());
         if let Err(e) = recording.recorder.write(&frame) {
             self.error = Some(e.to_string());
-            self.recording = None;
+            self.files.recording = None;
             return;
         }
         recording.last = Some((model.q.clone(), model.push, now));

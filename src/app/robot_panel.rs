@@ -1,21 +1,28 @@
 //! The robot panel: joints, push, touchable links, sensor noise; and the
 //! fine slider it is built of.
 
-use super::{Command, ProprioscopeApp, egui};
+use super::{Command, Model, egui};
 
-impl ProprioscopeApp {
-    pub(super) fn robot_panel_ui(&mut self, ui: &mut egui::Ui) -> Vec<Command> {
+/// The robot panel's part: the seed of the last random pose.
+#[derive(Debug, Default)]
+pub(crate) struct RobotPanel {
+    pub(crate) pose_seed: u64,
+}
+
+impl RobotPanel {
+    /// Draws the panel for `model`; what the user changed, as commands.
+    pub(crate) fn ui(&mut self, ui: &mut egui::Ui, model: &Model) -> Vec<Command> {
         let mut commands = Vec::new();
-        ui.heading(&self.model.robot.name);
+        ui.heading(&model.robot.name);
         ui.label("Joints (degrees)").on_hover_text(
             "drag; Shift+drag for fine steps; click and use the arrow keys; type a value and press Enter",
         );
-        for (i, &j) in self.model.robot.sensed().iter().enumerate() {
-            let joint = &self.model.robot.joints[j];
+        for (i, &j) in model.robot.sensed().iter().enumerate() {
+            let joint = &model.robot.joints[j];
             let (lo, hi) = joint
                 .limits
                 .map_or((-180.0, 180.0), |l| (l.lower.to_degrees(), l.upper.to_degrees()));
-            let mut deg = self.model.q[i].to_degrees();
+            let mut deg = model.q[i].to_degrees();
             if fine_slider(ui, &mut deg, lo..=hi, "°", &joint.name) {
                 commands.push(Command::SetJoint(i, deg.to_radians()));
             }
@@ -31,17 +38,17 @@ impl ProprioscopeApp {
         });
         ui.separator();
         ui.label("Push (click the arm)");
-        match self.model.push {
+        match model.push {
             Some(p) => {
                 let mut f = p.force_newtons;
                 if fine_slider(ui, &mut f, 0.0..=30.0, " N", "force") {
                     commands.push(Command::SetForce(f));
                 }
-                let pose = self.model.pose();
+                let pose = model.pose();
                 let at = pose.point_to_world(p.link, p.point_in_link);
                 ui.label(format!(
                     "on {} at ({:.3}, {:.3}, {:.3}) m",
-                    self.model.robot.links[p.link].name, at.x, at.y, at.z
+                    model.robot.links[p.link].name, at.x, at.y, at.z
                 ));
                 if ui.button("Clear push").clicked() {
                     commands.push(Command::ClearPush);
@@ -53,18 +60,18 @@ impl ProprioscopeApp {
         }
         ui.separator();
         ui.label("Links that can be touched");
-        for link in self.model.robot.default_candidate_links() {
-            let mut on = self.model.candidate_links.contains(&link);
-            if ui.checkbox(&mut on, &self.model.robot.links[link].name).changed() {
+        for link in model.robot.default_candidate_links() {
+            let mut on = model.candidate_links.contains(&link);
+            if ui.checkbox(&mut on, &model.robot.links[link].name).changed() {
                 commands.push(Command::SetCandidate(link, on));
             }
         }
         ui.separator();
-        let mut seed = self.model.noise_seed;
+        let mut seed = model.noise_seed;
         if ui.add(egui::DragValue::new(&mut seed).prefix("noise seed ")).changed() {
             commands.push(Command::SetNoiseSeed(seed));
         }
-        let mut noise = self.model.noise_sigma;
+        let mut noise = model.noise_sigma;
         if fine_slider(ui, &mut noise, 0.0..=0.5, "", "sensor noise σ [N·m]") {
             commands.push(Command::SetNoise(noise));
         }
@@ -85,7 +92,7 @@ pub(super) fn fine_slider(
 ) -> bool {
     let before = *value;
     // What the name and the number take; the slider gets the rest.
-    let name = super::panels::label_width(ui, text);
+    let name = super::estimator_panel::label_width(ui, text);
     let width = (ui.available_width() - name - 90.0).max(60.0);
     ui.spacing_mut().slider_width = width;
     let response = ui.add(

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use super::{ProprioscopeApp, egui, session};
+use super::{ProprioscopeApp, egui};
 use crate::core::eval::metrics::Metrics;
 
 /// How one metric is written in the session panel.
@@ -66,7 +66,7 @@ impl ProprioscopeApp {
                     }
                 });
         }
-        let failures = &self.session_failures;
+        let failures = &self.session.failures;
         if !failures.is_empty() {
             egui::CollapsingHeader::new(format!("Frames not estimated ({})", failures.len()))
                 .default_open(true)
@@ -133,12 +133,12 @@ impl ProprioscopeApp {
     /// when more are (a long session's take milliseconds).
     pub(super) fn cached_session_metrics(&mut self) -> Option<SessionMetrics> {
         let replay = self.model.replay.as_ref()?;
-        let key = (self.session_generation, self.session_estimated());
-        if self.session_metrics.as_ref().is_none_or(|(k, _)| *k != key) {
-            let computed = session::session_metrics(&self.model.robot, &replay.session, &self.session_estimates);
-            self.session_metrics = Some((key, computed));
+        let key = (self.session.generation, self.session_estimated());
+        if self.session.metrics.as_ref().is_none_or(|(k, _)| *k != key) {
+            let computed = crate::batch::session_metrics(&self.model.robot, &replay.session, &self.session.estimates);
+            self.session.metrics = Some((key, computed));
         }
-        self.session_metrics.as_ref().and_then(|(_, m)| m.clone())
+        self.session.metrics.as_ref().and_then(|(_, m)| m.clone())
     }
 
     /// Writes the session's metrics as JSON.
@@ -150,7 +150,7 @@ impl ProprioscopeApp {
         let Some(replay) = &self.model.replay else {
             return;
         };
-        let mut json = session::metrics_json(&all, &by_joints);
+        let mut json = crate::batch::metrics_json(&all, &by_joints);
         json["session"] = serde_json::json!(replay.session.path.display().to_string());
         json["skipped_frames"] = serde_json::json!(replay.session.problems.len());
         let result = serde_json::to_string_pretty(&json)

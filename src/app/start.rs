@@ -251,7 +251,7 @@ impl ProprioscopeApp {
             } else {
                 relative(std::path::Path::new(&self.robot_spec))
             },
-            package_paths: self.package_paths.iter().map(|p| relative(p)).collect(),
+            package_paths: self.files.package_paths.iter().map(|p| relative(p)).collect(),
             sensed_joints: (!builtin).then(|| m.robot.sensed_names().into_iter().map(str::to_owned).collect()),
             q: m.q.clone(),
             other_joints: m.other_joints.iter().cloned().collect(),

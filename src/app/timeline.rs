@@ -6,18 +6,55 @@ use std::sync::Arc;
 
 use eframe::egui;
 
-use super::session::{self, EstimateJob, FrameEstimate, LoadFailure, Loader, SessionData};
 use super::{Command, Model, ProprioscopeApp, Replay, SPEED_RANGE, per_joint};
+use crate::batch::{self, EstimateJob, FrameEstimate, LoadFailure, Loader, SessionData};
 use crate::core::config::estimator::{EstimatorConfig, ModeKind, Sigma};
 use crate::core::estimate::summary::Verdict;
 use crate::core::over_time::sequence::{Temporal, automatic_temporal};
 use crate::core::robot::model::{LinkId, Robot};
 use crate::io::session::{Frame, Truth};
 
-pub use super::recorder::interactive_frame;
+/// The session's part: the frames' background estimation (its worker,
+/// the estimates so far, failures, what they were made with), the session
+/// being loaded, its metrics and its torque bias.
+pub struct SessionPart {
+    pub(crate) worker: batch::SessionWorker,
+    /// Background estimates of the session's frames (`None`: not yet).
+    pub estimates: Vec<Option<FrameEstimate>>,
+    /// How many of them are there (counted as they arrive, not per frame).
+    pub(crate) done: usize,
+    /// Frames whose estimate failed, with why.
+    pub(crate) failures: std::collections::BTreeMap<usize, String>,
+    pub(crate) generation: u64,
+    pub(crate) key: Option<SessionKey>,
+    pub(crate) loader: Option<Loader>,
+    /// The frame a session being loaded opens on.
+    pub(crate) first_frame: Option<usize>,
+    /// The session's metrics, with the estimation run they belong to.
+    pub(crate) metrics: Option<((u64, usize), Option<super::session_panel::SessionMetrics>)>,
+    /// The session's torque bias, when it is taken off, with what it was
+    /// estimated from.
+    pub(crate) bias: Option<(super::bias::BiasKey, super::bias::BiasState)>,
+}
 
-/// While recording, a frame at least this often even when nothing moves.
-pub const RECORD_RATE_HZ: f64 = 10.0;
+impl SessionPart {
+    /// No session; its worker's thread started (it repaints `ctx`).
+    pub(crate) fn spawn(ctx: &egui::Context) -> Self {
+        let ctx = ctx.clone();
+        Self {
+            worker: batch::SessionWorker::spawn(move || ctx.request_repaint()),
+            estimates: Vec::new(),
+            done: 0,
+            failures: std::collections::BTreeMap::new(),
+            generation: 0,
+            key: None,
+            loader: None,
+            first_frame: None,
+            metrics: None,
+            bias: None,
+        }
+    }
+}
 
 /// Named lines of a plot: (name, points).
 type PlotLines = Vec<(String, Vec<[f64; 2]>)>;
@@ -27,7 +64,7 @@ const PLOT_POINTS: usize = 1500;
 
 /// What the background estimation of a session depends on.
 #[derive(Debug, Clone, PartialEq)]
-pub(super) struct SessionKey {
+pub(crate) struct SessionKey {
     session: usize,
     /// While live: the live session's epoch (it grows in place, so its
     /// address says nothing).
@@ -51,7 +88,7 @@ impl ProprioscopeApp {
         let robot = match robot {
             Some(r) => Some(r),
             None if crate::io::open::names_no_robot(path) => {
-                if !self.robot_chosen {
+                if !self.files.robot_chosen {
                     self.error = Some(format!(
                         "{} names no robot (CSV sessions and recordings do not): open its robot first \
                          (Robot menu, or Scenes > Open scene or URDF), then the session; or run \
@@ -69,15 +106,16 @@ impl ProprioscopeApp {
         // A recording's topics: as chosen for this file before, else as for
         // the last file whose topics were chosen (when they fit).
         let choice = self
-            .topic_choices
+            .topics
+            .choices
             .get(path)
-            .or(self.last_topic_choice.as_ref())
+            .or(self.topics.last.as_ref())
             .cloned()
             .unwrap_or_default();
-        self.loader = Some(Loader::spawn(
+        self.session.loader = Some(Loader::spawn(
             path.to_owned(),
             robot,
-            self.package_paths.clone(),
+            self.files.package_paths.clone(),
             choice,
             move || ctx.request_repaint(),
         ));
@@ -85,14 +123,14 @@ impl ProprioscopeApp {
 
     /// Installs a loaded session (or shows why it could not be loaded).
     pub(super) fn poll_loader(&mut self) {
-        let Some(result) = self.loader.as_ref().and_then(Loader::poll) else {
+        let Some(result) = self.session.loader.as_ref().and_then(Loader::poll) else {
             return;
         };
-        let path = self.loader.take().map(|l| l.path).unwrap_or_default();
+        let path = self.session.loader.take().map(|l| l.path).unwrap_or_default();
         match result {
             Ok((data, robot, spec)) => self.install_session(data, robot, spec),
             Err(LoadFailure::Failed(e)) => self.error = Some(format!("could not open session {}: {e}", path.display())),
-            Err(LoadFailure::NeedsTopics(prompt)) => self.topic_prompt = Some(*prompt),
+            Err(LoadFailure::NeedsTopics(prompt)) => self.topics.prompt = Some(*prompt),
         }
     }
 
@@ -136,7 +174,7 @@ impl ProprioscopeApp {
             }),
             refused: None,
         };
-        let first = self.first_frame.take().unwrap_or(0);
+        let first = self.session.first_frame.take().unwrap_or(0);
         let mut model = model;
         model.apply(Command::SetFrame(first));
         self.replace_model(model, spec);
@@ -146,10 +184,10 @@ impl ProprioscopeApp {
     pub fn close_session(&mut self) {
         self.model.replay = None;
         self.visited.clear();
-        self.session_key = None;
-        self.session_estimates.clear();
-        self.session_done = 0;
-        self.session_failures.clear();
+        self.session.key = None;
+        self.session.estimates.clear();
+        self.session.done = 0;
+        self.session.failures.clear();
         self.request_estimate();
     }
 
@@ -162,7 +200,7 @@ impl ProprioscopeApp {
         };
         // A live session grows every frame: filtered as its frames arrive
         // (or each alone as it is shown), as a whole once the stream stops.
-        if self.live.is_some() {
+        if self.live.view.is_some() {
             self.update_live_estimates();
             return;
         }
@@ -170,18 +208,18 @@ impl ProprioscopeApp {
         let Some(key) = self.current_session_key() else {
             return;
         };
-        if self.session_key.as_ref() != Some(&key) {
-            self.session_generation += 1;
-            self.session_estimates = vec![None; replay.session.frames.len()];
-            self.session_done = 0;
-            self.session_failures.clear();
+        if self.session.key.as_ref() != Some(&key) {
+            self.session.generation += 1;
+            self.session.estimates = vec![None; replay.session.frames.len()];
+            self.session.done = 0;
+            self.session.failures.clear();
             if self.bias_pending() {
                 // Estimated once the bias is known (the key changes then).
-                self.session_key = Some(key);
+                self.session.key = Some(key);
                 return;
             }
-            self.session_worker.start(EstimateJob {
-                generation: self.session_generation,
+            self.session.worker.start(EstimateJob {
+                generation: self.session.generation,
                 robot: m.robot.clone(),
                 session: replay.session.clone(),
                 config: m.config.clone(),
@@ -190,9 +228,9 @@ impl ProprioscopeApp {
                 over_time: replay.over_time,
                 bias: self.session_bias().cloned(),
             });
-            self.session_key = Some(key);
+            self.session.key = Some(key);
         }
-        let done: Vec<session::Estimated> = self.session_worker.drain().collect();
+        let done: Vec<crate::batch::Estimated> = self.session.worker.drain().collect();
         self.record_estimates(done);
     }
 
@@ -206,74 +244,75 @@ impl ProprioscopeApp {
         if replay.over_time == Temporal::None {
             // Each frame alone, as it is shown: nothing filtered is kept
             // (the plots would show it for the frames it reached).
-            if self.session_key.take().is_some() {
-                self.session_generation += 1;
-                self.session_estimates.clear();
-                self.session_done = 0;
-                self.session_failures.clear();
+            if self.session.key.take().is_some() {
+                self.session.generation += 1;
+                self.session.estimates.clear();
+                self.session.done = 0;
+                self.session.failures.clear();
             }
             return;
         }
         let Some(key) = self.current_session_key() else {
             return;
         };
-        let Some(live) = self.live.as_mut() else {
+        let Some(live) = self.live.view.as_mut() else {
             return;
         };
         let m = &self.model;
         let frames = &replay.session.frames;
         let ctx = self.ctx.clone();
         let worker = self
-            .live_filter
+            .live
+            .filter
             .get_or_insert_with(|| crate::batch::LiveFilterWorker::spawn(move || ctx.request_repaint()));
-        if self.session_key.as_ref() != Some(&key) {
-            self.session_generation += 1;
-            self.session_estimates = vec![None; frames.len()];
-            self.session_done = 0;
-            self.session_failures.clear();
+        if self.session.key.as_ref() != Some(&key) {
+            self.session.generation += 1;
+            self.session.estimates = vec![None; frames.len()];
+            self.session.done = 0;
+            self.session.failures.clear();
             worker.start(crate::batch::LiveJob {
-                generation: self.session_generation,
+                generation: self.session.generation,
                 robot: m.robot.clone(),
                 frames: frames.clone(),
                 config: m.config.clone(),
                 links: m.candidate_links.clone(),
             });
             live.filtered_sent = frames.len();
-            self.session_key = Some(key);
+            self.session.key = Some(key);
         } else if let Some(new) = frames.get(live.filtered_sent..).filter(|f| !f.is_empty()) {
             worker.append(new.to_vec());
             live.filtered_sent = frames.len();
-            self.session_estimates.resize(frames.len(), None);
+            self.session.estimates.resize(frames.len(), None);
         }
-        let done: Vec<session::Estimated> = worker.drain().collect();
+        let done: Vec<crate::batch::Estimated> = worker.drain().collect();
         self.record_estimates(done);
     }
 
     /// Files estimates of session frames (those of the current generation).
-    fn record_estimates(&mut self, estimated: Vec<session::Estimated>) {
+    fn record_estimates(&mut self, estimated: Vec<crate::batch::Estimated>) {
         for done in estimated {
-            if done.generation != self.session_generation {
+            if done.generation != self.session.generation {
                 continue;
             }
             match done.estimate {
                 Ok(e) => {
-                    if let Some(slot) = self.session_estimates.get_mut(done.frame) {
-                        self.session_done += usize::from(slot.is_none());
+                    if let Some(slot) = self.session.estimates.get_mut(done.frame) {
+                        self.session.done += usize::from(slot.is_none());
                         *slot = Some(e);
                     }
                 }
-                Err(e) if done.frame == session::EVERY_FRAME => {
-                    let frames = self.session_estimates.len();
+                Err(e) if done.frame == crate::batch::EVERY_FRAME => {
+                    let frames = self.session.estimates.len();
                     for frame in 0..frames {
-                        if self.session_estimates.get(frame).is_some_and(Option::is_none) {
-                            self.session_failures.entry(frame).or_insert_with(|| e.clone());
+                        if self.session.estimates.get(frame).is_some_and(Option::is_none) {
+                            self.session.failures.entry(frame).or_insert_with(|| e.clone());
                         }
                     }
                     self.error = Some(format!("the session could not be estimated: {e}"));
                 }
                 Err(e) => {
-                    if self.session_estimates.get(done.frame).is_some_and(Option::is_none) {
-                        self.session_failures.insert(done.frame, e);
+                    if self.session.estimates.get(done.frame).is_some_and(Option::is_none) {
+                        self.session.failures.insert(done.frame, e);
                     }
                 }
             }
@@ -284,7 +323,7 @@ impl ProprioscopeApp {
     fn current_session_key(&self) -> Option<SessionKey> {
         let m = &self.model;
         let replay = m.replay.as_ref()?;
-        let live_epoch = self.live.as_ref().map(|l| l.epoch);
+        let live_epoch = self.live.view.as_ref().map(|l| l.epoch);
         Some(SessionKey {
             session: if live_epoch.is_some() {
                 0
@@ -305,25 +344,25 @@ impl ProprioscopeApp {
     /// Frames estimated in the background so far.
     #[must_use]
     pub fn session_estimated(&self) -> usize {
-        self.session_done
+        self.session.done
     }
 
     /// Session frames whose estimate failed, with why (frame → message).
     #[must_use]
     pub fn session_failures(&self) -> &std::collections::BTreeMap<usize, String> {
-        &self.session_failures
+        &self.session.failures
     }
 
     /// Whether nothing is loading and every session frame is estimated
     /// (or failed: those are counted and listed, not waited for).
     pub(super) fn session_settled(&self) -> bool {
-        self.loader.is_none()
+        self.session.loader.is_none()
             && (self.model.replay.is_none()
                 // Live frames are estimated as shown, not as a whole.
-                || self.live.is_some()
-                || (self.session_key.is_some()
-                    && self.session_key == self.current_session_key()
-                    && self.session_done + self.session_failures.len() >= self.session_estimates.len()))
+                || self.live.view.is_some()
+                || (self.session.key.is_some()
+                    && self.session.key == self.current_session_key()
+                    && self.session.done + self.session.failures.len() >= self.session.estimates.len()))
     }
 
     /// Space plays or pauses, the arrow keys step, unless a text field or
@@ -436,7 +475,7 @@ impl ProprioscopeApp {
             commands.push(Command::SetFrame(frame));
         }
         let done = self.session_estimated();
-        if done < frames.len() && self.live.is_none() {
+        if done < frames.len() && self.live.view.is_none() {
             ui.add(
                 egui::ProgressBar::new(done as f32 / frames.len().max(1) as f32)
                     .text(format!("estimating the session: {done} of {} frames", frames.len())),
@@ -556,7 +595,7 @@ impl ProprioscopeApp {
         let now = frames.get(replay.frame).map_or(0.0, |f| f.t);
         let stride = frames.len().div_ceil(PLOT_POINTS).max(1);
         let robot = &self.model.robot;
-        let estimates = &self.session_estimates;
+        let estimates = &self.session.estimates;
         let sampled = || {
             frames
                 .iter()
@@ -592,7 +631,7 @@ impl ProprioscopeApp {
             "position error".to_owned(),
             sampled()
                 .filter_map(|(f, e)| {
-                    let outcome = session::frame_outcome(robot, e.as_ref()?, &f.truth)?;
+                    let outcome = crate::batch::frame_outcome(robot, e.as_ref()?, &f.truth)?;
                     Some([f.t, outcome.estimated_point.distance(outcome.true_point) * 1e3])
                 })
                 .collect(),

@@ -2,11 +2,21 @@
 
 use super::{ProprioscopeApp, egui};
 
+/// The recordings' topics: the prompt shown, the choice made per
+/// recording and the last one (tried first on the next recording).
+#[derive(Debug, Default)]
+pub struct TopicPrompts {
+    /// A recording whose topics the user is asked to choose.
+    pub prompt: Option<crate::batch::TopicPrompt>,
+    pub(crate) choices: std::collections::HashMap<std::path::PathBuf, crate::io::recording::TopicChoice>,
+    pub(crate) last: Option<crate::io::recording::TopicChoice>,
+}
+
 impl ProprioscopeApp {
     /// The dialog that asks which topics of a recording make its frames
     /// (shown when the file leaves several choices).
     pub(super) fn topic_prompt_ui(&mut self, ctx: &egui::Context) {
-        let Some(prompt) = self.topic_prompt.as_mut() else {
+        let Some(prompt) = self.topics.prompt.as_mut() else {
             return;
         };
         let mut decided = None;
@@ -60,13 +70,13 @@ impl ProprioscopeApp {
             });
         match decided {
             Some(true) => {
-                if let Some(prompt) = self.topic_prompt.take() {
-                    self.topic_choices.insert(prompt.path.clone(), prompt.choice.clone());
-                    self.last_topic_choice = Some(prompt.choice);
+                if let Some(prompt) = self.topics.prompt.take() {
+                    self.topics.choices.insert(prompt.path.clone(), prompt.choice.clone());
+                    self.topics.last = Some(prompt.choice);
                     self.open_session(&prompt.path, prompt.robot);
                 }
             }
-            Some(false) => self.topic_prompt = None,
+            Some(false) => self.topics.prompt = None,
             None => {}
         }
     }

@@ -120,7 +120,7 @@ impl ProprioscopeApp {
         // Only a pointer over the plot picks a joint (the plot reports a
         // coordinate for the pointer anywhere in the window).
         let hovered = response.inner.filter(|_| response.response.hovered());
-        self.hovered_joint = hovered
+        self.view.hovered_joint = hovered
             .and_then(|j| usize::try_from(j).ok())
             .filter(|&j| j < applied.len());
     }

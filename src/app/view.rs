@@ -1,7 +1,58 @@
 //! The 3-D view: the frame drawn (robot, heatmap, arrows, markers),
 //! its texture, picking and the mouse.
 
-use super::*;
+use std::fmt::Write as _;
+
+use super::{
+    Command, DVec3, Frame, Heat, HeatLayer, Legend, LinkId, Marker, MarkerRole, OBSERVABILITY_PUSH_NEWTONS,
+    OrbitCamera, PUSH_NEWTONS_PER_POINT, Picker, ProprioscopeApp, Push, ROBOT_GREY, Renderer, Robot, RobotPose,
+    Temporal, Vec2, Verdict, ViewKey, egui, grid_and_axes, heat, joint_torques, overlay, robot_triangles,
+};
+
+/// The 3-D view's part: the camera, the picker on the posed meshes, the
+/// offscreen renderer and its texture, what it last drew, the legend, the
+/// push being dragged and what the pointer is over.
+pub(crate) struct ViewPart {
+    pub(crate) camera: OrbitCamera,
+    pub(crate) picker: Picker,
+    pub(crate) renderer: Option<Renderer>,
+    pub(crate) texture: Option<egui::TextureId>,
+    /// Where the view was last drawn in the window.
+    pub(crate) rect: Option<egui::Rect>,
+    /// What the view texture last showed: it is redrawn only when this changes.
+    pub(crate) drawn: Option<ViewKey>,
+    /// The legend of the heat last drawn.
+    pub(crate) legend: Option<Legend>,
+    /// A push being dragged: the contact found where the drag started.
+    pub(crate) push_drag: Option<crate::core::surface::picking::Pick>,
+    /// Fit the camera to the robot when the view is next laid out (its
+    /// aspect is known then).
+    pub(crate) fit_pending: bool,
+    /// What the sample under the pointer explains (shown in the view).
+    pub(crate) hover_text: Option<String>,
+    /// The joint whose torque bar the pointer is over (sensed index).
+    pub(crate) hovered_joint: Option<usize>,
+}
+
+impl ViewPart {
+    /// The view of a robot (`picker` on its meshes), drawn by `renderer`
+    /// where there is a GPU.
+    pub(crate) fn new(picker: Picker, renderer: Option<Renderer>) -> Self {
+        Self {
+            camera: OrbitCamera::default(),
+            picker,
+            renderer,
+            texture: None,
+            rect: None,
+            drawn: None,
+            legend: None,
+            push_drag: None,
+            fit_pending: true,
+            hover_text: None,
+            hovered_joint: None,
+        }
+    }
+}
 
 /// Width of the small arrow beside each name in the view's caption, points.
 const CAPTION_SWATCH: f32 = 22.0;
@@ -17,26 +68,26 @@ impl ProprioscopeApp {
             inputs: self.model.estimate_inputs(),
             view: self.model.view,
             generation: self.current_outcome().map(|o| o.generation),
-            hovered_joint: self.hovered_joint,
-            camera: self.camera,
+            hovered_joint: self.view.hovered_joint,
+            camera: self.view.camera,
             size,
         };
-        let scene = (self.drawn.as_ref() != Some(&key)).then(|| {
+        let scene = (self.view.drawn.as_ref() != Some(&key)).then(|| {
             let (scene, legend) = self.scene_frame();
-            self.legend = legend;
+            self.view.legend = legend;
             scene
         });
-        match (frame.wgpu_render_state(), self.renderer.as_mut()) {
+        match (frame.wgpu_render_state(), self.view.renderer.as_mut()) {
             (Some(state), Some(renderer)) => {
                 let resized = renderer.resize(&state.device, size);
                 if let Some(scene) = &scene {
-                    renderer.render(&state.device, &state.queue, &self.camera, scene);
-                    self.drawn = Some(key);
+                    renderer.render(&state.device, &state.queue, &self.view.camera, scene);
+                    self.view.drawn = Some(key);
                 }
                 let mut egui_renderer = state.renderer.write();
-                match self.texture {
+                match self.view.texture {
                     None => {
-                        self.texture = Some(egui_renderer.register_native_texture(
+                        self.view.texture = Some(egui_renderer.register_native_texture(
                             &state.device,
                             renderer.color_view(),
                             wgpu::FilterMode::Linear,
@@ -52,7 +103,7 @@ impl ProprioscopeApp {
                     }
                     Some(_) => {}
                 }
-                if let Some(id) = self.texture {
+                if let Some(id) = self.view.texture {
                     let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
                     ui.painter().image(id, rect, uv, egui::Color32::WHITE);
                 }
@@ -83,10 +134,11 @@ impl ProprioscopeApp {
     pub(super) fn pick(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<crate::core::surface::picking::Pick> {
         let local = pos - rect.min;
         let (origin, dir) = self
+            .view
             .camera
             .ray(Vec2::new(local.x, local.y), Vec2::new(rect.width(), rect.height()));
         let pose = self.model.pose();
-        self.picker.pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])
+        self.view.picker.pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])
     }
 
     /// The push a drag from `drag`'s contact to `pointer` sets: it comes
@@ -102,9 +154,9 @@ impl ProprioscopeApp {
     ) -> Push {
         let local = pointer - rect.min;
         let size = Vec2::new(rect.width(), rect.height());
-        let (origin, dir) = self.camera.ray(Vec2::new(local.x, local.y), size);
+        let (origin, dir) = self.view.camera.ray(Vec2::new(local.x, local.y), size);
         let (origin, dir) = (origin.as_dvec3(), dir.as_dvec3());
-        let facing = self.camera.forward().as_dvec3();
+        let facing = self.view.camera.forward().as_dvec3();
         let contact = drag.point_world;
         let denom = dir.dot(facing);
         let tail = if denom.abs() > 1e-9 {
@@ -119,6 +171,7 @@ impl ProprioscopeApp {
             direction = (direction - 2.0 * into * inward).try_normalize().unwrap_or(inward);
         }
         let pixels = self
+            .view
             .camera
             .project(contact.as_vec3(), size)
             .map_or(0.0, |c| (Vec2::new(local.x, local.y) - c).length());
@@ -138,7 +191,7 @@ impl ProprioscopeApp {
     pub(super) fn fit_camera(&mut self, aspect: f32) {
         let pose = self.model.pose();
         if let Some((min, max)) = robot_bounds(&self.model.robot, &pose) {
-            self.camera.fit(min.as_vec3(), max.as_vec3(), aspect);
+            self.view.camera.fit(min.as_vec3(), max.as_vec3(), aspect);
         }
     }
 
@@ -149,9 +202,9 @@ impl ProprioscopeApp {
         let pose = self.model.pose();
         let markers = self.markers(&pose);
         let size = Vec2::new(rect.width(), rect.height());
-        let arrows = overlay::screen_arrows(&markers, &self.camera, size, &self.picker, &pose);
+        let arrows = overlay::screen_arrows(&markers, &self.view.camera, size, &self.view.picker, &pose);
         overlay::paint_arrows(&painter, rect, &arrows);
-        if let Some(legend) = &self.legend {
+        if let Some(legend) = &self.view.legend {
             overlay::paint_legend(&painter, rect, legend);
         }
         // The caption names each arrow beside a small one in its colour.
@@ -202,7 +255,7 @@ impl ProprioscopeApp {
             painter.galley(pos, galley, egui::Color32::WHITE);
             pos.x += advance;
         }
-        if let Some(text) = &self.hover_text {
+        if let Some(text) = &self.view.hover_text {
             overlay::paint_readout(&painter, rect, text);
         }
     }
@@ -215,8 +268,11 @@ impl ProprioscopeApp {
         let surface = &outcome.estimator.surface;
         let size = Vec2::new(rect.width(), rect.height());
         let local = pos - rect.min;
-        let (origin, dir) = self.camera.ray(Vec2::new(local.x, local.y), size);
-        let hit = self.picker.pick(&update.pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
+        let (origin, dir) = self.view.camera.ray(Vec2::new(local.x, local.y), size);
+        let hit = self
+            .view
+            .picker
+            .pick(&update.pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
         let k = (0..surface.len())
             .filter(|&k| surface.link[k] == hit.link)
             .min_by(|&a, &b| {
@@ -249,7 +305,7 @@ impl ProprioscopeApp {
         let view = self.model.view;
         let cyan = [0.3, 0.9, 1.0, 1.0];
         for (i, &j) in self.model.robot.sensed().iter().enumerate() {
-            let hovered = self.hovered_joint == Some(i);
+            let hovered = self.view.hovered_joint == Some(i);
             if !(view.show_axes || hovered) {
                 continue;
             }
@@ -290,7 +346,7 @@ impl ProprioscopeApp {
     /// The legend of the picture last drawn.
     #[must_use]
     pub fn legend(&self) -> Option<&Legend> {
-        self.legend.as_ref()
+        self.view.legend.as_ref()
     }
 
     /// The posed robot with its heat and the candidate points; the arrows
@@ -383,77 +439,84 @@ impl ProprioscopeApp {
 
     /// The session frame's estimate from the frames together (filtered or
     /// smoothed), once the background has it.
-    pub(super) fn over_time_estimate(&self) -> Option<session::FrameEstimate> {
+    pub(super) fn over_time_estimate(&self) -> Option<crate::batch::FrameEstimate> {
         let replay = self.model.replay.as_ref()?;
         if replay.over_time == Temporal::None {
             return None;
         }
-        self.session_estimates.get(replay.frame).copied().flatten()
+        self.session.estimates.get(replay.frame).copied().flatten()
     }
 
     pub(super) fn view_ui(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) -> Vec<Command> {
         let mut commands = Vec::new();
         let rect = ui.available_rect_before_wrap();
-        self.view_rect = Some(rect);
+        self.view.rect = Some(rect);
         let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
         let size = Vec2::new(rect.width(), rect.height());
         // A drag that starts on the arm sets a push (unless Ctrl is held);
         // elsewhere it turns the view.
         if response.drag_started_by(egui::PointerButton::Primary) && !ui.input(|i| i.modifiers.command) {
             let origin = ui.input(|i| i.pointer.press_origin());
-            self.push_drag = origin.and_then(|p| self.pick(p, rect));
+            self.view.push_drag = origin.and_then(|p| self.pick(p, rect));
         }
         if response.dragged_by(egui::PointerButton::Primary) {
-            if let Some(drag) = self.push_drag {
+            if let Some(drag) = self.view.push_drag {
                 if let Some(pointer) = response.interact_pointer_pos() {
                     commands.push(Command::Push(self.dragged_push(&drag, pointer, rect)));
                 }
             } else {
                 let d = response.drag_delta();
-                self.camera.orbit(Vec2::new(d.x, d.y));
+                self.view.camera.orbit(Vec2::new(d.x, d.y));
             }
         }
         if response.drag_stopped() {
-            self.push_drag = None;
+            self.view.push_drag = None;
         }
         if response.dragged_by(egui::PointerButton::Secondary) || response.dragged_by(egui::PointerButton::Middle) {
             let d = response.drag_delta();
-            self.camera.pan(Vec2::new(d.x, d.y), size);
+            self.view.camera.pan(Vec2::new(d.x, d.y), size);
         }
         if let Some(hover) = response.hover_pos() {
             let scroll = ui.input(|i| i.smooth_scroll_delta.y);
             if scroll != 0.0 {
                 let local = hover - rect.min;
-                self.camera
+                self.view
+                    .camera
                     .zoom_towards((-scroll * 0.002).exp(), Vec2::new(local.x, local.y), size);
             }
         }
         if ui.input(|i| i.key_pressed(egui::Key::R)) && !ui.ctx().egui_wants_keyboard_input() {
-            self.camera = OrbitCamera::default();
-            self.fit_pending = true;
+            self.view.camera = OrbitCamera::default();
+            self.view.fit_pending = true;
         }
-        if self.fit_pending && rect.width() > 1.0 && rect.height() > 1.0 {
+        if self.view.fit_pending && rect.width() > 1.0 && rect.height() > 1.0 {
             self.fit_camera(rect.width() / rect.height());
-            self.fit_pending = false;
+            self.view.fit_pending = false;
         }
         let pick_at = |pos: egui::Pos2, camera: &OrbitCamera| {
             let local = pos - rect.min;
             let (origin, dir) = camera.ray(Vec2::new(local.x, local.y), size);
             let pose = self.model.pose();
-            self.picker
+            self.view
+                .picker
                 .pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])
                 .map(|hit| (hit, pose))
         };
-        self.hover_text = response
+        self.view.hover_text = response
             .hover_pos()
             .filter(|_| !response.dragged())
             .and_then(|pos| self.candidate_tooltip(pos, rect));
         if response.double_clicked() {
-            if let Some((hit, _)) = response.interact_pointer_pos().and_then(|p| pick_at(p, &self.camera)) {
-                self.camera.centre_on(hit.point_world.as_vec3());
+            if let Some((hit, _)) = response
+                .interact_pointer_pos()
+                .and_then(|p| pick_at(p, &self.view.camera))
+            {
+                self.view.camera.centre_on(hit.point_world.as_vec3());
             }
         } else if response.clicked()
-            && let Some((hit, pose)) = response.interact_pointer_pos().and_then(|p| pick_at(p, &self.camera))
+            && let Some((hit, pose)) = response
+                .interact_pointer_pos()
+                .and_then(|p| pick_at(p, &self.view.camera))
         {
             let force = self.model.push.map_or(15.0, |p| p.force_newtons);
             commands.push(Command::Push(Push {

@@ -3,7 +3,7 @@
 
 use crate::core::over_time::sequence::OVER_TIME_FRICTION;
 
-use super::{Command, EstimatorConfig, Friction, HeatLayer, ModeKind, ProprioscopeApp, Verdict, egui, phase_report};
+use super::{Command, EstimatorConfig, Friction, HeatLayer, ModeKind, Model, Outcome, Verdict, egui, phase_report};
 
 /// Adds `slider` labelled `label`, its width chosen so that the slider,
 /// its value and the label fit the panel (a narrow window keeps every row
@@ -64,11 +64,18 @@ pub(super) fn label_width(ui: &egui::Ui, text: &str) -> f32 {
         .x
 }
 
-impl ProprioscopeApp {
-    pub(super) fn estimator_panel_ui(&mut self, ui: &mut egui::Ui) -> Vec<Command> {
+/// The estimator panel's part: σ, resolution, mode and phases, the
+/// heatmap's options, and what the estimate says. It keeps no state: it
+/// draws the model and the estimate shown.
+pub(crate) struct EstimatorPanel;
+
+impl EstimatorPanel {
+    /// Draws the panel for `model` and the estimate shown; what the user
+    /// changed, as commands.
+    pub(crate) fn ui(ui: &mut egui::Ui, model: &Model, outcome: Option<&Outcome>) -> Vec<Command> {
         let mut commands = Vec::new();
         ui.heading("Estimator");
-        let mut sigma = self.model.sigma().iter().copied().fold(0.0, f64::max);
+        let mut sigma = model.sigma().iter().copied().fold(0.0, f64::max);
         if fitted_slider(
             ui,
             egui::Slider::new(&mut sigma, 0.005..=1.0)
@@ -81,9 +88,9 @@ impl ProprioscopeApp {
             commands.push(Command::SetSigma(sigma));
         }
         egui::CollapsingHeader::new("σ per joint").show(ui, |ui| {
-            for (i, value) in self.model.sigma().iter().enumerate() {
+            for (i, value) in model.sigma().iter().enumerate() {
                 let mut v = *value;
-                let name = &self.model.robot.joints[self.model.robot.sensed()[i]].name;
+                let name = &model.robot.joints[model.robot.sensed()[i]].name;
                 if ui
                     .add(
                         // No range: a typed value is refused, not clamped.
@@ -98,7 +105,7 @@ impl ProprioscopeApp {
                 }
             }
         });
-        let mut points = self.model.config.surface_points;
+        let mut points = model.config.surface_points;
         if fitted_slider(
             ui,
             egui::Slider::new(&mut points, 200..=50_000)
@@ -110,16 +117,16 @@ impl ProprioscopeApp {
         {
             commands.push(Command::SetSurfacePoints(points));
         }
-        commands.extend(self.estimator_options_ui(ui));
-        commands.extend(self.view_options_ui(ui));
+        commands.extend(Self::options_ui(ui, model));
+        commands.extend(Self::view_options_ui(ui, model));
         ui.separator();
-        self.summary_ui(ui);
+        Self::summary_ui(ui, model, outcome);
         commands
     }
 
     /// What the latest estimate says.
-    pub(super) fn summary_ui(&self, ui: &mut egui::Ui) {
-        match self.current_outcome() {
+    pub(crate) fn summary_ui(ui: &mut egui::Ui, model: &Model, outcome: Option<&Outcome>) {
+        match outcome {
             Some(o) => match &o.update {
                 Ok(u) => {
                     let s = &u.summary;
@@ -142,7 +149,7 @@ impl ProprioscopeApp {
                     });
                     ui.label(format!(
                         "most probable: {} ({:.1} %), {:.1} N",
-                        self.model.robot.links[s.map.link].name,
+                        model.robot.links[s.map.link].name,
                         s.map.probability * 100.0,
                         s.map.force_newtons
                     ));
@@ -151,8 +158,8 @@ impl ProprioscopeApp {
                         s.credible90.points.len(),
                         s.credible90.radius_m * 1e3
                     ));
-                    let pose = self.model.pose();
-                    if let Some((_, point, force)) = self.model.push_world(&pose) {
+                    let pose = model.pose();
+                    if let Some((_, point, force)) = model.push_world(&pose) {
                         ui.label(format!(
                             "error: {:.0} mm, {:.1} N",
                             s.map.point_world.distance(point) * 1e3,
@@ -176,7 +183,7 @@ impl ProprioscopeApp {
                     for share in &s.per_link {
                         ui.add(egui::ProgressBar::new(share.summed as f32).text(format!(
                             "{} {:.1} % (max {:.1e})",
-                            self.model.robot.links[share.link].name,
+                            model.robot.links[share.link].name,
                             share.summed * 100.0,
                             share.max
                         )));
@@ -193,8 +200,8 @@ impl ProprioscopeApp {
     }
 
     /// Mode, particles, phases and force range.
-    pub(super) fn estimator_options_ui(&self, ui: &mut egui::Ui) -> Vec<Command> {
-        let mut config = self.model.config.clone();
+    fn options_ui(ui: &mut egui::Ui, model: &Model) -> Vec<Command> {
+        let mut config = model.config.clone();
         egui::ComboBox::from_label("mode")
             .selected_text(match config.mode {
                 ModeKind::Exact => "exact",
@@ -249,7 +256,7 @@ impl ProprioscopeApp {
                 ui.label("points");
             });
         }
-        let (mut lo, mut hi) = self.model.config.force_range_newtons;
+        let (mut lo, mut hi) = model.config.force_range_newtons;
         let mut commands = Vec::new();
         ui.horizontal_wrapped(|ui| {
             let a = ui.add(
@@ -269,15 +276,15 @@ impl ProprioscopeApp {
                 commands.push(Command::SetForceRange(lo, hi));
             }
         });
-        if config != self.model.config {
+        if config != model.config {
             commands.push(Command::SetConfig(config));
         }
         commands
     }
 
     /// Scale, threshold, colour map and candidate points.
-    pub(super) fn view_options_ui(&self, ui: &mut egui::Ui) -> Vec<Command> {
-        let mut view = self.model.view;
+    fn view_options_ui(ui: &mut egui::Ui, model: &Model) -> Vec<Command> {
+        let mut view = model.view;
         ui.separator();
         ui.label("Heatmap");
         ui.horizontal_wrapped(|ui| {
@@ -318,7 +325,7 @@ impl ProprioscopeApp {
             &mut view.show_axes,
             "joint axes (hover a torque bar: its axis and lever arm)",
         );
-        if view == self.model.view {
+        if view == model.view {
             Vec::new()
         } else {
             vec![Command::SetView(view)]
