@@ -1,7 +1,7 @@
 //! What tests, tours and the monkey read of the app: where things are
 //! drawn, the camera, the model's invariants.
 
-use super::{OrbitCamera, ProprioscopeApp, Vec2, egui};
+use super::{OrbitCamera, ProprioscopeApp, Vec2, egui, view};
 
 impl ProprioscopeApp {
     /// Where a link's origin region appears in the window (the centre of
@@ -70,6 +70,24 @@ impl ProprioscopeApp {
             return Err(format!("frame {} of {}", r.frame, r.session.frames.len()));
         }
         Ok(())
+    }
+
+    /// The heat the view paints for the current model and estimate.
+    #[must_use]
+    pub fn heat(&self) -> Option<super::Heat> {
+        view::ViewPart::heat(&self.shown())
+    }
+
+    /// The legend of the heat last drawn.
+    #[must_use]
+    pub fn legend(&self) -> Option<&super::Legend> {
+        self.view.legend()
+    }
+
+    /// The arrows the view draws over the robot at `pose`.
+    #[must_use]
+    pub fn markers(&self, pose: &super::RobotPose) -> Vec<super::Marker> {
+        view::ViewPart::markers(&self.shown(), pose)
     }
 
     /// The 3-D view's camera.

@@ -30,6 +30,55 @@ pub(crate) struct LivePart {
     pub(crate) address_input: String,
 }
 
+/// What the user asked in the live row.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum LiveAsk {
+    /// Show the newest frame as it arrives.
+    FollowNewest,
+    /// Stop listening (the frames received stay a session).
+    Stop,
+}
+
+impl LivePart {
+    /// The live row: where from, how many frames, the last thing said,
+    /// `filter_note` (what the filter is doing), follow and stop. Follow
+    /// is set here; what else the user asked is returned.
+    pub(crate) fn ui(&mut self, ui: &mut egui::Ui, filter_note: Option<String>) -> Option<LiveAsk> {
+        let live = self.view.as_mut()?;
+        let mut asked = None;
+        ui.horizontal(|ui| {
+            ui.colored_label(
+                egui::Color32::from_rgb(220, 40, 40),
+                egui::RichText::new("LIVE").strong(),
+            );
+            ui.label(format!(
+                "{}: {} frames{}",
+                live.source.address,
+                live.received,
+                if live.skipped > 0 {
+                    format!(", {} lines skipped", live.skipped)
+                } else {
+                    String::new()
+                }
+            ));
+            ui.label(egui::RichText::new(&live.last_note).weak());
+            if let Some(note) = filter_note {
+                ui.label(note);
+            }
+            if live.follow {
+                ui.label("following the newest frame");
+            } else if ui.button("Follow newest").clicked() {
+                live.follow = true;
+                asked = Some(LiveAsk::FollowNewest);
+            }
+            if ui.button("Stop live").clicked() {
+                asked = Some(LiveAsk::Stop);
+            }
+        });
+        asked
+    }
+}
+
 impl Default for LivePart {
     fn default() -> Self {
         Self {
@@ -233,54 +282,21 @@ impl ProprioscopeApp {
         })
     }
 
-    /// The live row above the timeline: where from, how many, follow.
+    /// The live row above the timeline (see [`LivePart::ui`]), and what
+    /// the user asked there applied.
     pub(super) fn live_ui(&mut self, ui: &mut egui::Ui) {
-        let Some(live) = self.live.view.as_ref() else {
-            return;
-        };
-        let mut follow = false;
-        let mut stop = false;
-        ui.horizontal(|ui| {
-            ui.colored_label(
-                egui::Color32::from_rgb(220, 40, 40),
-                egui::RichText::new("LIVE").strong(),
-            );
-            ui.label(format!(
-                "{}: {} frames{}",
-                live.source.address,
-                live.received,
-                if live.skipped > 0 {
-                    format!(", {} lines skipped", live.skipped)
-                } else {
-                    String::new()
-                }
-            ));
-            ui.label(egui::RichText::new(&live.last_note).weak());
-            if let Some(note) = self.live_filter_note() {
-                ui.label(note);
+        let note = self.live_filter_note();
+        match self.live.ui(ui, note) {
+            Some(LiveAsk::FollowNewest) => {
+                let last = self
+                    .model
+                    .replay
+                    .as_ref()
+                    .map_or(0, |r| r.session.frames.len().saturating_sub(1));
+                self.apply(Command::SetFrame(last));
             }
-            if live.follow {
-                ui.label("following the newest frame");
-            } else if ui.button("Follow newest").clicked() {
-                follow = true;
-            }
-            if ui.button("Stop live").clicked() {
-                stop = true;
-            }
-        });
-        if follow {
-            if let Some(live) = self.live.view.as_mut() {
-                live.follow = true;
-            }
-            let last = self
-                .model
-                .replay
-                .as_ref()
-                .map_or(0, |r| r.session.frames.len().saturating_sub(1));
-            self.apply(Command::SetFrame(last));
-        }
-        if stop {
-            self.stop_live();
+            Some(LiveAsk::Stop) => self.stop_live(),
+            None => {}
         }
     }
 }

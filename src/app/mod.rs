@@ -318,6 +318,42 @@ impl ProprioscopeApp {
         });
     }
 
+    /// The session frame's estimate from the frames together (filtered or
+    /// smoothed), once the background has it.
+    pub(super) fn over_time_estimate(&self) -> Option<crate::batch::FrameEstimate> {
+        let replay = self.model.replay.as_ref()?;
+        if replay.over_time == Temporal::None {
+            return None;
+        }
+        self.session.estimates.get(replay.frame).copied().flatten()
+    }
+
+    /// What the view shows from outside its part (borrowing the model and
+    /// the estimate, not the view).
+    fn shown(&self) -> view::Shown<'_> {
+        view::Shown {
+            model: &self.model,
+            outcome: self.current_outcome(),
+            over_time: self.over_time_estimate(),
+            status: &self.status,
+        }
+    }
+
+    /// The 3-D view's part drawn with what it shows (the model and the
+    /// estimates borrowed beside the view, not through it).
+    fn view_panel_ui(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) -> Vec<Command> {
+        let shown = view::Shown {
+            model: &self.model,
+            outcome: self
+                .outcome
+                .as_ref()
+                .filter(|o| Arc::ptr_eq(&o.robot, &self.model.robot)),
+            over_time: self.over_time_estimate(),
+            status: &self.status,
+        };
+        self.view.ui(&shown, ui, frame)
+    }
+
     /// The newest estimate for the current model has arrived.
     #[must_use]
     pub fn is_up_to_date(&self) -> bool {
@@ -468,7 +504,7 @@ impl eframe::App for ProprioscopeApp {
                     self.torques_ui(ui);
                 });
         }
-        egui::CentralPanel::default().show(ui, |ui| commands.extend(self.view_ui(ui, frame)));
+        egui::CentralPanel::default().show(ui, |ui| commands.extend(self.view_panel_ui(ui, frame)));
         self.topic_prompt_ui(&ui.ctx().clone());
         for command in commands {
             self.apply(command);

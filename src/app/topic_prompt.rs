@@ -13,12 +13,22 @@ pub struct TopicPrompts {
 }
 
 impl ProprioscopeApp {
-    /// The dialog that asks which topics of a recording make its frames
-    /// (shown when the file leaves several choices).
+    /// The topics dialog (see [`TopicPrompts::ui`]); a recording whose
+    /// topics were chosen opens with them.
     pub(super) fn topic_prompt_ui(&mut self, ctx: &egui::Context) {
-        let Some(prompt) = self.topics.prompt.as_mut() else {
-            return;
-        };
+        if let Some(prompt) = self.topics.ui(ctx) {
+            self.open_session(&prompt.path, prompt.robot);
+        }
+    }
+}
+
+impl TopicPrompts {
+    /// The dialog that asks which topics of a recording make its frames
+    /// (shown when the file leaves several choices). The recording to
+    /// open once they are chosen (the choice remembered for it and tried
+    /// first on the next); a cancelled prompt is dropped.
+    pub(crate) fn ui(&mut self, ctx: &egui::Context) -> Option<crate::batch::TopicPrompt> {
+        let prompt = self.prompt.as_mut()?;
         let mut decided = None;
         egui::Window::new("Recording topics")
             .collapsible(false)
@@ -70,14 +80,16 @@ impl ProprioscopeApp {
             });
         match decided {
             Some(true) => {
-                if let Some(prompt) = self.topics.prompt.take() {
-                    self.topics.choices.insert(prompt.path.clone(), prompt.choice.clone());
-                    self.topics.last = Some(prompt.choice);
-                    self.open_session(&prompt.path, prompt.robot);
-                }
+                let prompt = self.prompt.take()?;
+                self.choices.insert(prompt.path.clone(), prompt.choice.clone());
+                self.last = Some(prompt.choice.clone());
+                Some(prompt)
             }
-            Some(false) => self.topics.prompt = None,
-            None => {}
+            Some(false) => {
+                self.prompt = None;
+                None
+            }
+            None => None,
         }
     }
 }

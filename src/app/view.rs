@@ -5,8 +5,8 @@ use std::fmt::Write as _;
 
 use super::{
     Command, DVec3, Frame, Heat, HeatLayer, Legend, LinkId, Marker, MarkerRole, OBSERVABILITY_PUSH_NEWTONS,
-    OrbitCamera, PUSH_NEWTONS_PER_POINT, Picker, ProprioscopeApp, Push, ROBOT_GREY, Renderer, Robot, RobotPose,
-    Temporal, Vec2, Verdict, ViewKey, egui, grid_and_axes, heat, joint_torques, overlay, robot_triangles,
+    OrbitCamera, PUSH_NEWTONS_PER_POINT, Picker, Push, ROBOT_GREY, Renderer, Robot, RobotPose, Vec2, Verdict, ViewKey,
+    egui, grid_and_axes, heat, joint_torques, overlay, robot_triangles,
 };
 
 /// The 3-D view's part: the camera, the picker on the posed meshes, the
@@ -57,37 +57,37 @@ impl ViewPart {
 /// Width of the small arrow beside each name in the view's caption, points.
 const CAPTION_SWATCH: f32 = 22.0;
 
-impl ProprioscopeApp {
+impl ViewPart {
     /// Renders the 3-D view into its texture and shows it in `rect`.
-    pub(super) fn paint_view(&mut self, ui: &egui::Ui, frame: &eframe::Frame, rect: egui::Rect) {
+    pub(super) fn paint_view(&mut self, shown: &Shown<'_>, ui: &egui::Ui, frame: &eframe::Frame, rect: egui::Rect) {
         let pixels = rect.size() * ui.ctx().pixels_per_point();
         let size = [pixels.x.round() as u32, pixels.y.round() as u32];
         // The vertex lists and the GPU pass are redone only when something
         // they show has changed, not every frame.
         let key = ViewKey {
-            inputs: self.model.estimate_inputs(),
-            view: self.model.view,
-            generation: self.current_outcome().map(|o| o.generation),
-            hovered_joint: self.view.hovered_joint,
-            camera: self.view.camera,
+            inputs: shown.model.estimate_inputs(),
+            view: shown.model.view,
+            generation: shown.outcome.map(|o| o.generation),
+            hovered_joint: self.hovered_joint,
+            camera: self.camera,
             size,
         };
-        let scene = (self.view.drawn.as_ref() != Some(&key)).then(|| {
-            let (scene, legend) = self.scene_frame();
-            self.view.legend = legend;
+        let scene = (self.drawn.as_ref() != Some(&key)).then(|| {
+            let (scene, legend) = self.scene_frame(shown);
+            self.legend = legend;
             scene
         });
-        match (frame.wgpu_render_state(), self.view.renderer.as_mut()) {
+        match (frame.wgpu_render_state(), self.renderer.as_mut()) {
             (Some(state), Some(renderer)) => {
                 let resized = renderer.resize(&state.device, size);
                 if let Some(scene) = &scene {
-                    renderer.render(&state.device, &state.queue, &self.view.camera, scene);
-                    self.view.drawn = Some(key);
+                    renderer.render(&state.device, &state.queue, &self.camera, scene);
+                    self.drawn = Some(key);
                 }
                 let mut egui_renderer = state.renderer.write();
-                match self.view.texture {
+                match self.texture {
                     None => {
-                        self.view.texture = Some(egui_renderer.register_native_texture(
+                        self.texture = Some(egui_renderer.register_native_texture(
                             &state.device,
                             renderer.color_view(),
                             wgpu::FilterMode::Linear,
@@ -103,7 +103,7 @@ impl ProprioscopeApp {
                     }
                     Some(_) => {}
                 }
-                if let Some(id) = self.view.texture {
+                if let Some(id) = self.texture {
                     let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
                     ui.painter().image(id, rect, uv, egui::Color32::WHITE);
                 }
@@ -118,12 +118,12 @@ impl ProprioscopeApp {
                 );
             }
         }
-        self.paint_overlay(ui, rect);
-        if !self.status.is_empty() {
+        self.paint_overlay(shown, ui, rect);
+        if !shown.status.is_empty() {
             ui.painter().text(
                 rect.left_top() + egui::vec2(8.0, 8.0),
                 egui::Align2::LEFT_TOP,
-                &self.status,
+                shown.status,
                 egui::FontId::default(),
                 egui::Color32::LIGHT_GRAY,
             );
@@ -131,14 +131,18 @@ impl ProprioscopeApp {
     }
 
     /// The arm under a pixel of the view, with the pose it was found in.
-    pub(super) fn pick(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<crate::core::surface::picking::Pick> {
+    pub(super) fn pick(
+        &self,
+        shown: &Shown<'_>,
+        pos: egui::Pos2,
+        rect: egui::Rect,
+    ) -> Option<crate::core::surface::picking::Pick> {
         let local = pos - rect.min;
         let (origin, dir) = self
-            .view
             .camera
             .ray(Vec2::new(local.x, local.y), Vec2::new(rect.width(), rect.height()));
-        let pose = self.model.pose();
-        self.view.picker.pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])
+        let pose = shown.model.pose();
+        self.picker.pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])
     }
 
     /// The push a drag from `drag`'s contact to `pointer` sets: it comes
@@ -148,15 +152,16 @@ impl ProprioscopeApp {
     /// point of drag, 0.5–30 N.
     pub(super) fn dragged_push(
         &self,
+        shown: &Shown<'_>,
         drag: &crate::core::surface::picking::Pick,
         pointer: egui::Pos2,
         rect: egui::Rect,
     ) -> Push {
         let local = pointer - rect.min;
         let size = Vec2::new(rect.width(), rect.height());
-        let (origin, dir) = self.view.camera.ray(Vec2::new(local.x, local.y), size);
+        let (origin, dir) = self.camera.ray(Vec2::new(local.x, local.y), size);
         let (origin, dir) = (origin.as_dvec3(), dir.as_dvec3());
-        let facing = self.view.camera.forward().as_dvec3();
+        let facing = self.camera.forward().as_dvec3();
         let contact = drag.point_world;
         let denom = dir.dot(facing);
         let tail = if denom.abs() > 1e-9 {
@@ -171,12 +176,11 @@ impl ProprioscopeApp {
             direction = (direction - 2.0 * into * inward).try_normalize().unwrap_or(inward);
         }
         let pixels = self
-            .view
             .camera
             .project(contact.as_vec3(), size)
             .map_or(0.0, |c| (Vec2::new(local.x, local.y) - c).length());
         let force = (f64::from(pixels) * PUSH_NEWTONS_PER_POINT).clamp(0.5, 30.0);
-        let pose = self.model.pose();
+        let pose = shown.model.pose();
         let link_from_world = pose.world_from_link[drag.link].inverse();
         Push {
             link: drag.link,
@@ -188,31 +192,31 @@ impl ProprioscopeApp {
 
     /// Points the camera at the robot in its current pose, from where it
     /// looks, just far enough that all of it is in view.
-    pub(super) fn fit_camera(&mut self, aspect: f32) {
-        let pose = self.model.pose();
-        if let Some((min, max)) = robot_bounds(&self.model.robot, &pose) {
-            self.view.camera.fit(min.as_vec3(), max.as_vec3(), aspect);
+    pub(super) fn fit_camera(&mut self, shown: &Shown<'_>, aspect: f32) {
+        let pose = shown.model.pose();
+        if let Some((min, max)) = robot_bounds(&shown.model.robot, &pose) {
+            self.camera.fit(min.as_vec3(), max.as_vec3(), aspect);
         }
     }
 
     /// The arrows, the legend, the caption and the hover readout over the
     /// picture.
-    fn paint_overlay(&self, ui: &egui::Ui, rect: egui::Rect) {
+    fn paint_overlay(&self, shown: &Shown<'_>, ui: &egui::Ui, rect: egui::Rect) {
         let painter = ui.painter().with_clip_rect(rect);
-        let pose = self.model.pose();
-        let markers = self.markers(&pose);
+        let pose = shown.model.pose();
+        let markers = Self::markers(shown, &pose);
         let size = Vec2::new(rect.width(), rect.height());
-        let arrows = overlay::screen_arrows(&markers, &self.view.camera, size, &self.view.picker, &pose);
+        let arrows = overlay::screen_arrows(&markers, &self.camera, size, &self.picker, &pose);
         overlay::paint_arrows(&painter, rect, &arrows);
-        if let Some(legend) = &self.view.legend {
+        if let Some(legend) = &self.legend {
             overlay::paint_legend(&painter, rect, legend);
         }
         // The caption names each arrow beside a small one in its colour.
-        let replay = self.model.replay.is_some();
+        let replay = shown.model.replay.is_some();
         let font = egui::FontId::proportional(13.0);
         let mut items: Vec<(Option<MarkerRole>, String)> = Vec::new();
         for role in [MarkerRole::Push, MarkerRole::Estimate, MarkerRole::OverTime] {
-            if role == MarkerRole::OverTime && self.over_time_estimate().is_none() {
+            if role == MarkerRole::OverTime && shown.over_time.is_none() {
                 continue;
             }
             items.push((Some(role), role.name(replay).to_owned()));
@@ -255,24 +259,21 @@ impl ProprioscopeApp {
             painter.galley(pos, galley, egui::Color32::WHITE);
             pos.x += advance;
         }
-        if let Some(text) = &self.view.hover_text {
+        if let Some(text) = &self.hover_text {
             overlay::paint_readout(&painter, rect, text);
         }
     }
 
     /// What the candidate under the pointer would explain: its force and
     /// the torques it produces beside the measured ones.
-    pub(super) fn candidate_tooltip(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<String> {
-        let outcome = self.current_outcome()?;
+    pub(super) fn candidate_tooltip(&self, shown: &Shown<'_>, pos: egui::Pos2, rect: egui::Rect) -> Option<String> {
+        let outcome = shown.outcome?;
         let update = outcome.update.as_ref().ok()?;
         let surface = &outcome.estimator.surface;
         let size = Vec2::new(rect.width(), rect.height());
         let local = pos - rect.min;
-        let (origin, dir) = self.view.camera.ray(Vec2::new(local.x, local.y), size);
-        let hit = self
-            .view
-            .picker
-            .pick(&update.pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
+        let (origin, dir) = self.camera.ray(Vec2::new(local.x, local.y), size);
+        let hit = self.picker.pick(&update.pose, origin.as_dvec3(), dir.as_dvec3(), &[])?;
         let k = (0..surface.len())
             .filter(|&k| surface.link[k] == hit.link)
             .min_by(|&a, &b| {
@@ -282,16 +283,16 @@ impl ProprioscopeApp {
             })?;
         let contact = crate::core::estimate::summary::contact_at(&update.posterior, surface, &update.pose, k);
         let produced = joint_torques(
-            &self.model.robot,
+            &shown.model.robot,
             &update.pose,
             contact.link,
             contact.point_world,
             contact.force_world,
         );
-        let measured = self.model.measured_torques(&update.pose);
+        let measured = shown.model.measured_torques(&update.pose);
         let mut text = format!(
             "{}: P = {:.2e}, best push {:.1} N\njoint   produces   measured",
-            self.model.robot.links[contact.link].name, contact.probability, contact.force_newtons
+            shown.model.robot.links[contact.link].name, contact.probability, contact.force_newtons
         );
         for (i, (p, m)) in produced.iter().zip(&measured).enumerate() {
             let _ = write!(text, "\n{:>5}   {:>8.3}   {:>8.3}", i + 1, p, m);
@@ -301,19 +302,24 @@ impl ProprioscopeApp {
 
     /// The sensed joints' axes (all with the toggle; the hovered one in
     /// yellow with its lever arm to the push).
-    pub(super) fn joint_axes(&self, pose: &RobotPose, lines: &mut Vec<crate::render::renderer::LineVertex>) {
-        let view = self.model.view;
+    pub(super) fn joint_axes(
+        &self,
+        shown: &Shown<'_>,
+        pose: &RobotPose,
+        lines: &mut Vec<crate::render::renderer::LineVertex>,
+    ) {
+        let view = shown.model.view;
         let cyan = [0.3, 0.9, 1.0, 1.0];
-        for (i, &j) in self.model.robot.sensed().iter().enumerate() {
-            let hovered = self.view.hovered_joint == Some(i);
+        for (i, &j) in shown.model.robot.sensed().iter().enumerate() {
+            let hovered = self.hovered_joint == Some(i);
             if !(view.show_axes || hovered) {
                 continue;
             }
             let o = pose.joint_origin_world(j);
-            let a = pose.joint_axis_world(&self.model.robot, j);
+            let a = pose.joint_axis_world(&shown.model.robot, j);
             let colour = if hovered { [1.0, 1.0, 0.2, 1.0] } else { cyan };
             crate::render::scene::line(lines, (o - a * 0.2).as_vec3(), (o + a * 0.2).as_vec3(), colour);
-            if hovered && let Some((_, point, _)) = self.model.push_world(pose) {
+            if hovered && let Some((_, point, _)) = shown.model.push_world(pose) {
                 // The lever: from the axis to the contact, at right angles to the axis.
                 let foot = o + a * a.dot(point - o);
                 crate::render::scene::line(lines, foot.as_vec3(), point.as_vec3(), [1.0, 1.0, 0.2, 1.0]);
@@ -323,21 +329,21 @@ impl ProprioscopeApp {
 
     /// What the arm is painted with for the current estimate, and its legend.
     #[must_use]
-    pub fn heat(&self) -> Option<Heat> {
-        let outcome = self.current_outcome()?;
+    pub fn heat(shown: &Shown<'_>) -> Option<Heat> {
+        let outcome = shown.outcome?;
         let update = outcome.update.as_ref().ok()?;
         let surface = &outcome.estimator.surface;
-        let view = self.model.view;
+        let view = shown.model.view;
         Some(match view.layer {
             HeatLayer::Posterior => {
                 heat::posterior_heat(update, surface, view.log_scale, view.threshold, view.red_green)
             }
             HeatLayer::Observability => heat::observability_heat(
-                &self.model.robot,
+                &shown.model.robot,
                 &update.pose,
                 surface,
-                self.model.sigma(),
-                self.model.push.map_or(OBSERVABILITY_PUSH_NEWTONS, |p| p.force_newtons),
+                shown.model.sigma(),
+                shown.model.push.map_or(OBSERVABILITY_PUSH_NEWTONS, |p| p.force_newtons),
                 view.red_green,
             ),
         })
@@ -346,16 +352,16 @@ impl ProprioscopeApp {
     /// The legend of the picture last drawn.
     #[must_use]
     pub fn legend(&self) -> Option<&Legend> {
-        self.view.legend.as_ref()
+        self.legend.as_ref()
     }
 
     /// The posed robot with its heat and the candidate points; the arrows
     /// and markers are drawn over the picture (see [`Self::markers`]).
-    pub(super) fn scene_frame(&self) -> (Frame, Option<Legend>) {
-        let pose = self.model.pose();
+    pub(super) fn scene_frame(&self, shown: &Shown<'_>) -> (Frame, Option<Legend>) {
+        let pose = shown.model.pose();
         let mut frame = Frame::default();
-        let outcome = self.current_outcome().filter(|o| o.update.is_ok());
-        let heat = self.heat();
+        let outcome = shown.outcome.filter(|o| o.update.is_ok());
+        let heat = Self::heat(shown);
         let colour = |link: LinkId, vertex: usize| -> [f32; 4] {
             let (Some(o), Some(h)) = (outcome, heat.as_ref()) else {
                 return ROBOT_GREY;
@@ -374,10 +380,10 @@ impl ProprioscopeApp {
                 _ => ROBOT_GREY,
             }
         };
-        robot_triangles(&self.model.robot, &pose, &colour, &mut frame.triangles);
+        robot_triangles(&shown.model.robot, &pose, &colour, &mut frame.triangles);
         grid_and_axes(1.0, 0.1, &mut frame.lines);
-        self.joint_axes(&pose, &mut frame.lines);
-        if let (true, Some(o), Some(h)) = (self.model.view.show_points, outcome, heat.as_ref())
+        self.joint_axes(shown, &pose, &mut frame.lines);
+        if let (true, Some(o), Some(h)) = (shown.model.view.show_points, outcome, heat.as_ref())
             && let Ok(u) = &o.update
         {
             let surface = &o.estimator.surface;
@@ -407,16 +413,16 @@ impl ProprioscopeApp {
     /// contact), the frame's most probable contact and, over time, the
     /// frames' together; `pose` is the model's.
     #[must_use]
-    pub fn markers(&self, pose: &RobotPose) -> Vec<Marker> {
+    pub fn markers(shown: &Shown<'_>, pose: &RobotPose) -> Vec<Marker> {
         let mut out = Vec::new();
-        if let Some((_, point, force)) = self.model.push_world(pose) {
+        if let Some((_, point, force)) = shown.model.push_world(pose) {
             out.push(Marker {
                 role: MarkerRole::Push,
                 point_world: point,
                 force_world: force,
             });
         }
-        if let Some(u) = self.current_outcome().and_then(|o| o.update.as_ref().ok())
+        if let Some(u) = shown.outcome.and_then(|o| o.update.as_ref().ok())
             && (u.summary.verdict != Verdict::NoContact || u.summary.contact_probability.is_some_and(|p| p >= 0.5))
         {
             out.push(Marker {
@@ -425,7 +431,7 @@ impl ProprioscopeApp {
                 force_world: u.summary.map.force_world,
             });
         }
-        if let Some(e) = self.over_time_estimate()
+        if let Some(e) = shown.over_time
             && e.verdict != Verdict::NoContact
         {
             out.push(Marker {
@@ -437,88 +443,71 @@ impl ProprioscopeApp {
         out
     }
 
-    /// The session frame's estimate from the frames together (filtered or
-    /// smoothed), once the background has it.
-    pub(super) fn over_time_estimate(&self) -> Option<crate::batch::FrameEstimate> {
-        let replay = self.model.replay.as_ref()?;
-        if replay.over_time == Temporal::None {
-            return None;
-        }
-        self.session.estimates.get(replay.frame).copied().flatten()
-    }
-
-    pub(super) fn view_ui(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) -> Vec<Command> {
+    pub(super) fn ui(&mut self, shown: &Shown<'_>, ui: &mut egui::Ui, frame: &eframe::Frame) -> Vec<Command> {
         let mut commands = Vec::new();
         let rect = ui.available_rect_before_wrap();
-        self.view.rect = Some(rect);
+        self.rect = Some(rect);
         let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
         let size = Vec2::new(rect.width(), rect.height());
         // A drag that starts on the arm sets a push (unless Ctrl is held);
         // elsewhere it turns the view.
         if response.drag_started_by(egui::PointerButton::Primary) && !ui.input(|i| i.modifiers.command) {
             let origin = ui.input(|i| i.pointer.press_origin());
-            self.view.push_drag = origin.and_then(|p| self.pick(p, rect));
+            self.push_drag = origin.and_then(|p| self.pick(shown, p, rect));
         }
         if response.dragged_by(egui::PointerButton::Primary) {
-            if let Some(drag) = self.view.push_drag {
+            if let Some(drag) = self.push_drag {
                 if let Some(pointer) = response.interact_pointer_pos() {
-                    commands.push(Command::Push(self.dragged_push(&drag, pointer, rect)));
+                    commands.push(Command::Push(self.dragged_push(shown, &drag, pointer, rect)));
                 }
             } else {
                 let d = response.drag_delta();
-                self.view.camera.orbit(Vec2::new(d.x, d.y));
+                self.camera.orbit(Vec2::new(d.x, d.y));
             }
         }
         if response.drag_stopped() {
-            self.view.push_drag = None;
+            self.push_drag = None;
         }
         if response.dragged_by(egui::PointerButton::Secondary) || response.dragged_by(egui::PointerButton::Middle) {
             let d = response.drag_delta();
-            self.view.camera.pan(Vec2::new(d.x, d.y), size);
+            self.camera.pan(Vec2::new(d.x, d.y), size);
         }
         if let Some(hover) = response.hover_pos() {
             let scroll = ui.input(|i| i.smooth_scroll_delta.y);
             if scroll != 0.0 {
                 let local = hover - rect.min;
-                self.view
-                    .camera
+                self.camera
                     .zoom_towards((-scroll * 0.002).exp(), Vec2::new(local.x, local.y), size);
             }
         }
         if ui.input(|i| i.key_pressed(egui::Key::R)) && !ui.ctx().egui_wants_keyboard_input() {
-            self.view.camera = OrbitCamera::default();
-            self.view.fit_pending = true;
+            self.camera = OrbitCamera::default();
+            self.fit_pending = true;
         }
-        if self.view.fit_pending && rect.width() > 1.0 && rect.height() > 1.0 {
-            self.fit_camera(rect.width() / rect.height());
-            self.view.fit_pending = false;
+        if self.fit_pending && rect.width() > 1.0 && rect.height() > 1.0 {
+            self.fit_camera(shown, rect.width() / rect.height());
+            self.fit_pending = false;
         }
         let pick_at = |pos: egui::Pos2, camera: &OrbitCamera| {
             let local = pos - rect.min;
             let (origin, dir) = camera.ray(Vec2::new(local.x, local.y), size);
-            let pose = self.model.pose();
-            self.view
-                .picker
+            let pose = shown.model.pose();
+            self.picker
                 .pick(&pose, origin.as_dvec3(), dir.as_dvec3(), &[])
                 .map(|hit| (hit, pose))
         };
-        self.view.hover_text = response
+        self.hover_text = response
             .hover_pos()
             .filter(|_| !response.dragged())
-            .and_then(|pos| self.candidate_tooltip(pos, rect));
+            .and_then(|pos| self.candidate_tooltip(shown, pos, rect));
         if response.double_clicked() {
-            if let Some((hit, _)) = response
-                .interact_pointer_pos()
-                .and_then(|p| pick_at(p, &self.view.camera))
-            {
-                self.view.camera.centre_on(hit.point_world.as_vec3());
+            if let Some((hit, _)) = response.interact_pointer_pos().and_then(|p| pick_at(p, &self.camera)) {
+                self.camera.centre_on(hit.point_world.as_vec3());
             }
         } else if response.clicked()
-            && let Some((hit, pose)) = response
-                .interact_pointer_pos()
-                .and_then(|p| pick_at(p, &self.view.camera))
+            && let Some((hit, pose)) = response.interact_pointer_pos().and_then(|p| pick_at(p, &self.camera))
         {
-            let force = self.model.push.map_or(15.0, |p| p.force_newtons);
+            let force = shown.model.push.map_or(15.0, |p| p.force_newtons);
             commands.push(Command::Push(Push {
                 link: hit.link,
                 point_in_link: hit.point_in_link,
@@ -528,9 +517,19 @@ impl ProprioscopeApp {
                 force_newtons: force,
             }));
         }
-        self.paint_view(ui, frame, rect);
+        self.paint_view(shown, ui, frame, rect);
         commands
     }
+}
+
+/// What the view shows from outside its part: the model, the estimate
+/// of the frame on screen, the session's estimate over time at that frame
+/// and the status line.
+pub(crate) struct Shown<'a> {
+    pub(crate) model: &'a super::Model,
+    pub(crate) outcome: Option<&'a super::Outcome>,
+    pub(crate) over_time: Option<crate::batch::FrameEstimate>,
+    pub(crate) status: &'a str,
 }
 
 /// The box around the posed robot's meshes (`None` without vertices).
