@@ -9,38 +9,18 @@
 use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use glam::{DAffine3, DVec3};
+use glam::DVec3;
 use proprioscope::core::geometry::bvh::Bvh;
 use proprioscope::core::geometry::mesh::TriMesh;
 use proprioscope::core::geometry::primitives;
 use proprioscope::core::geometry::shell::SmoothMesh;
-use proprioscope::core::robot::model::{JointKind, JointSpec, LinkSpec, Robot};
+use proprioscope::core::robot::builtin;
+use proprioscope::core::robot::model::Robot;
 use proprioscope::core::surface::sampling::{Surface, SurfaceRequest};
 
 /// A one-joint arm whose moving link is `mesh`.
 fn arm(mesh: TriMesh) -> Robot {
-    let links = [
-        LinkSpec {
-            name: "base".into(),
-            ..LinkSpec::default()
-        },
-        LinkSpec {
-            name: "link".into(),
-            mesh,
-            segment: None,
-        },
-    ];
-    let joints = [JointSpec {
-        name: "joint".into(),
-        kind: JointKind::Revolute,
-        parent: "base".into(),
-        child: "link".into(),
-        parent_from_joint: DAffine3::IDENTITY,
-        axis: DVec3::Z,
-        limits: None,
-        mimic: None,
-    }];
-    Robot::new("bench", &links, &joints).unwrap()
+    builtin::one_link("bench", mesh).unwrap()
 }
 
 /// Every triangle of `mesh` twice.

@@ -4,10 +4,10 @@
 //! error, never a panic or a hang.
 #![no_main]
 
-use glam::{DAffine3, DVec3};
+use glam::DVec3;
 use proprioscope::core::geometry::bvh::Bvh;
-use proprioscope::core::robot::model::{JointKind, JointSpec, LinkSpec, Robot};
 use proprioscope::core::geometry::shell::SmoothMesh;
+use proprioscope::core::robot::builtin;
 use proprioscope::core::surface::sampling::{Surface, SurfaceRequest};
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
@@ -18,28 +18,7 @@ libfuzzer_sys::fuzz_target!(|data: &[u8]| {
     let bvh = Bvh::new(&shell.mesh);
     let _ = bvh.ray_cast(DVec3::new(0.01, 0.02, -10.0), DVec3::Z, f64::INFINITY);
     let _ = bvh.winding_number(DVec3::new(0.01, 0.02, 0.03));
-    let links = [
-        LinkSpec {
-            name: "base".into(),
-            ..LinkSpec::default()
-        },
-        LinkSpec {
-            name: "link".into(),
-            mesh,
-            segment: None,
-        },
-    ];
-    let joints = [JointSpec {
-        name: "joint".into(),
-        kind: JointKind::Revolute,
-        parent: "base".into(),
-        child: "link".into(),
-        parent_from_joint: DAffine3::IDENTITY,
-        axis: DVec3::Z,
-        limits: None,
-        mimic: None,
-    }];
-    let Ok(robot) = Robot::new("fuzz", &links, &joints) else {
+    let Ok(robot) = builtin::one_link("fuzz", mesh) else {
         return;
     };
     let request = SurfaceRequest {

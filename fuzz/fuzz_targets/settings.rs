@@ -8,14 +8,14 @@
 use std::sync::OnceLock;
 
 use glam::DVec3;
-use proprioscope::core::robot::builtin;
-use proprioscope::core::estimate::settings::EstimatorSettings;
-use proprioscope::core::robot::kinematics::RobotPose;
 use proprioscope::core::config::limits;
 use proprioscope::core::estimate::estimator::Estimator;
+use proprioscope::core::estimate::settings::EstimatorSettings;
+use proprioscope::core::robot::builtin;
+use proprioscope::core::robot::kinematics::RobotPose;
 use proprioscope::core::robot::model::Robot;
-use proprioscope::core::surface::sampling::SurfaceRequest;
 use proprioscope::core::robot::torque::joint_torques;
+use proprioscope::core::surface::sampling::SurfaceRequest;
 
 /// The built-in LWR and an estimator on 300 of its surface points.
 fn base() -> &'static (Robot, Estimator) {

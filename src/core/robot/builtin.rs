@@ -36,6 +36,28 @@ fn revolute(name: &str, parent: &str, child: &str, origin: DVec3, axis: DVec3, l
     }
 }
 
+/// A one-joint arm, `base` and `link`, whose moving link is `mesh`: the
+/// smallest robot that carries a mesh, for measuring and fuzzing a mesh's
+/// way to a surface.
+pub fn one_link(name: &str, mesh: TriMesh) -> Result<Robot, RobotError> {
+    let links = [
+        LinkSpec {
+            name: "base".into(),
+            ..LinkSpec::default()
+        },
+        LinkSpec {
+            name: "link".into(),
+            mesh,
+            segment: None,
+        },
+    ];
+    let joints = [JointSpec {
+        kind: JointKind::Revolute,
+        ..revolute("joint", "base", "link", DVec3::ZERO, DVec3::Z, None)
+    }];
+    Robot::new(name, &links, &joints)
+}
+
 /// The thesis' simple robot (§3.1.1) as reconstructed in the notes: six
 /// revolute joints at (0,0,0), (0,0,1), (1,0,1), (1,1,1), (1,1,2), (2,2,2)
 /// with axes +z, +x, +y, +z, +x, +y; one-dimensional links `link_0` …
