@@ -3,11 +3,12 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::{DAffine3, DQuat, DVec3};
+use glam::{DAffine3, DMat3, DQuat, DVec3};
 
 use crate::core::geometry::mesh::TriMesh;
 use crate::core::geometry::primitives::{self, Primitive};
 use crate::core::robot::model::{JointKind, JointLimits, JointSpec, LinkSpec, Robot, RobotError};
+use crate::core::robot::spatial::Inertial;
 use crate::io::guard;
 use crate::io::mesh::{MeshError, check_extent, load_mesh};
 
@@ -107,6 +108,18 @@ pub enum UrdfError {
         /// The value as read.
         value: String,
     },
+    /// An `<inertial>` with a negative mass or a number that is not finite.
+    #[error(
+        "{path}: link '{link}' <inertial> is invalid (mass {mass_kg} kg; the mass must be ≥ 0 and every number finite)"
+    )]
+    BadInertial {
+        /// The URDF.
+        path: PathBuf,
+        /// The link.
+        link: String,
+        /// Its mass as read.
+        mass_kg: f64,
+    },
     /// The tree is not a valid robot.
     #[error("{path}: {cause}")]
     Robot {
@@ -123,6 +136,29 @@ pub enum UrdfError {
 pub fn origin_transform(xyz: [f64; 3], rpy: [f64; 3]) -> DAffine3 {
     let rotation = DQuat::from_rotation_z(rpy[2]) * DQuat::from_rotation_y(rpy[1]) * DQuat::from_rotation_x(rpy[0]);
     DAffine3::from_rotation_translation(rotation, DVec3::from_array(xyz))
+}
+
+/// A link's `<inertial>`: the inertia tensor turned from the `<origin>`'s
+/// axes into the link's. A link without one has the zero inertial.
+fn inertial(given: &urdf_rs::Inertial, link: &str, path: &Path) -> Result<Inertial, UrdfError> {
+    let i = &given.inertia;
+    let com_frame = origin_transform(*given.origin.xyz, *given.origin.rpy);
+    let about_com_in_origin_axes =
+        DMat3::from_cols_array(&[i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz]);
+    let result = Inertial {
+        mass_kg: given.mass.value,
+        com_in_link_m: com_frame.translation,
+        inertia_about_com: com_frame.matrix3 * about_com_in_origin_axes * com_frame.matrix3.transpose(),
+    };
+    if result.is_valid() {
+        Ok(result)
+    } else {
+        Err(UrdfError::BadInertial {
+            path: path.to_owned(),
+            link: link.to_owned(),
+            mass_kg: given.mass.value,
+        })
+    }
 }
 
 /// Reads a URDF file into a [`Robot`].
@@ -187,6 +223,7 @@ pub fn read_urdf(text: &str, path: &Path, options: &UrdfOptions) -> Result<Robot
             name: link.name.clone(),
             mesh,
             segment: None,
+            inertial: inertial(&link.inertial, &link.name, path)?,
         });
     }
     let joints = urdf

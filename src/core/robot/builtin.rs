@@ -49,6 +49,7 @@ pub fn one_link(name: &str, mesh: TriMesh) -> Result<Robot, RobotError> {
             name: "link".into(),
             mesh,
             segment: None,
+            ..LinkSpec::default()
         },
     ];
     let joints = [JointSpec {
@@ -91,6 +92,7 @@ pub fn simple6() -> Result<Robot, RobotError> {
             }
             .mesh(16),
             segment: Some([DVec3::ZERO, end]),
+            ..LinkSpec::default()
         });
         let parent = if k == 0 {
             "base".to_owned()
@@ -147,6 +149,7 @@ pub fn lwr4plus_with_meshes(meshes: &[(String, TriMesh)]) -> Result<Robot, Robot
                 .map(|(_, m)| m.clone())
                 .unwrap_or_default(),
             segment: None,
+            ..LinkSpec::default()
         })
         .collect();
     let joints: Vec<JointSpec> = LWR_JOINTS

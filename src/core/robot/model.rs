@@ -5,6 +5,7 @@ use std::collections::HashMap;
 use glam::{DAffine3, DVec3};
 
 use crate::core::geometry::mesh::TriMesh;
+use crate::core::robot::spatial::Inertial;
 
 /// Index of a link in [`Robot::links`].
 pub type LinkId = usize;
@@ -93,6 +94,8 @@ pub struct Link {
     /// For one-dimensional links (the thesis' simple robot): the segment in
     /// the link frame on which contacts lie. The mesh is then only for display.
     pub segment: Option<[DVec3; 2]>,
+    /// Mass properties (zero where the description gives none).
+    pub inertial: Inertial,
 }
 
 /// A link as given to [`Robot::new`].
@@ -104,6 +107,8 @@ pub struct LinkSpec {
     pub mesh: TriMesh,
     /// See [`Link::segment`].
     pub segment: Option<[DVec3; 2]>,
+    /// See [`Link::inertial`].
+    pub inertial: Inertial,
 }
 
 /// A joint as given to [`Robot::new`], naming its links.
@@ -301,6 +306,7 @@ impl Robot {
                 child_joints: Vec::new(),
                 mesh: l.mesh.clone(),
                 segment: l.segment,
+                inertial: l.inertial,
             })
             .collect();
         let mut built_joints = Vec::with_capacity(joints.len());

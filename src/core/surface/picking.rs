@@ -203,6 +203,7 @@ mod tests {
                     name: "body".to_owned(),
                     mesh: cube,
                     segment: None,
+                    ..LinkSpec::default()
                 },
             ],
             &[JointSpec {

@@ -18,6 +18,7 @@ fn one_link_robot(mesh: TriMesh) -> Robot {
                 name: "body".to_owned(),
                 mesh,
                 segment: None,
+                ..LinkSpec::default()
             },
         ],
         &[JointSpec {
