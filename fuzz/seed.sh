@@ -25,7 +25,18 @@ seed scene ../scenes/*.json
 seed session_json "$shared"/sessions/*.json
 seed session_csv "$shared"/sessions/*.csv
 seed ros_recording "$shared"/recordings/*.mcap "$shared"/recordings/*.bag
-mkdir -p corpus/settings corpus/mesh_surface
+mkdir -p corpus/settings corpus/mesh_surface corpus/calibration
+# A calibration as `calibrate --out` writes it.
+cat > corpus/calibration/lwr.calib.json <<'JSON'
+{"format": "proprioscope-calibration", "version": 1, "robot": "lwr4plus",
+ "joints": ["lwr_joint_1", "lwr_joint_2", "lwr_joint_3", "lwr_joint_4", "lwr_joint_5", "lwr_joint_6", "lwr_joint_7"],
+ "observer_gain_per_s": 50.0,
+ "coulomb_nm": [0.4, 0.5, 0.3, 0.4, 0.2, 0.2, 0.1], "viscous_nms_per_rad": [0.5, 0.5, 0.4, 0.4, 0.3, 0.3, 0.2],
+ "offset_nm": [0.01, -0.02, 0.0, 0.03, 0.0, 0.0, 0.0], "sigma_nm": [0.02, 0.02, 0.02, 0.02, 0.02, 0.02, 0.02],
+ "correlation_secs": [0.001, 0.001, 0.001, 0.001, 0.001, 0.001, 0.001],
+ "rms_before_nm": [0.3, 0.4, 0.2, 0.3, 0.1, 0.1, 0.05], "rms_after_nm": [0.003, 0.003, 0.003, 0.003, 0.003, 0.003, 0.003],
+ "frames_read": 2500, "free_frames": 960, "found": true}
+JSON
 # Settings: a link selector byte, then 18 little-endian f64s (q, point,
 # force, σ, F min, F max, μ, α): ordinary values and the ranges' edges.
 python3 - corpus/settings <<'PY'

@@ -91,6 +91,10 @@ enum Command {
     },
     /// Estimates the contact in every frame of a recorded session.
     Estimate(cli::estimate::EstimateArgs),
+    /// Learns what a robot's torques carry besides contacts (observer lag,
+    /// inertial error, joint friction, offsets) from a recording's free
+    /// motion, and saves it for `estimate --calibration`.
+    Calibrate(cli::calibrate::CalibrateArgs),
     /// Speed against accuracy of estimator configurations (table and PNG plot).
     Bench(cli::bench::BenchArgs),
     /// Writes a session drawn from the model itself (the built-in LWR
@@ -254,6 +258,7 @@ fn run(cli: Cli) -> Result<()> {
             Some(address) => cli::live::run(&args, address),
             None => cli::estimate::run(&args),
         },
+        Some(Command::Calibrate(args)) => cli::calibrate::run(&args),
         Some(Command::Bench(args)) => cli::bench::run(&args),
         Some(Command::Synth(args)) => cli::synth::run(&args),
         Some(Command::Stream(args)) => cli::live::stream(&args),

@@ -74,6 +74,11 @@ pub struct EstimateArgs {
     /// [0.1, 86400] s.
     #[arg(long, default_value_t = 30.0, value_parser = super::within(&limits::BIAS_WINDOW))]
     pub bias_window: f64,
+    /// A calibration saved by `calibrate` (the same robot's model error,
+    /// learned from another recording): taken off every frame's torques,
+    /// with its σ where `--sigma auto`.
+    #[arg(long)]
+    pub calibration: Option<PathBuf>,
     /// Topics of a recording.
     #[command(flatten)]
     pub topics: TopicArgs,
@@ -270,6 +275,29 @@ fn debiased_torques(args: &EstimateArgs, robot: &Robot, session: &Session, sigma
     Ok(without_drifting_bias(&refs, &bias))
 }
 
+/// Every frame's torques as the estimator takes them (less the bias with
+/// `--bias auto`, less the model error a calibration learned or was
+/// given) and σ (learned with `--sigma auto`, else `sigma`).
+fn frame_torques(
+    args: &EstimateArgs,
+    robot: &Robot,
+    session: &Session,
+    sigma: &[f64],
+    config: &EstimatorConfig,
+    temporal: Temporal,
+) -> Result<(Vec<Vec<f64>>, Vec<f64>)> {
+    let taus = debiased_torques(args, robot, session, sigma)?;
+    super::calibrate::torques_and_sigma(
+        robot,
+        session,
+        taus,
+        sigma.to_vec(),
+        &config.torques,
+        temporal,
+        args.calibration.as_deref(),
+    )
+}
+
 /// `--temporal`, with `auto` decided for this session (and said on stderr).
 fn chosen_temporal(args: &EstimateArgs, session: &Session, points: usize, patches: bool) -> Temporal {
     if args.temporal.temporal != TemporalArg::Auto {
@@ -339,7 +367,8 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
         ),
     };
     let positions = joint_positions(&robot, &session, &file_frames)?;
-    let taus = debiased_torques(args, &robot, &session, &estimator.settings.sigma)?;
+    let (taus, sigma) = frame_torques(args, &robot, &session, &estimator.settings.sigma, &config, temporal)?;
+    estimator.settings.sigma = sigma;
     let sequence: Vec<SequenceFrame> = session
         .frames
         .iter()

@@ -1,6 +1,7 @@
 //! Headless commands that run the estimator.
 
 pub mod bench;
+pub mod calibrate;
 pub mod estimate;
 pub mod live;
 pub mod output;
@@ -13,10 +14,11 @@ use anyhow::{Result, bail};
 use glam::DVec3;
 use proprioscope::core::config::estimator::{
     BuildError, ConfigError, DEFAULT_FORCE_RANGE_NEWTONS, DEFAULT_SIGMA_NEWTON_METRES, EstimatorConfig, Friction,
-    ModeKind, Sigma,
+    ModeKind, Sigma, TorqueModel,
 };
 use proprioscope::core::config::limits::{self, CountRange, Range};
 use proprioscope::core::estimate::estimator::Estimator;
+use proprioscope::core::over_time::calibration::{CalibrationSettings, ObserverGain};
 use proprioscope::core::over_time::sequence::Temporal;
 use proprioscope::core::over_time::temporal::TemporalSettings;
 use proprioscope::core::robot::model::{LinkId, Robot};
@@ -228,9 +230,22 @@ pub struct EstimatorArgs {
     #[arg(long, default_value_t = EstimatorConfig::default().magnitudes_per_point, value_parser = counted(&limits::MAGNITUDES))]
     pub m: usize,
     /// Likelihood σ, N·m: one value, or one per sensed joint (comma
-    /// separated; valid: [1e-4, 100] N·m).
-    #[arg(long, value_delimiter = ',', default_values_t = [DEFAULT_SIGMA_NEWTON_METRES], value_parser = within(&limits::SIGMA))]
-    pub sigma: Vec<f64>,
+    /// separated; valid: [1e-4, 100] N·m); `auto`: learned per joint from
+    /// a recording's free stretches and widened for their correlation over
+    /// time (0.05 where there is nothing to learn from: frames alone).
+    #[arg(long, value_delimiter = ',', default_value = "auto", value_parser = sigma_arg)]
+    pub sigma: Vec<SigmaArg>,
+    /// A recording's model error (inertials, joint friction, offsets):
+    /// `auto` learns it from the recording's free motion and takes it off
+    /// the torques (frames combined over time); `none` takes the torques
+    /// as they are.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub calibrate: CalibrateArg,
+    /// The momentum observer's gain K behind the torques, 1/s (its lag is
+    /// 1/K): `auto` estimates it, `none` says there is no lag (valid:
+    /// (0, 10000] 1/s).
+    #[arg(long, default_value = "auto", value_parser = gain_arg)]
+    pub observer_gain: ObserverGain,
     /// Smallest push magnitude considered, N (valid: [0, 10000] N, not above --fmax).
     #[arg(long, default_value_t = DEFAULT_FORCE_RANGE_NEWTONS.0, value_parser = within(&limits::FORCE_MIN))]
     pub fmin: f64,
@@ -268,6 +283,45 @@ pub struct EstimatorArgs {
     pub friction: Friction,
 }
 
+/// One `--sigma` value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SigmaArg {
+    /// Learned from the recording.
+    Auto,
+    /// Given, N·m.
+    Value(f64),
+}
+
+/// `--calibrate`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CalibrateArg {
+    /// Learned from the recording and taken off.
+    Auto,
+    /// The torques as they are.
+    None,
+}
+
+/// Parses one `--sigma` value: `auto` or a σ within its range.
+fn sigma_arg(text: &str) -> Result<SigmaArg, String> {
+    if text.trim().eq_ignore_ascii_case("auto") {
+        return Ok(SigmaArg::Auto);
+    }
+    within(&limits::SIGMA)(text)
+        .map(SigmaArg::Value)
+        .map_err(|e| format!("{e} (or give auto)"))
+}
+
+/// Parses `--observer-gain`: `auto`, `none` or a gain within its range.
+pub fn gain_arg(text: &str) -> Result<ObserverGain, String> {
+    match text.trim().to_ascii_lowercase().as_str() {
+        "auto" => Ok(ObserverGain::Auto),
+        "none" => Ok(ObserverGain::Without),
+        _ => within(&limits::OBSERVER_GAIN)(text)
+            .map(ObserverGain::PerSecond)
+            .map_err(|e| format!("{e} (or give auto or none)")),
+    }
+}
+
 /// Parses `--friction`: `auto` or a μ within its range.
 fn friction_arg(text: &str) -> Result<Friction, String> {
     if text.trim().eq_ignore_ascii_case("auto") {
@@ -287,7 +341,20 @@ impl EstimatorArgs {
     /// The options (and the temporal model's, `temporal`) as the one
     /// configuration, checked.
     pub fn config(&self, temporal: &TemporalArgs) -> Result<EstimatorConfig> {
-        let sigma = match self.sigma.as_slice() {
+        let values: Vec<f64> = self
+            .sigma
+            .iter()
+            .filter_map(|s| match s {
+                SigmaArg::Value(v) => Some(*v),
+                SigmaArg::Auto => None,
+            })
+            .collect();
+        let sigma_auto = values.is_empty();
+        if !sigma_auto && values.len() != self.sigma.len() {
+            bail!("--sigma: give auto alone, or numbers");
+        }
+        let sigma = match values.as_slice() {
+            [] => Sigma::All(DEFAULT_SIGMA_NEWTON_METRES),
             [s] => Sigma::All(*s),
             v => Sigma::PerJoint(v.to_vec()),
         };
@@ -314,6 +381,14 @@ impl EstimatorArgs {
             surface_points: self.points,
             surface_seed: self.seed,
             temporal: temporal.settings(),
+            torques: TorqueModel {
+                sigma_auto,
+                calibrate: self.calibrate == CalibrateArg::Auto,
+                calibration: CalibrationSettings {
+                    observer_gain: self.observer_gain,
+                    ..CalibrationSettings::default()
+                },
+            },
         };
         config.validate(None).map_err(|e| option_error(&e))?;
         Ok(config)

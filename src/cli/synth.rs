@@ -6,7 +6,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context as _, Result};
-use proprioscope::core::eval::synth::{SynthSettings, synthesize};
+use proprioscope::core::eval::synth::{ObserverSim, SynthSettings, synthesize};
 use proprioscope::core::robot::builtin;
 use proprioscope::io::session::{Frame, Recorder, Truth};
 
@@ -44,6 +44,33 @@ pub struct SynthArgs {
     /// Gaussian noise on every torque, N·m (valid: [0, 100]).
     #[arg(long, default_value_t = 0.05, value_parser = within(&limits::NOISE))]
     pub noise: f64,
+    /// Torques as a real arm reports them: through a momentum observer of
+    /// this gain, 1/s, on a model whose inertials are wrong (--noise is
+    /// then the sensor's, before the observer; valid: (0, 10000] 1/s).
+    #[arg(long, value_parser = within(&limits::OBSERVER_GAIN))]
+    pub observer_gain: Option<f64>,
+    /// With --observer-gain: the plant's masses and inertias differ from
+    /// the model's by up to this fraction (valid: [0, 0.99]).
+    #[arg(long, default_value_t = 0.08, requires = "observer_gain", value_parser = within(&limits::MODEL_ERROR))]
+    pub model_error: f64,
+    /// With --observer-gain: `link`-side torque sensing (the observer sees
+    /// no joint friction) or `motor`-side (it sees Coulomb friction of
+    /// 0.2–0.5 N·m and viscous of 0.3–0.6 N·m·s/rad per joint).
+    #[arg(long, value_enum, default_value = "link", requires = "observer_gain")]
+    pub sensing: Sensing,
+    /// The joints swing about the pose by this much, rad, over 4 s
+    /// (valid: [0, 3.2]).
+    #[arg(long, default_value_t = 0.2, value_parser = within(&limits::SWING))]
+    pub swing: f64,
+}
+
+/// `--sensing`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Sensing {
+    /// Joint torque sensors after the gearbox (LWR, iiwa, Panda).
+    Link,
+    /// Motor currents: the joints' friction is in the torque.
+    Motor,
 }
 
 /// Runs the command.
@@ -64,6 +91,13 @@ pub fn run(args: &SynthArgs) -> Result<()> {
         bias_newton_metres: args.bias,
         slide_m_per_s: args.slide,
         noise_newton_metres: args.noise,
+        motion_rad: args.swing,
+        observer: args.observer_gain.map(|gain_per_s| ObserverSim {
+            gain_per_s,
+            mass_error: args.model_error,
+            motor_side: args.sensing == Sensing::Motor,
+            ..ObserverSim::default()
+        }),
         ..SynthSettings::default()
     };
     let frames = synthesize(&robot, &links, &settings, args.seed)?;

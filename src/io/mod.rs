@@ -4,6 +4,7 @@
 
 pub mod bag;
 pub mod builtin;
+pub mod calibration;
 pub mod guard;
 pub mod inflate;
 pub mod live;

@@ -78,3 +78,20 @@ pub fn null_number(value: &serde_json::Value, nullable: &[&str], path: &str) -> 
         _ => None,
     }
 }
+
+/// `(detected %, false alarms %, median position error mm)` from an
+/// `estimate` run's summary (its `detection:` line and its `| all |` row).
+pub fn estimate_figures(out: &str) -> (f64, f64, f64) {
+    let line = out.lines().find(|l| l.starts_with("detection:")).unwrap();
+    let percents: Vec<f64> = line
+        .split('(')
+        .skip(1)
+        .map(|p| p.split(' ').next().unwrap().parse().unwrap())
+        .collect();
+    let row = out.lines().find(|l| l.contains("| all |")).unwrap();
+    (
+        percents[0],
+        percents[1],
+        row.split('|').nth(3).unwrap().trim().parse().unwrap(),
+    )
+}

@@ -9,6 +9,7 @@
 use crate::core::config::limits::{self, CountOutOfRange, OutOfRange};
 use crate::core::estimate::estimator::Estimator;
 use crate::core::estimate::settings::{EstimatorSettings, Mode, ParticleSettings, Sampling};
+use crate::core::over_time::calibration::{CalibrationSettings, ObserverGain};
 use crate::core::over_time::sequence::Temporal;
 use crate::core::over_time::temporal::{TemporalError, TemporalModel, TemporalSettings};
 use crate::core::robot::model::{LinkId, Robot};
@@ -96,6 +97,35 @@ pub struct EstimatorConfig {
     pub surface_seed: u64,
     /// The temporal model's rates and slide length.
     pub temporal: TemporalSettings,
+    /// What a recording's torques are taken to carry besides contacts.
+    pub torques: TorqueModel,
+}
+
+/// What a recording's torques carry besides contacts, and what the
+/// program learns of it from the recording itself
+/// ([`crate::core::over_time::calibration`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TorqueModel {
+    /// σ per joint learned from the recording's free stretches (widened
+    /// for their correlation over time); `sigma` is then the fallback
+    /// where nothing can be learned (frames alone, too few free frames).
+    pub sigma_auto: bool,
+    /// Learn and take off the model error (inertials, friction, offset).
+    pub calibrate: bool,
+    /// What is fitted, and the observer's gain.
+    pub calibration: CalibrationSettings,
+}
+
+impl Default for TorqueModel {
+    /// σ learned, the model error learned and taken off, the observer's
+    /// gain estimated: a user who has never heard of σ opens a recording.
+    fn default() -> Self {
+        Self {
+            sigma_auto: true,
+            calibrate: true,
+            calibration: CalibrationSettings::default(),
+        }
+    }
 }
 
 impl Default for EstimatorConfig {
@@ -119,6 +149,7 @@ impl Default for EstimatorConfig {
             surface_points: DEFAULT_SURFACE_POINTS,
             surface_seed: 0,
             temporal: TemporalSettings::default(),
+            torques: TorqueModel::default(),
         }
     }
 }
@@ -154,6 +185,8 @@ pub enum ConfigField {
     Slide,
     /// [`TemporalSettings::jump_per_s`].
     JumpRate,
+    /// The observer gain of [`TorqueModel::calibration`].
+    ObserverGain,
 }
 
 impl ConfigField {
@@ -174,6 +207,7 @@ impl ConfigField {
             Self::ReleaseRate => "temporal.release_per_s",
             Self::Slide => "temporal.slide_m_per_sqrt_s",
             Self::JumpRate => "temporal.jump_per_s",
+            Self::ObserverGain => "torques.observer_gain_per_s",
         }
     }
 
@@ -194,6 +228,7 @@ impl ConfigField {
             Self::ReleaseRate => "--release-rate",
             Self::Slide => "--slide",
             Self::JumpRate => "--jump-rate",
+            Self::ObserverGain => "--observer-gain",
         }
     }
 }
@@ -310,6 +345,9 @@ impl EstimatorConfig {
             in_range(F::Friction, &limits::FRICTION, mu)?;
         }
         counted(F::SurfacePoints, &limits::SURFACE_POINTS, self.surface_points)?;
+        if let ObserverGain::PerSecond(k) = self.torques.calibration.observer_gain {
+            in_range(F::ObserverGain, &limits::OBSERVER_GAIN, k)?;
+        }
         let t = &self.temporal;
         in_range(F::OnsetRate, &limits::EVENT_RATE, t.onset_per_s)?;
         in_range(F::ReleaseRate, &limits::EVENT_RATE, t.release_per_s)?;

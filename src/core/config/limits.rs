@@ -242,6 +242,15 @@ pub const SECONDS: Range = Range::above("duration", "s", 0.0, 3600.0);
 /// A frame rate, Hz (a robot logs at 1 kHz; 10 kHz is the most taken).
 pub const RATE_HZ: Range = Range::above("frame rate", "Hz", 0.0, 1e4);
 
+/// A momentum observer's gain K, 1/s (its lag is 1/K).
+pub const OBSERVER_GAIN: Range = Range::above("observer gain", "1/s", 0.0, 1e4);
+
+/// A simulated plant's inertial error, a fraction of the model's.
+pub const MODEL_ERROR: Range = Range::closed("model error", "", 0.0, 0.99);
+
+/// A simulated arm's swing about its pose, rad.
+pub const SWING: Range = Range::closed("swing", "rad", 0.0, 3.2);
+
 /// A slide's speed, m/s.
 pub const SLIDE_SPEED: Range = Range::closed("slide speed", "m/s", 0.0, 1.0);
 
@@ -280,7 +289,7 @@ pub const LIVE_FRAMES: CountRange = CountRange::new("live frames", 1, usize::MAX
 pub const CONTACTS: CountRange = CountRange::new("contacts", 1, 1_000_000);
 
 /// Every range above, for the documentation's table (and its test).
-pub const RANGES: [&Range; 21] = [
+pub const RANGES: [&Range; 24] = [
     &SIGMA,
     &NOISE,
     &TORQUE,
@@ -298,6 +307,9 @@ pub const RANGES: [&Range; 21] = [
     &BIAS,
     &SECONDS,
     &RATE_HZ,
+    &OBSERVER_GAIN,
+    &MODEL_ERROR,
+    &SWING,
     &SLIDE_SPEED,
     &SPEED,
     &WAIT_SECONDS,

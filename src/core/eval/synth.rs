@@ -8,8 +8,11 @@ use glam::DVec3;
 
 use crate::core::numerics::rng::Rng;
 use crate::core::over_time::frame::SequenceFrame;
+use crate::core::over_time::observer::Lag;
+use crate::core::robot::dynamics::{DynamicsError, RigidBodies};
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::{LinkId, Robot, RobotError};
+use crate::core::robot::spatial::Inertial;
 use crate::core::robot::torque::joint_torques;
 use crate::core::surface::sampling::{Surface, SurfaceError, SurfaceRequest};
 
@@ -47,7 +50,57 @@ pub struct SynthSettings {
     /// N·m: presses the sensors can feel (a push through the axis of
     /// the only joint that moves a link makes no torque at all).
     pub min_torque_newton_metres: f64,
+    /// The torques as a real arm reports them, through a momentum
+    /// observer on a model whose inertials are wrong; `None`: `JᵀF` plus
+    /// bias and noise.
+    pub observer: Option<ObserverSim>,
 }
+
+/// A real arm's external torque (see [`crate::core::over_time::observer`]):
+/// the arm follows the drawn motion exactly (a stiff joint PD; the
+/// observer's residual depends only on the motion), the plant's inertials
+/// differ from the model's (the robot's), the joints have Coulomb and
+/// viscous friction, and the observer of gain K reports
+/// `r = lag_K(τ_ext + Y(q, q̇, q̈)(π_model − π_plant) − τ_friction + b + n)`,
+/// the friction only where the torque is sensed on the motor side.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObserverSim {
+    /// The observer's gain K, 1/s.
+    pub gain_per_s: f64,
+    /// Each link's mass and rotational inertia in the plant are the model's
+    /// times a factor uniform in `[1 − this, 1 + this]`.
+    pub mass_error: f64,
+    /// Each link's centre of mass in the plant is the model's moved by up
+    /// to this, in a random direction, m.
+    pub com_error_m: f64,
+    /// Each joint's Coulomb friction is uniform in this range, N·m.
+    pub coulomb_nm: (f64, f64),
+    /// Each joint's viscous friction is uniform in this range, N·m·s/rad.
+    pub viscous_nms_per_rad: (f64, f64),
+    /// The sensed torque is the motor's (the friction reaches the
+    /// observer) rather than the link's.
+    pub motor_side: bool,
+}
+
+impl Default for ObserverSim {
+    /// As the shared `MuJoCo` observer examples: K = 50/s, masses ±8 %,
+    /// centres of mass off by up to 5 mm, link-side sensing; joint
+    /// friction 0.2–0.5 N·m and 0.3–0.6 N·m·s/rad where sensed.
+    fn default() -> Self {
+        Self {
+            gain_per_s: 50.0,
+            mass_error: 0.08,
+            com_error_m: 0.005,
+            coulomb_nm: (0.2, 0.5),
+            viscous_nms_per_rad: (0.3, 0.6),
+            motor_side: false,
+        }
+    }
+}
+
+/// The Coulomb friction's speed scale in the simulated plant, rad/s (a
+/// sharper switch than the calibration's model assumes).
+const PLANT_STICTION_SPEED_RAD_S: f64 = 0.005;
 
 impl Default for SynthSettings {
     /// Six seconds at 200 Hz; presses of 0.3–1.2 s, 0.3–1 s apart, of
@@ -67,6 +120,7 @@ impl Default for SynthSettings {
             noise_newton_metres: 0.05,
             motion_rad: 0.2,
             min_torque_newton_metres: 0.5,
+            observer: None,
         }
     }
 }
@@ -132,6 +186,9 @@ pub enum SynthError {
         /// Its value.
         value: f64,
     },
+    /// The dynamics of the simulated observer could not be evaluated.
+    #[error(transparent)]
+    Dynamics(#[from] DynamicsError),
     /// The candidate links could not be sampled.
     #[error(transparent)]
     Surface(#[from] SurfaceError),
@@ -167,6 +224,30 @@ impl SynthSettings {
                 return bad(name, lo);
             }
         }
+        if let Some(o) = &self.observer {
+            for (name, value) in [
+                ("observer gain", o.gain_per_s),
+                ("mass error", o.mass_error),
+                ("centre of mass error", o.com_error_m),
+                ("Coulomb friction", o.coulomb_nm.0),
+                ("viscous friction", o.viscous_nms_per_rad.0),
+            ] {
+                if !value.is_finite() || value < 0.0 {
+                    return bad(name, value);
+                }
+            }
+            if o.gain_per_s <= 0.0 || o.mass_error >= 1.0 {
+                return bad("observer gain or mass error", o.gain_per_s);
+            }
+            for (name, (lo, hi)) in [
+                ("Coulomb friction", o.coulomb_nm),
+                ("viscous friction", o.viscous_nms_per_rad),
+            ] {
+                if !(hi.is_finite() && hi >= lo) {
+                    return bad(name, hi);
+                }
+            }
+        }
         let frames = (self.duration_secs * self.rate_hz).floor();
         if !(1.0..=MAX_SYNTH_FRAMES as f64).contains(&frames) {
             return bad("frames (duration × rate)", frames);
@@ -185,6 +266,72 @@ struct Press {
     slide_speed: f64,
     friction: f64,
     friction_angle: f64,
+}
+
+/// The plant behind a simulated observer, and the observer's lag.
+struct SimulatedObserver<'r> {
+    model: RigidBodies<'r>,
+    plant: RigidBodies<'r>,
+    coulomb: Vec<f64>,
+    viscous: Vec<f64>,
+    motor_side: bool,
+    lag: Lag,
+}
+
+impl<'r> SimulatedObserver<'r> {
+    fn new(robot: &'r Robot, settings: &ObserverSim, rng: &mut Rng) -> Self {
+        let model = RigidBodies::new(robot);
+        let plant_parameters: Vec<f64> = robot
+            .links
+            .iter()
+            .flat_map(|link| {
+                let scale = rng.uniform_in(1.0 - settings.mass_error, 1.0 + settings.mass_error);
+                let direction = DVec3::new(rng.normal(), rng.normal(), rng.normal()).normalize_or_zero();
+                let shift = direction * rng.uniform_in(0.0, settings.com_error_m);
+                Inertial {
+                    mass_kg: link.inertial.mass_kg * scale,
+                    com_in_link_m: link.inertial.com_in_link_m + shift,
+                    inertia_about_com: link.inertial.inertia_about_com * scale,
+                }
+                .parameters()
+            })
+            .collect();
+        let plant = model
+            .clone()
+            .with_parameters(&plant_parameters)
+            .unwrap_or_else(|_| model.clone());
+        let joints = robot.sensed().len();
+        let (lo, hi) = settings.coulomb_nm;
+        let coulomb = (0..joints).map(|_| rng.uniform_in(lo, hi)).collect();
+        let (lo, hi) = settings.viscous_nms_per_rad;
+        let viscous = (0..joints).map(|_| rng.uniform_in(lo, hi)).collect();
+        Self {
+            model,
+            plant,
+            coulomb,
+            viscous,
+            motor_side: settings.motor_side,
+            lag: Lag::new(Some(settings.gain_per_s), joints),
+        }
+    }
+
+    /// The observer's residual for a frame whose contact, bias and noise
+    /// make `measured`.
+    fn step(&mut self, q: &[f64], qd: &[f64], qdd: &[f64], measured: &[f64], dt: f64) -> Result<Vec<f64>, SynthError> {
+        let ours = self.model.inverse_dynamics(q, qd, qdd)?;
+        let theirs = self.plant.inverse_dynamics(q, qd, qdd)?;
+        let input: Vec<f64> = (0..measured.len())
+            .map(|j| {
+                let friction = if self.motor_side {
+                    self.coulomb[j] * (qd[j] / PLANT_STICTION_SPEED_RAD_S).tanh() + self.viscous[j] * qd[j]
+                } else {
+                    0.0
+                };
+                measured[j] + ours[j] - theirs[j] - friction
+            })
+            .collect();
+        Ok(self.lag.step(dt, &input).to_vec())
+    }
 }
 
 /// Presses one after another over the session, each at a place the
@@ -252,6 +399,29 @@ pub fn synthesize(
     settings: &SynthSettings,
     seed: u64,
 ) -> Result<Vec<SynthFrame>, SynthError> {
+    synthesize_with_plant(robot, links, settings, seed).map(|(frames, _)| frames)
+}
+
+/// The simulated observer's plant: what a calibration should find.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlantTruth {
+    /// Each joint's Coulomb friction, N·m.
+    pub coulomb_nm: Vec<f64>,
+    /// Each joint's viscous friction, N·m·s/rad.
+    pub viscous_nms_per_rad: Vec<f64>,
+    /// The model's inertial parameters minus the plant's, ten per link.
+    pub inertial_error: Vec<f64>,
+}
+
+/// [`synthesize`], with the plant behind a simulated observer (`None`
+/// without one).
+#[allow(clippy::too_many_lines)] // One frame after another, read top to bottom.
+pub fn synthesize_with_plant(
+    robot: &Robot,
+    links: &[LinkId],
+    settings: &SynthSettings,
+    seed: u64,
+) -> Result<(Vec<SynthFrame>, Option<PlantTruth>), SynthError> {
     let frames = settings.validate()?;
     let mut rng = Rng::new(seed);
     let pool = Surface::sample_random(
@@ -287,6 +457,7 @@ pub fn synthesize(
     let start_pose = RobotPose::new(robot, &robot.joint_positions(&base, &[]).unwrap_or_default());
     let presses = draw_presses(robot, &pool, &start_pose, settings, &mut rng);
     let dt = 1.0 / settings.rate_hz;
+    let mut observer = settings.observer.map(|o| SimulatedObserver::new(robot, &o, &mut rng));
     let mut press_index = 0;
     let mut place = None;
     // The press's slide and drag directions, link frame: drawn at its
@@ -352,6 +523,20 @@ pub fn synthesize(
         for (t, b) in tau.iter_mut().zip(&bias) {
             *t += b + settings.noise_newton_metres * rng.normal();
         }
+        if let Some(sim) = observer.as_mut() {
+            let omega = std::f64::consts::TAU / 4.0;
+            let (qd, qdd): (Vec<f64>, Vec<f64>) = phase
+                .iter()
+                .map(|ph| {
+                    let angle = omega * t + ph;
+                    (
+                        settings.motion_rad * omega * angle.cos(),
+                        -settings.motion_rad * omega * omega * angle.sin(),
+                    )
+                })
+                .unzip();
+            tau = sim.step(&q, &qd, &qdd, &tau, if i == 0 { 0.0 } else { dt })?;
+        }
         out.push(SynthFrame {
             t_secs: t,
             q,
@@ -359,7 +544,18 @@ pub fn synthesize(
             contact,
         });
     }
-    Ok(out)
+    let plant = observer.map(|sim| PlantTruth {
+        inertial_error: sim
+            .model
+            .parameters()
+            .iter()
+            .zip(sim.plant.parameters())
+            .map(|(a, b)| a - b)
+            .collect(),
+        coulomb_nm: sim.coulomb,
+        viscous_nms_per_rad: sim.viscous,
+    });
+    Ok((out, plant))
 }
 
 #[cfg(test)]

@@ -1,10 +1,13 @@
 //! A session: the temporal model of contacts (filter and smoother), the
-//! presses fitted as a whole, the sequence of frames and the torque bias.
+//! presses fitted as a whole, the sequence of frames, the torque bias and
+//! the calibration of a real arm's model error.
 //! Imports the rooms below it, `estimate` included.
 
 pub mod bias;
+pub mod calibration;
 pub mod frame;
 pub mod graph;
+pub mod observer;
 pub mod offsets;
 pub mod presses;
 pub mod sequence;

@@ -5,6 +5,7 @@ use glam::{DAffine3, DVec3};
 use crate::core::geometry::mesh::TriMesh;
 use crate::core::geometry::primitives::Primitive;
 use crate::core::robot::model::{JointKind, JointLimits, JointSpec, LinkSpec, Robot, RobotError};
+use crate::core::robot::spatial::Inertial;
 
 /// Names of the built-in robots.
 pub const BUILTIN_NAMES: [&str; 2] = ["simple6", "lwr4plus"];
@@ -136,12 +137,26 @@ pub const LWR_LINKS: [&str; 8] = [
     "lwr_7_link",
 ];
 
+/// The built-in LWR's mean density, kg/m³: its primitives as solids of
+/// this density weigh about what the real arm's links do (2–3 kg each).
+pub const LWR_DENSITY_KG_M3: f64 = 700.0;
+
 /// The LWR 4+ kinematics with the given link meshes (by link name; links
-/// not named get none).
+/// not named get none). Every link's inertial is that of its primitives
+/// ([`lwr4plus_primitives`]) as uniform solids of [`LWR_DENSITY_KG_M3`]:
+/// plausible dynamics for simulated observers, not the real arm's.
 pub fn lwr4plus_with_meshes(meshes: &[(String, TriMesh)]) -> Result<Robot, RobotError> {
+    let primitives = lwr4plus_primitives();
     let links: Vec<LinkSpec> = LWR_LINKS
         .iter()
         .map(|name| LinkSpec {
+            inertial: primitives
+                .iter()
+                .find(|(n, _)| n == name)
+                .map_or_else(Inertial::default, |(_, parts)| {
+                    let solids: Vec<TriMesh> = parts.iter().map(|p| p.mesh(LWR_SEGMENTS)).collect();
+                    Inertial::of_solids(&solids, LWR_DENSITY_KG_M3)
+                }),
             name: (*name).to_owned(),
             mesh: meshes
                 .iter()
@@ -149,7 +164,6 @@ pub fn lwr4plus_with_meshes(meshes: &[(String, TriMesh)]) -> Result<Robot, Robot
                 .map(|(_, m)| m.clone())
                 .unwrap_or_default(),
             segment: None,
-            ..LinkSpec::default()
         })
         .collect();
     let joints: Vec<JointSpec> = LWR_JOINTS
@@ -280,4 +294,22 @@ pub fn lwr4plus_meshes() -> Vec<(String, TriMesh)> {
             (name.to_owned(), mesh)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_builtin_lwr_weighs_about_what_the_real_one_does() {
+        let robot = lwr4plus_kinematics().unwrap();
+        let masses: Vec<f64> = robot.links.iter().map(|l| l.inertial.mass_kg).collect();
+        let arm: f64 = masses[1..].iter().sum();
+        assert!((10.0..25.0).contains(&arm), "{masses:?}");
+        for l in &robot.links[1..6] {
+            assert!((1.0..4.5).contains(&l.inertial.mass_kg), "{}: {:?}", l.name, l.inertial);
+            let i = l.inertial.inertia_about_com;
+            assert!(i.x_axis.x > 0.0 && i.y_axis.y > 0.0 && i.z_axis.z > 0.0, "{i}");
+        }
+    }
 }

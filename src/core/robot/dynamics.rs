@@ -20,6 +20,8 @@
 
 use glam::DVec3;
 
+use crate::core::numerics::linalg::independent_columns;
+use crate::core::numerics::rng::Rng;
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::{JointId, JointKind, LinkId, Robot, RobotError};
 use crate::core::robot::spatial::{Force, Motion, SpatialInertia};
@@ -321,6 +323,46 @@ impl<'r> RigidBodies<'r> {
             }
         }
         Ok(y)
+    }
+
+    /// The columns of the regressor that carry the base inertial
+    /// parameters: a largest set of linearly independent columns, found
+    /// numerically from the regressor at random states within the joint
+    /// limits (seeded). Every other column is a combination of these (or
+    /// zero), so a fit over these columns alone identifies everything the
+    /// torques can tell about the inertials.
+    #[must_use]
+    pub fn base_columns(&self) -> Vec<usize> {
+        let n = self.dof();
+        let columns = self.parameters.len() * 10;
+        let mut gram = vec![0.0; columns * columns];
+        let mut rng = Rng::new(0x0ba5e);
+        let limits: Vec<(f64, f64)> = self
+            .robot
+            .sensed()
+            .iter()
+            .map(|&j| {
+                self.robot.joints[j]
+                    .limits
+                    .map_or((-std::f64::consts::PI, std::f64::consts::PI), |l| (l.lower, l.upper))
+            })
+            .collect();
+        for _ in 0..(4 * columns).max(40) {
+            let q: Vec<f64> = limits.iter().map(|&(lo, hi)| rng.uniform_in(lo, hi)).collect();
+            let qd: Vec<f64> = (0..n).map(|_| rng.uniform_in(-2.0, 2.0)).collect();
+            let qdd: Vec<f64> = (0..n).map(|_| rng.uniform_in(-5.0, 5.0)).collect();
+            let Ok(y) = self.regressor(&q, &qd, &qdd) else {
+                return Vec::new();
+            };
+            for row in y.chunks_exact(columns) {
+                for (i, a) in row.iter().enumerate().filter(|(_, a)| **a != 0.0) {
+                    for (j, b) in row.iter().enumerate() {
+                        gram[i * columns + j] += a * b;
+                    }
+                }
+            }
+        }
+        independent_columns(&gram, columns, 1e-10)
     }
 
     /// The bodies below body `b`, itself included, as a mask.
@@ -636,6 +678,52 @@ mod tests {
         // through velocity; the base's none at all.
         assert!((0..3).all(|i| (0..10).all(|c| y[i * pi.len() + c] == 0.0)));
         assert_eq!(bodies.moving_links(), vec![1, 2, 3, 4, 5, 6]);
+    }
+
+    /// The base columns reproduce every torque: a least-squares fit over
+    /// them alone matches inverse dynamics at fresh states.
+    #[test]
+    fn the_base_columns_carry_every_torque() {
+        use crate::core::numerics::linalg::solve_spd;
+        let robot = arm();
+        let bodies = RigidBodies::new(&robot);
+        let base = bodies.base_columns();
+        assert!(!base.is_empty() && base.len() < 70, "{base:?}");
+        let pi = bodies.parameters();
+        let columns = pi.len();
+        let states: Vec<[[f64; 3]; 3]> = (0..40)
+            .map(|k| {
+                let f = f64::from(k);
+                [
+                    [0.1 * f, (0.37 * f).sin(), (0.21 * f).cos()],
+                    [(0.5 * f).sin(), -0.3 + 0.02 * f, (1.3 * f).cos()],
+                    [(0.9 * f).cos(), (0.4 * f).sin() * 2.0, 1.0 - 0.05 * f],
+                ]
+            })
+            .collect();
+        let p = base.len();
+        let (mut gram, mut rhs) = (vec![0.0; p * p], vec![0.0; p]);
+        for [q, qd, qdd] in &states[..30] {
+            let y = bodies.regressor(q, qd, qdd).unwrap();
+            let tau = bodies.inverse_dynamics(q, qd, qdd).unwrap();
+            for (row, t) in y.chunks_exact(columns).zip(&tau) {
+                for (a, &ca) in base.iter().enumerate() {
+                    rhs[a] += row[ca] * t;
+                    for (b, &cb) in base.iter().enumerate() {
+                        gram[a * p + b] += row[ca] * row[cb];
+                    }
+                }
+            }
+        }
+        let beta = solve_spd(&gram, &rhs).unwrap();
+        for [q, qd, qdd] in &states[30..] {
+            let y = bodies.regressor(q, qd, qdd).unwrap();
+            let tau = bodies.inverse_dynamics(q, qd, qdd).unwrap();
+            for (row, t) in y.chunks_exact(columns).zip(&tau) {
+                let fitted: f64 = base.iter().zip(&beta).map(|(&c, b)| row[c] * b).sum();
+                assert!((fitted - t).abs() < 1e-8, "{fitted} vs {t}");
+            }
+        }
     }
 
     #[test]

@@ -1,0 +1,1036 @@
+//! The model error of a real arm's torques, learned from a recording.
+//!
+//! Without contact a momentum observer's residual is a lag
+//! ([`crate::core::over_time::observer`]) of what the controller's model
+//! gets wrong, and that error follows the motion:
+//! `e = Y(q, q̇, q̈) δπ − F_c tanh(q̇ / v_s) − F_v q̇ + b`, with `Y` the
+//! dynamics regressor over the base inertial parameters
+//! ([`RigidBodies::base_columns`]), `δπ` their error, `F_c` and `F_v`
+//! each joint's Coulomb and viscous friction (seen only where the torque
+//! is sensed on the motor side) and `b` an offset per joint.
+//!
+//! The fit is least squares of the lagged columns against the residual
+//! over the frames that are surely free, with Huber weights on each
+//! frame's χ² and a ridge of 10⁻⁶ of each column's own information. Free
+//! frames are found by alternating: the quietest 30 % of frames start it;
+//! then a frame is free when its corrected residual's χ² over the joints
+//! is below the 99.9 % point of a χ² (no contact explains it), and it is
+//! not within 1/K before or 5/K after a frame that is not (the lag's
+//! tail). The observer gain K is the one of a grid that fits best, or
+//! given. A fit that does not cut the residual's variance by 10 % and by
+//! three times what its columns would take from pure noise finds
+//! nothing: its corrections are zero.
+//!
+//! What is left is described per joint by its RMS `σ` and its correlation
+//! time: at 1 kHz a residual correlated over 20 ms is about 40 frames'
+//! worth of one vote, and [`Calibration::sigma_over_time`] widens σ by the
+//! square root of that count so that the filter and the smoother do not
+//! take a thousand correlated frames for a thousand independent ones.
+
+use crate::core::numerics::linalg::{LinalgError, solve_spd};
+use crate::core::numerics::special::chi_square_survival;
+use crate::core::over_time::observer::{Lag, Unlag, correlation_samples, differentiate};
+use crate::core::robot::dynamics::{DynamicsError, RigidBodies};
+
+/// Observer gains tried when the gain is not given, 1/s.
+pub const OBSERVER_GAINS_PER_S: [f64; 13] = [
+    5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 50.0, 70.0, 100.0, 150.0, 200.0, 300.0, 500.0,
+];
+
+/// The joint speed at which the smooth Coulomb term reaches 76 % of its
+/// value (`tanh(1)`), rad/s.
+pub const STICTION_SPEED_RAD_S: f64 = 0.01;
+
+/// Most frames a fit reads (from the recording's start); the correction
+/// then applies to every frame.
+pub const MAX_FIT_FRAMES: usize = 60_000;
+
+/// Below this RMS joint speed the arm is held, not moving, rad/s: a held
+/// arm's model error is a constant that a long press would look like.
+pub const MIN_RMS_SPEED_RAD_S: f64 = 0.02;
+
+/// The fewest free frames a fit needs.
+pub const MIN_FREE_FRAMES: usize = 50;
+
+/// The prior on an inertial correction: this fraction of the model's
+/// value, plus [`PRIOR_FLOOR`] by kind (kg, kg·m, kg·m²).
+const PRIOR_RELATIVE: f64 = 0.3;
+/// See [`PRIOR_RELATIVE`]; in [`crate::core::robot::spatial::PARAMETER_NAMES`] order.
+const PRIOR_FLOOR: [f64; 10] = [0.2, 0.02, 0.02, 0.02, 0.01, 0.01, 0.01, 0.01, 0.01, 0.01];
+/// The prior's standard deviation of a joint's Coulomb friction, N·m.
+const PRIOR_COULOMB_NM: f64 = 1.0;
+/// ... of its viscous friction, N·m·s/rad.
+const PRIOR_VISCOUS_NMS: f64 = 1.0;
+/// ... of its offset, N·m.
+const PRIOR_OFFSET_NM: f64 = 0.3;
+
+/// A gap longer than this many times the median frame step restarts the lag.
+const GAP_STEPS: f64 = 5.0;
+
+/// How the observer's gain is known.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ObserverGain {
+    /// Estimated from the recording (the best fit of a grid, or no lag).
+    Auto,
+    /// Given, 1/s.
+    PerSecond(f64),
+    /// The torques carry no lag (a sensor read directly).
+    Without,
+}
+
+/// What a calibration fits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CalibrationSettings {
+    /// The observer's gain.
+    pub observer_gain: ObserverGain,
+    /// Fit corrections to the base inertial parameters (where the robot
+    /// has inertials).
+    pub inertial: bool,
+    /// Fit each joint's Coulomb and viscous friction.
+    pub friction: bool,
+    /// Every frame is free motion (a recording made to calibrate): no
+    /// gate, every frame fits.
+    pub free_motion: bool,
+}
+
+impl Default for CalibrationSettings {
+    fn default() -> Self {
+        Self {
+            observer_gain: ObserverGain::Auto,
+            inertial: true,
+            friction: true,
+            free_motion: false,
+        }
+    }
+}
+
+/// Why a calibration could not be made or applied.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CalibrationError {
+    /// Too few frames.
+    #[error("calibrating needs at least {needed} frames, got {frames}")]
+    TooFewFrames {
+        /// Frames given.
+        frames: usize,
+        /// Frames needed.
+        needed: usize,
+    },
+    /// Too few frames without contact.
+    #[error("only {free} of {frames} frames look free of contact ({needed} needed): record a stretch of free motion")]
+    TooFewFree {
+        /// Free frames found.
+        free: usize,
+        /// Frames read.
+        frames: usize,
+        /// Free frames needed.
+        needed: usize,
+    },
+    /// The arm barely moves: nothing that depends on the motion can be
+    /// told from a contact held as long.
+    #[error(
+        "the arm barely moves (RMS joint speed {rms_speed_rad_s:.4} rad/s, below {MIN_RMS_SPEED_RAD_S} rad/s): there is no motion to learn the model error from"
+    )]
+    NoMotion {
+        /// The recording's RMS joint speed, rad/s.
+        rms_speed_rad_s: f64,
+    },
+    /// A frame's vectors have the wrong length.
+    #[error("frame {frame}: {got} values for {expected} joints")]
+    WrongLength {
+        /// Frame number (0-based).
+        frame: usize,
+        /// Values in it.
+        got: usize,
+        /// Sensed joints.
+        expected: usize,
+    },
+    /// Time goes backwards or is not finite.
+    #[error("frame {frame}: time {t_secs} s is before the previous frame's or not finite")]
+    BadTime {
+        /// Frame number (0-based).
+        frame: usize,
+        /// Its time, s.
+        t_secs: f64,
+    },
+    /// The calibration is for another robot's joints.
+    #[error("the calibration is for joints {calibrated}, the robot has {robot}")]
+    OtherJoints {
+        /// The calibration's joints.
+        calibrated: String,
+        /// The robot's sensed joints.
+        robot: String,
+    },
+    /// A given gain is not a positive finite number.
+    #[error("observer gain {value} 1/s: must be a finite number > 0")]
+    BadGain {
+        /// The value given.
+        value: f64,
+    },
+    /// The dynamics could not be evaluated.
+    #[error(transparent)]
+    Dynamics(#[from] DynamicsError),
+    /// The fit's normal equations could not be solved.
+    #[error("the calibration fit failed: {0}")]
+    Solve(#[from] LinalgError),
+}
+
+/// What was learned of a robot's torques: the corrections, and the noise left.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Calibration {
+    /// The sensed joints it is for, in order.
+    pub joints: Vec<String>,
+    /// The observer's gain, 1/s (`None`: no lag).
+    pub observer_gain_per_s: Option<f64>,
+    /// Corrections `δπ` to every link's ten inertial parameters (the
+    /// model's minus the arm's, in the base columns; empty when none
+    /// were fitted).
+    pub inertial_corrections: Vec<f64>,
+    /// Each joint's Coulomb friction, N·m.
+    pub coulomb_nm: Vec<f64>,
+    /// Each joint's viscous friction, N·m·s/rad.
+    pub viscous_nms_per_rad: Vec<f64>,
+    /// Each joint's constant offset, N·m.
+    pub offset_nm: Vec<f64>,
+    /// Each joint's residual RMS left on free frames, with the observer's
+    /// lag taken off (what the estimator's σ is made of), N·m.
+    pub sigma_nm: Vec<f64>,
+    /// Each joint's residual RMS left on free frames, as the observer
+    /// gives it (lagged: comparable with `rms_before_nm`), N·m.
+    pub rms_after_nm: Vec<f64>,
+    /// Each joint's residual correlation time (integrated), s.
+    pub correlation_secs: Vec<f64>,
+    /// Each joint's free-frame RMS before the correction, N·m.
+    pub rms_before_nm: Vec<f64>,
+    /// Frames the fit read, and how many of them were free.
+    pub frames_read: usize,
+    /// Free frames among them.
+    pub free_frames: usize,
+    /// True when the fit cut the residual by more than noise would: the
+    /// corrections are then applied; otherwise they are zero.
+    pub found: bool,
+}
+
+/// One frame's columns before the lag, row-major (joints × columns).
+struct Design {
+    base: Vec<usize>,
+    /// The prior's standard deviation of each column's coefficient.
+    prior_sd: Vec<f64>,
+    columns: usize,
+    joints: usize,
+    rows: Vec<f32>,
+}
+
+impl Calibration {
+    /// The correction that does nothing, with `sigma_nm` for every joint.
+    #[must_use]
+    pub fn none(joints: Vec<String>, sigma_nm: Vec<f64>) -> Self {
+        let n = joints.len();
+        Self {
+            joints,
+            observer_gain_per_s: None,
+            inertial_corrections: Vec::new(),
+            coulomb_nm: vec![0.0; n],
+            viscous_nms_per_rad: vec![0.0; n],
+            offset_nm: vec![0.0; n],
+            correlation_secs: vec![0.0; n],
+            rms_before_nm: sigma_nm.clone(),
+            rms_after_nm: sigma_nm.clone(),
+            sigma_nm,
+            frames_read: 0,
+            free_frames: 0,
+            found: false,
+        }
+    }
+
+    /// σ per joint for frames combined over time at `rate_hz`: the
+    /// residual's σ widened by the square root of how many frames its
+    /// correlation spans (at least 1).
+    #[must_use]
+    pub fn sigma_over_time(&self, rate_hz: f64) -> Vec<f64> {
+        self.sigma_nm
+            .iter()
+            .zip(&self.correlation_secs)
+            .map(|(s, c)| s * (c * rate_hz).max(1.0).sqrt())
+            .collect()
+    }
+
+    /// Every frame's torques with the observer's lag taken off, less the
+    /// model error this calibration predicts. `positions` are the sensed
+    /// joints' (the robot's `q`).
+    pub fn corrected(
+        &self,
+        bodies: &RigidBodies,
+        times_secs: &[f64],
+        positions: &[Vec<f64>],
+        torques: &[Vec<f64>],
+    ) -> Result<Vec<Vec<f64>>, CalibrationError> {
+        let n = bodies.dof();
+        if self.joints.len() != n {
+            return Err(CalibrationError::OtherJoints {
+                calibrated: self.joints.join(", "),
+                robot: n.to_string(),
+            });
+        }
+        check_frames(times_secs, positions, torques, n)?;
+        if !self.found {
+            return Ok(torques.to_vec());
+        }
+        let model_error = self.model_error(bodies, times_secs, positions)?;
+        let step = median_step(times_secs);
+        let mut unlag = Unlag::new(self.observer_gain_per_s);
+        Ok(torques
+            .iter()
+            .zip(model_error)
+            .enumerate()
+            .map(|(k, (t, e))| {
+                let dt = if k == 0 { 0.0 } else { times_secs[k] - times_secs[k - 1] };
+                if dt > GAP_STEPS * step {
+                    unlag.reset();
+                }
+                unlag.step(dt, t).iter().zip(e).map(|(a, b)| a - b).collect()
+            })
+            .collect())
+    }
+
+    /// The model error at every frame, before the observer's lag.
+    fn model_error(
+        &self,
+        bodies: &RigidBodies,
+        times_secs: &[f64],
+        positions: &[Vec<f64>],
+    ) -> Result<Vec<Vec<f64>>, CalibrationError> {
+        let n = bodies.dof();
+        let (velocities, accelerations) = differentiate(times_secs, positions);
+        let corrected_model = if self.inertial_corrections.is_empty() {
+            None
+        } else {
+            Some(bodies.clone().with_parameters(&self.inertial_corrections)?)
+        };
+        let mut out = Vec::with_capacity(positions.len());
+        for k in 0..positions.len() {
+            let mut error = match &corrected_model {
+                Some(model) => regressor_times(model, &positions[k], &velocities[k], &accelerations[k])?,
+                None => vec![0.0; n],
+            };
+            for j in 0..n {
+                let v = velocities[k][j];
+                error[j] += -self.coulomb_nm[j] * (v / STICTION_SPEED_RAD_S).tanh() - self.viscous_nms_per_rad[j] * v
+                    + self.offset_nm[j];
+            }
+            out.push(error);
+        }
+        Ok(out)
+    }
+}
+
+/// `Y δπ` for corrections `δπ`: inverse dynamics of a model whose
+/// parameters are the corrections (it is linear in them).
+fn regressor_times(model: &RigidBodies, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<Vec<f64>, CalibrationError> {
+    Ok(model.inverse_dynamics(q, qd, qdd)?)
+}
+
+fn check_frames(
+    times_secs: &[f64],
+    positions: &[Vec<f64>],
+    torques: &[Vec<f64>],
+    joints: usize,
+) -> Result<(), CalibrationError> {
+    for (k, ((t, q), tau)) in times_secs.iter().zip(positions).zip(torques).enumerate() {
+        for values in [q, tau] {
+            if values.len() != joints {
+                return Err(CalibrationError::WrongLength {
+                    frame: k,
+                    got: values.len(),
+                    expected: joints,
+                });
+            }
+        }
+        if !t.is_finite() || (k > 0 && *t < times_secs[k - 1]) {
+            return Err(CalibrationError::BadTime { frame: k, t_secs: *t });
+        }
+    }
+    if positions.len() != times_secs.len() || torques.len() != times_secs.len() {
+        return Err(CalibrationError::WrongLength {
+            frame: positions.len().min(torques.len()),
+            got: 0,
+            expected: joints,
+        });
+    }
+    Ok(())
+}
+
+/// The median step between frames, s (1 for fewer than two frames).
+fn median_step(times_secs: &[f64]) -> f64 {
+    let mut steps: Vec<f64> = times_secs
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
+    if steps.is_empty() {
+        return 1.0;
+    }
+    steps.sort_by(f64::total_cmp);
+    steps[steps.len() / 2]
+}
+
+/// How much wider a Gaussian's σ is than the RMS of the samples whose χ²
+/// over `dof` joints lies below its 30 % point: `√(dof / E[χ² | χ² < q₃₀])`,
+/// by the χ²'s own recursion `E[χ²; χ² < q] = dof · P(χ²_{dof+2} < q)`.
+fn truncation_widening(dof: usize) -> f64 {
+    let q = chi_square_quantile(0.7, dof);
+    let below = 1.0 - chi_square_survival(q, dof + 2);
+    // E[χ² | χ² < q] = dof · P(χ²_{dof+2} < q) / 0.3.
+    (0.3 / below.max(1e-9)).sqrt()
+}
+
+/// The `1 − p` point of a χ² with `dof` degrees of freedom (bisection).
+fn chi_square_quantile(p: f64, dof: usize) -> f64 {
+    let (mut lo, mut hi) = (0.0, 1e4);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if chi_square_survival(mid, dof) > p {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+impl Design {
+    /// Every read frame's columns: the regressor's base columns, then per
+    /// joint its Coulomb, viscous and offset columns (signs as the
+    /// residual sees them).
+    fn new(
+        bodies: &RigidBodies,
+        settings: &CalibrationSettings,
+        positions: &[Vec<f64>],
+        velocities: &[Vec<f64>],
+        accelerations: &[Vec<f64>],
+    ) -> Result<Self, CalibrationError> {
+        let joints = bodies.dof();
+        let has_inertials = bodies.moving_links().iter().any(|&l| bodies.parameters()[l * 10] > 0.0);
+        let base = if settings.inertial && has_inertials {
+            bodies.base_columns()
+        } else {
+            Vec::new()
+        };
+        let columns = base.len() + 3 * joints;
+        let all_columns = bodies.parameters().len();
+        let mut rows = Vec::with_capacity(positions.len() * joints * columns);
+        for ((q, qd), qdd) in positions.iter().zip(velocities).zip(accelerations) {
+            let y = if base.is_empty() {
+                Vec::new()
+            } else {
+                bodies.regressor(q, qd, qdd)?
+            };
+            for j in 0..joints {
+                for &c in &base {
+                    rows.push(y[j * all_columns + c] as f32);
+                }
+                for i in 0..joints {
+                    let (coulomb, viscous, offset) = if i == j && settings.friction {
+                        (-(qd[j] / STICTION_SPEED_RAD_S).tanh(), -qd[j], 1.0)
+                    } else if i == j {
+                        (0.0, 0.0, 1.0)
+                    } else {
+                        (0.0, 0.0, 0.0)
+                    };
+                    rows.push(coulomb as f32);
+                    rows.push(viscous as f32);
+                    rows.push(offset as f32);
+                }
+            }
+        }
+        let nominal = bodies.parameters();
+        let mut prior_sd: Vec<f64> = base
+            .iter()
+            .map(|&c| PRIOR_RELATIVE * nominal[c].abs() + PRIOR_FLOOR[c % 10])
+            .collect();
+        for _ in 0..joints {
+            prior_sd.extend([PRIOR_COULOMB_NM, PRIOR_VISCOUS_NMS, PRIOR_OFFSET_NM]);
+        }
+        Ok(Self {
+            base,
+            prior_sd,
+            columns,
+            joints,
+            rows,
+        })
+    }
+
+    /// The lagged columns at every frame, row-major per frame.
+    fn lagged(&self, times_secs: &[f64], gain: Option<f64>, step: f64) -> Vec<Vec<f64>> {
+        let width = self.joints * self.columns;
+        let mut lag = Lag::new(gain, width);
+        let mut input = vec![0.0; width];
+        self.rows
+            .chunks_exact(width)
+            .enumerate()
+            .map(|(k, raw)| {
+                let dt = if k == 0 { 0.0 } else { times_secs[k] - times_secs[k - 1] };
+                if dt > GAP_STEPS * step {
+                    lag.reset();
+                }
+                for (x, r) in input.iter_mut().zip(raw) {
+                    *x = f64::from(*r);
+                }
+                lag.step(dt, &input).to_vec()
+            })
+            .collect()
+    }
+}
+
+/// A fit at one gain: the coefficients, and each frame's residual.
+struct Fit {
+    gain: Option<f64>,
+    coefficients: Vec<f64>,
+    residuals: Vec<Vec<f64>>,
+    /// Each joint's weighted squared residual on the free frames.
+    joint_sse: Vec<f64>,
+}
+
+/// Fits the columns at `gain` over the `free` frames with `weights`.
+fn fit_at(
+    design: &Design,
+    times_secs: &[f64],
+    torques: &[Vec<f64>],
+    free: &[bool],
+    weights: &[f64],
+    sigma: &[f64],
+    gain: Option<f64>,
+) -> Result<Fit, CalibrationError> {
+    let step = median_step(times_secs);
+    let lagged = design.lagged(times_secs, gain, step);
+    let (p, n) = (design.columns, design.joints);
+    let mut normal = vec![0.0; p * p];
+    let mut rhs = vec![0.0; p];
+    // Neighbouring frames of a long 1 kHz recording carry nearly the same
+    // lagged columns: beyond 20,000 frames, every few frames make one row.
+    let stride = lagged.len().div_ceil(20_000).max(1);
+    for (k, row) in lagged.iter().enumerate().step_by(stride) {
+        if !free[k] {
+            continue;
+        }
+        for j in 0..n {
+            let w = weights[k] / (sigma[j] * sigma[j]);
+            let a = &row[j * p..(j + 1) * p];
+            let r = torques[k][j];
+            for (c1, &x1) in a.iter().enumerate() {
+                if x1 == 0.0 {
+                    continue;
+                }
+                rhs[c1] += w * x1 * r;
+                for (c2, &x2) in a.iter().enumerate().skip(c1) {
+                    normal[c1 * p + c2] += w * x1 * x2;
+                }
+            }
+        }
+    }
+    // Rows within one correlation time of the lag are one vote, not many.
+    let correlated = gain.map_or(1.0, |k| {
+        let pole = (-k * step).exp();
+        ((1.0 + pole) / (1.0 - pole) / stride as f64).max(1.0)
+    });
+    for c1 in 0..p {
+        rhs[c1] /= correlated;
+        for c2 in c1..p {
+            normal[c1 * p + c2] /= correlated;
+        }
+    }
+    for c1 in 0..p {
+        for c2 in 0..c1 {
+            normal[c1 * p + c2] = normal[c2 * p + c1];
+        }
+        normal[c1 * p + c1] += 1.0 / (design.prior_sd[c1] * design.prior_sd[c1]);
+    }
+    let coefficients = solve_spd(&normal, &rhs)?;
+    let mut per_joint = vec![0.0; n];
+    let residuals: Vec<Vec<f64>> = lagged
+        .iter()
+        .zip(torques)
+        .enumerate()
+        .map(|(k, (row, tau))| {
+            (0..n)
+                .map(|j| {
+                    let a = &row[j * p..(j + 1) * p];
+                    let e = tau[j] - a.iter().zip(&coefficients).map(|(x, c)| x * c).sum::<f64>();
+                    if free[k] && k % stride == 0 {
+                        per_joint[j] += weights[k] * e * e;
+                    }
+                    e
+                })
+                .collect()
+        })
+        .collect();
+    Ok(Fit {
+        gain,
+        coefficients,
+        residuals,
+        joint_sse: per_joint,
+    })
+}
+
+/// The fit at the observer's gain. The gain is one for every joint, but
+/// the joints do not tell it alike: where the columns capture a joint's
+/// model error, its error has a minimum at the true gain and grows on
+/// both sides; where they do not (a friction that sticks at reversals),
+/// less lag lets the fit follow the misfit, and the error only falls
+/// toward the highest gain. So the gain is the joint minimum inside the
+/// grid that stands out most (its error at least 5 % lower than the
+/// worst on either side); without one, the lowest sum over joints of the
+/// logarithm of the error.
+fn best_gain(fits: Vec<Fit>) -> Option<Fit> {
+    let joints = fits.first()?.joint_sse.len();
+    let last = fits.len().checked_sub(1)?;
+    let mut chosen: Option<(usize, f64)> = None;
+    for j in 0..joints {
+        let sse: Vec<f64> = fits.iter().map(|f| f.joint_sse[j].max(1e-300)).collect();
+        let Some(at) = (0..sse.len()).min_by(|&a, &b| sse[a].total_cmp(&sse[b])) else {
+            continue;
+        };
+        if at == 0 || at == last {
+            continue;
+        }
+        let left = sse[..at].iter().fold(0.0_f64, |m, v| m.max(*v));
+        let right = sse[at + 1..].iter().fold(0.0_f64, |m, v| m.max(*v));
+        let prominence = (left.min(right) / sse[at]) - 1.0;
+        if prominence >= 0.05 && chosen.is_none_or(|(_, p)| prominence > p) {
+            chosen = Some((at, prominence));
+        }
+    }
+    let at = if let Some((at, _)) = chosen {
+        at
+    } else {
+        let score = |f: &Fit| f.joint_sse.iter().map(|v| v.max(1e-300).ln()).sum::<f64>();
+        (0..fits.len()).min_by(|&a, &b| score(&fits[a]).total_cmp(&score(&fits[b])))?
+    };
+    fits.into_iter().nth(at)
+}
+
+/// Free frames: χ² below the gate, away from any frame that is not.
+fn free_frames(times_secs: &[f64], chi2: &[f64], threshold: f64, gain: Option<f64>) -> Vec<bool> {
+    let (before, after) = gain.map_or((0.01, 0.05), |k| (1.0 / k, 5.0 / k));
+    let busy: Vec<f64> = chi2
+        .iter()
+        .enumerate()
+        .filter(|(_, z)| **z > threshold)
+        .map(|(k, _)| times_secs[k])
+        .collect();
+    // Two sweeps over the busy times (sorted as the frames are).
+    let mut free: Vec<bool> = chi2.iter().map(|z| *z <= threshold).collect();
+    let mut next = 0;
+    for (k, t) in times_secs.iter().enumerate() {
+        while next < busy.len() && busy[next] < *t - after {
+            next += 1;
+        }
+        if next < busy.len() && busy[next] <= *t + before {
+            free[k] = false;
+        }
+    }
+    free
+}
+
+/// Learns the model error of the torques (see the module docs).
+#[allow(clippy::too_many_lines)] // One alternation of fit and gate, read top to bottom.
+/// `positions` and `torques` are the sensed joints' per frame.
+pub fn calibrate(
+    bodies: &RigidBodies,
+    joint_names: Vec<String>,
+    times_secs: &[f64],
+    positions: &[Vec<f64>],
+    torques: &[Vec<f64>],
+    settings: &CalibrationSettings,
+) -> Result<Calibration, CalibrationError> {
+    let n = bodies.dof();
+    let needed = 2 * MIN_FREE_FRAMES;
+    if times_secs.len() < needed {
+        return Err(CalibrationError::TooFewFrames {
+            frames: times_secs.len(),
+            needed,
+        });
+    }
+    check_frames(times_secs, positions, torques, n)?;
+    if let ObserverGain::PerSecond(k) = settings.observer_gain
+        && !(k.is_finite() && k > 0.0)
+    {
+        return Err(CalibrationError::BadGain { value: k });
+    }
+    let read = times_secs.len().min(MAX_FIT_FRAMES);
+    let (times, positions, torques) = (&times_secs[..read], &positions[..read], &torques[..read]);
+    let (velocities, accelerations) = differentiate(times, positions);
+    let rms_speed_rad_s = (velocities.iter().flatten().map(|v| v * v).sum::<f64>() / (read * n).max(1) as f64).sqrt();
+    if rms_speed_rad_s < MIN_RMS_SPEED_RAD_S && !settings.free_motion {
+        return Err(CalibrationError::NoMotion { rms_speed_rad_s });
+    }
+    let design = Design::new(bodies, settings, positions, &velocities, &accelerations)?;
+    // Contacts give χ² in the thousands; a margin of 2 σ over the 99.9 %
+    // point keeps the free frames whose residual is merely heavy-tailed.
+    let threshold = 4.0 * chi_square_quantile(1e-3, n);
+    let huber = chi_square_quantile(1e-2, n);
+    // Start from the quietest 30 % of frames, each joint scaled by its
+    // median reading.
+    let scale: Vec<f64> = (0..n)
+        .map(|j| {
+            let mut v: Vec<f64> = torques.iter().map(|t| t[j].abs()).collect();
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2].max(1e-6)
+        })
+        .collect();
+    let loudness: Vec<f64> = torques
+        .iter()
+        .map(|t| t.iter().zip(&scale).map(|(x, s)| (x / s).powi(2)).sum())
+        .collect();
+    let mut sorted = loudness.clone();
+    sorted.sort_by(f64::total_cmp);
+    let quiet = sorted[(sorted.len() * 3) / 10];
+    let mut free: Vec<bool> = loudness.iter().map(|l| settings.free_motion || *l <= quiet).collect();
+    let mut sigma = scale.clone();
+    let mut weights = vec![1.0; read];
+    let gains: Vec<Option<f64>> = match settings.observer_gain {
+        // No lag at all is a choice to make, not to find: a direct sensor's
+        // white noise fits the highest gain of the grid as well.
+        ObserverGain::Auto => OBSERVER_GAINS_PER_S.iter().map(|k| Some(*k)).collect(),
+        ObserverGain::PerSecond(k) => vec![Some(k)],
+        ObserverGain::Without => vec![None],
+    };
+    let mut gain = gains[0];
+    let mut best: Option<Fit> = None;
+    for round in 0..6 {
+        let search = round == 0 || round == 5;
+        let candidates: Vec<Option<f64>> = if search { gains.clone() } else { vec![gain] };
+        let fits = candidates
+            .into_iter()
+            .map(|g| fit_at(&design, times, torques, &free, &weights, &sigma, g))
+            .collect::<Result<Vec<Fit>, _>>()?;
+        let Some(fit) = best_gain(fits) else { break };
+        gain = fit.gain;
+        // σ of the gate from the quietest 30 % of frames under the last
+        // σ (widened by the truncation of a χ² at its 30 % point): the
+        // frames the gate lets in must not set its scale, or a long
+        // contact that the fit half absorbs widens σ until it is let in
+        // whole. A recording must be free for 30 % of its frames.
+        let quiet_chi2: Vec<f64> = fit
+            .residuals
+            .iter()
+            .map(|e| e.iter().zip(&sigma).map(|(x, s)| (x / s).powi(2)).sum())
+            .collect();
+        let mut ranked = quiet_chi2.clone();
+        ranked.sort_by(f64::total_cmp);
+        let quietest = ranked[(ranked.len() * 3) / 10];
+        let widen = truncation_widening(n);
+        sigma = (0..n)
+            .map(|j| {
+                let (sum, count) = fit
+                    .residuals
+                    .iter()
+                    .zip(&quiet_chi2)
+                    .filter(|(_, z)| **z <= quietest)
+                    .fold((0.0, 0usize), |(s, c), (e, _)| (s + e[j] * e[j], c + 1));
+                ((sum / count.max(1) as f64).sqrt() * widen).max(1e-6)
+            })
+            .collect();
+        let chi2: Vec<f64> = fit
+            .residuals
+            .iter()
+            .map(|e| e.iter().zip(&sigma).map(|(x, s)| (x / s).powi(2)).sum())
+            .collect();
+        weights = chi2.iter().map(|z| if *z <= huber { 1.0 } else { huber / z }).collect();
+        // The quietest 30 % always stay: a first fit that generalises
+        // badly must not talk the gate out of every free frame.
+        let mut ranked = chi2.clone();
+        ranked.sort_by(f64::total_cmp);
+        let floor = ranked[(ranked.len() * 3) / 10];
+        free = free_frames(times, &chi2, threshold, gain)
+            .iter()
+            .zip(&chi2)
+            .map(|(f, z)| settings.free_motion || *f || *z <= floor)
+            .collect();
+        best = Some(fit);
+    }
+    let Some(fit) = best else {
+        return Err(CalibrationError::TooFewFree {
+            free: 0,
+            frames: read,
+            needed: MIN_FREE_FRAMES,
+        });
+    };
+    let free_count = free.iter().filter(|f| **f).count();
+    if free_count < MIN_FREE_FRAMES {
+        return Err(CalibrationError::TooFewFree {
+            free: free_count,
+            frames: read,
+            needed: MIN_FREE_FRAMES,
+        });
+    }
+    // Free runs of the residual, for the RMS and the correlation time.
+    let runs = |values: &dyn Fn(usize) -> f64| -> (f64, f64) {
+        let mut all_runs: Vec<Vec<f64>> = Vec::new();
+        let mut current = Vec::new();
+        for (k, f) in free.iter().enumerate() {
+            if *f {
+                current.push(values(k));
+            } else if !current.is_empty() {
+                all_runs.push(std::mem::take(&mut current));
+            }
+        }
+        if !current.is_empty() {
+            all_runs.push(current);
+        }
+        let refs: Vec<&[f64]> = all_runs.iter().map(Vec::as_slice).collect();
+        let count: usize = refs.iter().map(|r| r.len()).sum();
+        let rms = (refs.iter().flat_map(|r| r.iter()).map(|x| x * x).sum::<f64>() / count.max(1) as f64).sqrt();
+        (rms, correlation_samples(&refs))
+    };
+    let step = median_step(times);
+    let before: Vec<(f64, f64)> = (0..n).map(|j| runs(&|k| torques[k][j])).collect();
+    let after: Vec<(f64, f64)> = (0..n).map(|j| runs(&|k| fit.residuals[k][j])).collect();
+    // The residual with the lag taken off: what the estimator will see.
+    let mut unlag = Unlag::new(gain);
+    let unlagged: Vec<Vec<f64>> = fit
+        .residuals
+        .iter()
+        .enumerate()
+        .map(|(k, e)| {
+            let dt = if k == 0 { 0.0 } else { times[k] - times[k - 1] };
+            if dt > GAP_STEPS * step {
+                unlag.reset();
+            }
+            unlag.step(dt, e)
+        })
+        .collect();
+    let white: Vec<(f64, f64)> = (0..n).map(|j| runs(&|k| unlagged[k][j])).collect();
+    // Does the fit beat what its columns would take from noise alone?
+    let sse_before: f64 = (0..n).map(|j| before[j].0.powi(2) / sigma[j].powi(2)).sum();
+    let sse_after: f64 = (0..n).map(|j| after[j].0.powi(2) / sigma[j].powi(2)).sum();
+    let correlation = after.iter().map(|a| a.1).sum::<f64>() / n as f64;
+    let effective_rows = (free_count * n) as f64 / correlation.max(1.0);
+    let cut = 1.0 - sse_after / sse_before.max(1e-300);
+    // Noise alone would take about p / N of the variance (N the rows'
+    // effective count); a residual correlated over many frames leaves few
+    // effective rows, so the bar stops at half the variance.
+    let found = cut > 0.1_f64.max((3.0 * design.columns as f64 / effective_rows).min(0.5));
+    let names = joint_names;
+    if !found {
+        let mut none = Calibration::none(names, before.iter().map(|b| b.0.max(1e-4)).collect());
+        none.rms_before_nm = before.iter().map(|b| b.0).collect();
+        none.correlation_secs = before.iter().map(|b| b.1 * step).collect();
+        none.frames_read = read;
+        none.free_frames = free_count;
+        none.observer_gain_per_s = gain;
+        return Ok(none);
+    }
+    let mut inertial_corrections = Vec::new();
+    if !design.base.is_empty() {
+        inertial_corrections = vec![0.0; bodies.parameters().len()];
+        for (i, &c) in design.base.iter().enumerate() {
+            inertial_corrections[c] = fit.coefficients[i];
+        }
+    }
+    let friction = &fit.coefficients[design.base.len()..];
+    Ok(Calibration {
+        joints: names,
+        observer_gain_per_s: gain,
+        inertial_corrections,
+        coulomb_nm: (0..n).map(|j| friction[3 * j]).collect(),
+        viscous_nms_per_rad: (0..n).map(|j| friction[3 * j + 1]).collect(),
+        offset_nm: (0..n).map(|j| friction[3 * j + 2]).collect(),
+        sigma_nm: white.iter().map(|a| a.0.max(1e-4)).collect(),
+        rms_after_nm: after.iter().map(|a| a.0).collect(),
+        correlation_secs: white.iter().map(|a| a.1 * step).collect(),
+        rms_before_nm: before.iter().map(|b| b.0).collect(),
+        frames_read: read,
+        free_frames: free_count,
+        found,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{DAffine3, DMat3, DVec3};
+
+    use super::*;
+    use crate::core::numerics::rng::Rng;
+    use crate::core::robot::model::{JointKind, JointSpec, LinkSpec, Robot};
+    use crate::core::robot::spatial::Inertial;
+
+    /// A three-joint arm with inertials.
+    fn arm() -> Robot {
+        let names = ["base", "a", "b", "c"];
+        let links: Vec<LinkSpec> = names
+            .iter()
+            .enumerate()
+            .map(|(k, n)| LinkSpec {
+                name: (*n).into(),
+                inertial: Inertial {
+                    mass_kg: 2.0 + 0.5 * k as f64,
+                    com_in_link_m: DVec3::new(0.01, 0.03, 0.12),
+                    inertia_about_com: DMat3::from_diagonal(DVec3::new(0.02, 0.02, 0.005)),
+                },
+                ..LinkSpec::default()
+            })
+            .collect();
+        let axes = [DVec3::Z, DVec3::Y, DVec3::Y];
+        let joints: Vec<JointSpec> = (0..3)
+            .map(|k| JointSpec {
+                name: format!("j{k}"),
+                kind: JointKind::Continuous,
+                parent: names[k].into(),
+                child: names[k + 1].into(),
+                parent_from_joint: DAffine3::from_translation(DVec3::new(0.0, 0.0, 0.3)),
+                axis: axes[k],
+                limits: None,
+                mimic: None,
+            })
+            .collect();
+        Robot::new("three", &links, &joints).unwrap()
+    }
+
+    const COULOMB: [f64; 3] = [0.5, 0.3, 0.4];
+    const VISCOUS: [f64; 3] = [0.5, 0.4, 0.3];
+
+    /// A moving arm at 1 kHz whose observer (K = 50/s) sees a model with
+    /// masses off by up to 8 %, motor-side friction, sensor noise and one
+    /// press; or, with `ideal`, only white noise.
+    /// Frame times, joint positions and observer torques.
+    type Recorded = (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>);
+
+    fn recording(ideal: bool) -> Recorded {
+        let robot = arm();
+        let model = RigidBodies::new(&robot);
+        let mut plant_parameters = model.parameters();
+        for (link, scale) in [(1, 1.08), (2, 0.93), (3, 1.05)] {
+            for p in &mut plant_parameters[link * 10..link * 10 + 10] {
+                *p *= scale;
+            }
+        }
+        let plant = model.clone().with_parameters(&plant_parameters).unwrap();
+        let mut rng = Rng::new(3);
+        let dt = 0.001;
+        let times: Vec<f64> = (0..6000).map(|k| f64::from(k) * dt).collect();
+        let positions: Vec<Vec<f64>> = times
+            .iter()
+            .map(|t| {
+                vec![
+                    0.6 * (1.1 * t).sin(),
+                    0.4 + 0.5 * (0.8 * t + 1.0).sin(),
+                    -0.3 + 0.4 * (1.4 * t).cos(),
+                ]
+            })
+            .collect();
+        let (velocities, accelerations) = differentiate(&times, &positions);
+        let mut lag = Lag::new(Some(50.0), 3);
+        let mut torques = Vec::new();
+        for k in 0..times.len() {
+            let (q, v, a) = (&positions[k], &velocities[k], &accelerations[k]);
+            let ours = model.inverse_dynamics(q, v, a).unwrap();
+            let theirs = plant.inverse_dynamics(q, v, a).unwrap();
+            let pressed = (2.0..2.5).contains(&times[k]);
+            let input: Vec<f64> = (0..3)
+                .map(|j| {
+                    let noise = 0.02 * rng.normal();
+                    if ideal {
+                        return noise;
+                    }
+                    let friction = COULOMB[j] * (v[j] / STICTION_SPEED_RAD_S).tanh() + VISCOUS[j] * v[j];
+                    let contact = if pressed { [3.0, -2.0, 1.0][j] } else { 0.0 };
+                    ours[j] - theirs[j] - friction + contact + noise
+                })
+                .collect();
+            torques.push(lag.step(dt, &input).to_vec());
+        }
+        (times, positions, torques)
+    }
+
+    fn names() -> Vec<String> {
+        vec!["j0".into(), "j1".into(), "j2".into()]
+    }
+
+    /// The calibration with the default settings.
+    fn learned(bodies: &RigidBodies, times: &[f64], positions: &[Vec<f64>], torques: &[Vec<f64>]) -> Calibration {
+        calibrate(
+            bodies,
+            names(),
+            times,
+            positions,
+            torques,
+            &CalibrationSettings::default(),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn friction_gain_and_inertial_error_are_learned() {
+        let robot = arm();
+        let bodies = RigidBodies::new(&robot);
+        let (times, positions, torques) = recording(false);
+        let c = learned(&bodies, &times, &positions, &torques);
+        assert!(c.found, "{c:?}");
+        assert_eq!(c.observer_gain_per_s, Some(50.0), "{c:?}");
+        for j in 0..3 {
+            let (fc, fv) = (c.coulomb_nm[j], c.viscous_nms_per_rad[j]);
+            assert!((fc / COULOMB[j] - 1.0).abs() < 0.25, "joint {j} Coulomb {fc}");
+            assert!((fv / VISCOUS[j] - 1.0).abs() < 0.25, "joint {j} viscous {fv}");
+            assert!(c.rms_after_nm[j] * 3.0 < c.rms_before_nm[j], "joint {j}: {c:?}");
+            // The lag taken off, the sensor's white noise is what is left.
+            assert!(
+                (c.sigma_nm[j] / 0.02 - 1.0).abs() < 0.3,
+                "joint {j} σ {}",
+                c.sigma_nm[j]
+            );
+        }
+        // The press is not free, and the correction keeps it.
+        assert!(c.free_frames < times.len() - 500, "{c:?}");
+        let corrected = c.corrected(&bodies, &times, &positions, &torques).unwrap();
+        let pressed = corrected[2250].clone();
+        assert!(
+            (pressed[0] - 3.0).abs() < 0.2 && (pressed[1] + 2.0).abs() < 0.2,
+            "{pressed:?}"
+        );
+        let free = &corrected[4000];
+        assert!(free.iter().all(|t| t.abs() < 0.1), "{free:?}");
+    }
+
+    #[test]
+    fn white_noise_has_no_model_error_to_find() {
+        let robot = arm();
+        let bodies = RigidBodies::new(&robot);
+        let (times, positions, torques) = recording(true);
+        let c = learned(&bodies, &times, &positions, &torques);
+        assert!(!c.found, "{c:?}");
+        let corrected = c.corrected(&bodies, &times, &positions, &torques).unwrap();
+        assert_eq!(corrected, torques);
+    }
+
+    #[test]
+    fn a_held_arm_and_bad_input_are_refused() {
+        let robot = arm();
+        let bodies = RigidBodies::new(&robot);
+        let times: Vec<f64> = (0..500).map(|k| f64::from(k) * 0.005).collect();
+        let positions = vec![vec![0.1, 0.2, 0.3]; 500];
+        let torques = vec![vec![0.0; 3]; 500];
+        let settings = CalibrationSettings::default();
+        let err = calibrate(&bodies, names(), &times, &positions, &torques, &settings).unwrap_err();
+        assert!(matches!(err, CalibrationError::NoMotion { .. }), "{err}");
+        let err = calibrate(
+            &bodies,
+            names(),
+            &times[..10],
+            &positions[..10],
+            &torques[..10],
+            &settings,
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("at least"), "{err}");
+        let mut short = torques.clone();
+        short[7] = vec![0.0; 2];
+        let err = calibrate(&bodies, names(), &times, &positions, &short, &settings).unwrap_err();
+        assert!(err.to_string().contains("frame 7"), "{err}");
+        let bad_gain = CalibrationSettings {
+            observer_gain: ObserverGain::PerSecond(-1.0),
+            ..settings
+        };
+        let err = calibrate(&bodies, names(), &times, &positions, &torques, &bad_gain).unwrap_err();
+        assert!(err.to_string().contains("observer gain"), "{err}");
+    }
+}
