@@ -13,6 +13,7 @@ use proprioscope::core::config::limits;
 use proprioscope::core::over_time::calibration::{
     Calibration, CalibrationError, CalibrationSettings, ObserverGain, calibrate,
 };
+use proprioscope::core::over_time::observer::typical_step_secs;
 use proprioscope::core::over_time::sequence::Temporal;
 use proprioscope::core::robot::dynamics::RigidBodies;
 use proprioscope::core::robot::model::Robot;
@@ -197,7 +198,7 @@ pub fn torques_and_sigma(
             ..calibration.clone()
         }
     };
-    let rate_hz = session_rate_hz(&times);
+    let rate_hz = 1.0 / typical_step_secs(&times);
     let learned = if over_time {
         left.sigma_over_time(rate_hz)
     } else {
@@ -223,11 +224,4 @@ pub fn torques_and_sigma(
             .join(", ")
     );
     Ok((torques, learned))
-}
-
-/// Frames per second at the median step.
-fn session_rate_hz(times: &[f64]) -> f64 {
-    let mut steps: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
-    steps.sort_by(f64::total_cmp);
-    steps.get(steps.len() / 2).map_or(1.0, |d| 1.0 / d)
 }

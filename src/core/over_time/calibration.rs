@@ -29,7 +29,9 @@
 
 use crate::core::numerics::linalg::{LinalgError, solve_spd};
 use crate::core::numerics::special::chi_square_survival;
-use crate::core::over_time::observer::{Lag, Unlag, correlation_samples, differentiate};
+use crate::core::over_time::observer::{
+    Lag, Unlag, correlation_samples, differentiate, frame_steps, typical_step_secs,
+};
 use crate::core::robot::dynamics::{DynamicsError, RigidBodies};
 
 /// Observer gains tried when the gain is not given, 1/s.
@@ -63,9 +65,6 @@ const PRIOR_COULOMB_NM: f64 = 1.0;
 const PRIOR_VISCOUS_NMS: f64 = 1.0;
 /// ... of its offset, N·m.
 const PRIOR_OFFSET_NM: f64 = 0.3;
-
-/// A gap longer than this many times the median frame step restarts the lag.
-const GAP_STEPS: f64 = 5.0;
 
 /// How the observer's gain is known.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -276,19 +275,11 @@ impl Calibration {
             return Ok(torques.to_vec());
         }
         let model_error = self.model_error(bodies, times_secs, positions)?;
-        let step = median_step(times_secs);
-        let mut unlag = Unlag::new(self.observer_gain_per_s);
-        Ok(torques
-            .iter()
+        let unlagged = unlag_all(self.observer_gain_per_s, times_secs, torques);
+        Ok(unlagged
+            .into_iter()
             .zip(model_error)
-            .enumerate()
-            .map(|(k, (t, e))| {
-                let dt = if k == 0 { 0.0 } else { times_secs[k] - times_secs[k - 1] };
-                if dt > GAP_STEPS * step {
-                    unlag.reset();
-                }
-                unlag.step(dt, t).iter().zip(e).map(|(a, b)| a - b).collect()
-            })
+            .map(|(t, e)| t.iter().zip(e).map(|(a, b)| a - b).collect())
             .collect())
     }
 
@@ -309,7 +300,9 @@ impl Calibration {
         let mut out = Vec::with_capacity(positions.len());
         for k in 0..positions.len() {
             let mut error = match &corrected_model {
-                Some(model) => regressor_times(model, &positions[k], &velocities[k], &accelerations[k])?,
+                // `Y δπ`: inverse dynamics of a model whose parameters are
+                // the corrections (it is linear in them).
+                Some(model) => model.inverse_dynamics(&positions[k], &velocities[k], &accelerations[k])?,
                 None => vec![0.0; n],
             };
             for j in 0..n {
@@ -323,10 +316,20 @@ impl Calibration {
     }
 }
 
-/// `Y δπ` for corrections `δπ`: inverse dynamics of a model whose
-/// parameters are the corrections (it is linear in them).
-fn regressor_times(model: &RigidBodies, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<Vec<f64>, CalibrationError> {
-    Ok(model.inverse_dynamics(q, qd, qdd)?)
+/// Every frame of `lagged` with the lag of `gain` taken off, restarting
+/// after gaps.
+fn unlag_all(gain: Option<f64>, times_secs: &[f64], lagged: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let mut unlag = Unlag::new(gain);
+    frame_steps(times_secs)
+        .into_iter()
+        .zip(lagged)
+        .map(|((dt, restart), y)| {
+            if restart {
+                unlag.reset();
+            }
+            unlag.step(dt, y)
+        })
+        .collect()
 }
 
 fn check_frames(
@@ -357,20 +360,6 @@ fn check_frames(
         });
     }
     Ok(())
-}
-
-/// The median step between frames, s (1 for fewer than two frames).
-fn median_step(times_secs: &[f64]) -> f64 {
-    let mut steps: Vec<f64> = times_secs
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .filter(|d| *d > 0.0)
-        .collect();
-    if steps.is_empty() {
-        return 1.0;
-    }
-    steps.sort_by(f64::total_cmp);
-    steps[steps.len() / 2]
 }
 
 /// How much wider a Gaussian's σ is than the RMS of the samples whose χ²
@@ -409,14 +398,15 @@ impl Design {
         accelerations: &[Vec<f64>],
     ) -> Result<Self, CalibrationError> {
         let joints = bodies.dof();
-        let has_inertials = bodies.moving_links().iter().any(|&l| bodies.parameters()[l * 10] > 0.0);
+        let nominal = bodies.parameters();
+        let has_inertials = bodies.moving_links().iter().any(|&l| nominal[l * 10] > 0.0);
         let base = if settings.inertial && has_inertials {
             bodies.base_columns()
         } else {
             Vec::new()
         };
         let columns = base.len() + 3 * joints;
-        let all_columns = bodies.parameters().len();
+        let all_columns = nominal.len();
         let mut rows = Vec::with_capacity(positions.len() * joints * columns);
         for ((q, qd), qdd) in positions.iter().zip(velocities).zip(accelerations) {
             let y = if base.is_empty() {
@@ -442,7 +432,6 @@ impl Design {
                 }
             }
         }
-        let nominal = bodies.parameters();
         let mut prior_sd: Vec<f64> = base
             .iter()
             .map(|&c| PRIOR_RELATIVE * nominal[c].abs() + PRIOR_FLOOR[c % 10])
@@ -460,16 +449,15 @@ impl Design {
     }
 
     /// The lagged columns at every frame, row-major per frame.
-    fn lagged(&self, times_secs: &[f64], gain: Option<f64>, step: f64) -> Vec<Vec<f64>> {
+    fn lagged(&self, times_secs: &[f64], gain: Option<f64>) -> Vec<Vec<f64>> {
         let width = self.joints * self.columns;
         let mut lag = Lag::new(gain, width);
         let mut input = vec![0.0; width];
         self.rows
             .chunks_exact(width)
-            .enumerate()
-            .map(|(k, raw)| {
-                let dt = if k == 0 { 0.0 } else { times_secs[k] - times_secs[k - 1] };
-                if dt > GAP_STEPS * step {
+            .zip(frame_steps(times_secs))
+            .map(|(raw, (dt, restart))| {
+                if restart {
                     lag.reset();
                 }
                 for (x, r) in input.iter_mut().zip(raw) {
@@ -500,8 +488,8 @@ fn fit_at(
     sigma: &[f64],
     gain: Option<f64>,
 ) -> Result<Fit, CalibrationError> {
-    let step = median_step(times_secs);
-    let lagged = design.lagged(times_secs, gain, step);
+    let step = typical_step_secs(times_secs);
+    let lagged = design.lagged(times_secs, gain);
     let (p, n) = (design.columns, design.joints);
     let mut normal = vec![0.0; p * p];
     let mut rhs = vec![0.0; p];
@@ -782,23 +770,11 @@ pub fn calibrate(
         let rms = (refs.iter().flat_map(|r| r.iter()).map(|x| x * x).sum::<f64>() / count.max(1) as f64).sqrt();
         (rms, correlation_samples(&refs))
     };
-    let step = median_step(times);
+    let step = typical_step_secs(times);
     let before: Vec<(f64, f64)> = (0..n).map(|j| runs(&|k| torques[k][j])).collect();
     let after: Vec<(f64, f64)> = (0..n).map(|j| runs(&|k| fit.residuals[k][j])).collect();
     // The residual with the lag taken off: what the estimator will see.
-    let mut unlag = Unlag::new(gain);
-    let unlagged: Vec<Vec<f64>> = fit
-        .residuals
-        .iter()
-        .enumerate()
-        .map(|(k, e)| {
-            let dt = if k == 0 { 0.0 } else { times[k] - times[k - 1] };
-            if dt > GAP_STEPS * step {
-                unlag.reset();
-            }
-            unlag.step(dt, e)
-        })
-        .collect();
+    let unlagged = unlag_all(gain, times, &fit.residuals);
     let white: Vec<(f64, f64)> = (0..n).map(|j| runs(&|k| unlagged[k][j])).collect();
     // Does the fit beat what its columns would take from noise alone?
     let sse_before: f64 = (0..n).map(|j| before[j].0.powi(2) / sigma[j].powi(2)).sum();
@@ -846,191 +822,5 @@ pub fn calibrate(
 }
 
 #[cfg(test)]
-mod tests {
-    use glam::{DAffine3, DMat3, DVec3};
-
-    use super::*;
-    use crate::core::numerics::rng::Rng;
-    use crate::core::robot::model::{JointKind, JointSpec, LinkSpec, Robot};
-    use crate::core::robot::spatial::Inertial;
-
-    /// A three-joint arm with inertials.
-    fn arm() -> Robot {
-        let names = ["base", "a", "b", "c"];
-        let links: Vec<LinkSpec> = names
-            .iter()
-            .enumerate()
-            .map(|(k, n)| LinkSpec {
-                name: (*n).into(),
-                inertial: Inertial {
-                    mass_kg: 2.0 + 0.5 * k as f64,
-                    com_in_link_m: DVec3::new(0.01, 0.03, 0.12),
-                    inertia_about_com: DMat3::from_diagonal(DVec3::new(0.02, 0.02, 0.005)),
-                },
-                ..LinkSpec::default()
-            })
-            .collect();
-        let axes = [DVec3::Z, DVec3::Y, DVec3::Y];
-        let joints: Vec<JointSpec> = (0..3)
-            .map(|k| JointSpec {
-                name: format!("j{k}"),
-                kind: JointKind::Continuous,
-                parent: names[k].into(),
-                child: names[k + 1].into(),
-                parent_from_joint: DAffine3::from_translation(DVec3::new(0.0, 0.0, 0.3)),
-                axis: axes[k],
-                limits: None,
-                mimic: None,
-            })
-            .collect();
-        Robot::new("three", &links, &joints).unwrap()
-    }
-
-    const COULOMB: [f64; 3] = [0.5, 0.3, 0.4];
-    const VISCOUS: [f64; 3] = [0.5, 0.4, 0.3];
-
-    /// A moving arm at 1 kHz whose observer (K = 50/s) sees a model with
-    /// masses off by up to 8 %, motor-side friction, sensor noise and one
-    /// press; or, with `ideal`, only white noise.
-    /// Frame times, joint positions and observer torques.
-    type Recorded = (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>);
-
-    fn recording(ideal: bool) -> Recorded {
-        let robot = arm();
-        let model = RigidBodies::new(&robot);
-        let mut plant_parameters = model.parameters();
-        for (link, scale) in [(1, 1.08), (2, 0.93), (3, 1.05)] {
-            for p in &mut plant_parameters[link * 10..link * 10 + 10] {
-                *p *= scale;
-            }
-        }
-        let plant = model.clone().with_parameters(&plant_parameters).unwrap();
-        let mut rng = Rng::new(3);
-        let dt = 0.001;
-        let times: Vec<f64> = (0..6000).map(|k| f64::from(k) * dt).collect();
-        let positions: Vec<Vec<f64>> = times
-            .iter()
-            .map(|t| {
-                vec![
-                    0.6 * (1.1 * t).sin(),
-                    0.4 + 0.5 * (0.8 * t + 1.0).sin(),
-                    -0.3 + 0.4 * (1.4 * t).cos(),
-                ]
-            })
-            .collect();
-        let (velocities, accelerations) = differentiate(&times, &positions);
-        let mut lag = Lag::new(Some(50.0), 3);
-        let mut torques = Vec::new();
-        for k in 0..times.len() {
-            let (q, v, a) = (&positions[k], &velocities[k], &accelerations[k]);
-            let ours = model.inverse_dynamics(q, v, a).unwrap();
-            let theirs = plant.inverse_dynamics(q, v, a).unwrap();
-            let pressed = (2.0..2.5).contains(&times[k]);
-            let input: Vec<f64> = (0..3)
-                .map(|j| {
-                    let noise = 0.02 * rng.normal();
-                    if ideal {
-                        return noise;
-                    }
-                    let friction = COULOMB[j] * (v[j] / STICTION_SPEED_RAD_S).tanh() + VISCOUS[j] * v[j];
-                    let contact = if pressed { [3.0, -2.0, 1.0][j] } else { 0.0 };
-                    ours[j] - theirs[j] - friction + contact + noise
-                })
-                .collect();
-            torques.push(lag.step(dt, &input).to_vec());
-        }
-        (times, positions, torques)
-    }
-
-    fn names() -> Vec<String> {
-        vec!["j0".into(), "j1".into(), "j2".into()]
-    }
-
-    /// The calibration with the default settings.
-    fn learned(bodies: &RigidBodies, times: &[f64], positions: &[Vec<f64>], torques: &[Vec<f64>]) -> Calibration {
-        calibrate(
-            bodies,
-            names(),
-            times,
-            positions,
-            torques,
-            &CalibrationSettings::default(),
-        )
-        .unwrap()
-    }
-
-    #[test]
-    fn friction_gain_and_inertial_error_are_learned() {
-        let robot = arm();
-        let bodies = RigidBodies::new(&robot);
-        let (times, positions, torques) = recording(false);
-        let c = learned(&bodies, &times, &positions, &torques);
-        assert!(c.found, "{c:?}");
-        assert_eq!(c.observer_gain_per_s, Some(50.0), "{c:?}");
-        for j in 0..3 {
-            let (fc, fv) = (c.coulomb_nm[j], c.viscous_nms_per_rad[j]);
-            assert!((fc / COULOMB[j] - 1.0).abs() < 0.25, "joint {j} Coulomb {fc}");
-            assert!((fv / VISCOUS[j] - 1.0).abs() < 0.25, "joint {j} viscous {fv}");
-            assert!(c.rms_after_nm[j] * 3.0 < c.rms_before_nm[j], "joint {j}: {c:?}");
-            // The lag taken off, the sensor's white noise is what is left.
-            assert!(
-                (c.sigma_nm[j] / 0.02 - 1.0).abs() < 0.3,
-                "joint {j} σ {}",
-                c.sigma_nm[j]
-            );
-        }
-        // The press is not free, and the correction keeps it.
-        assert!(c.free_frames < times.len() - 500, "{c:?}");
-        let corrected = c.corrected(&bodies, &times, &positions, &torques).unwrap();
-        let pressed = corrected[2250].clone();
-        assert!(
-            (pressed[0] - 3.0).abs() < 0.2 && (pressed[1] + 2.0).abs() < 0.2,
-            "{pressed:?}"
-        );
-        let free = &corrected[4000];
-        assert!(free.iter().all(|t| t.abs() < 0.1), "{free:?}");
-    }
-
-    #[test]
-    fn white_noise_has_no_model_error_to_find() {
-        let robot = arm();
-        let bodies = RigidBodies::new(&robot);
-        let (times, positions, torques) = recording(true);
-        let c = learned(&bodies, &times, &positions, &torques);
-        assert!(!c.found, "{c:?}");
-        let corrected = c.corrected(&bodies, &times, &positions, &torques).unwrap();
-        assert_eq!(corrected, torques);
-    }
-
-    #[test]
-    fn a_held_arm_and_bad_input_are_refused() {
-        let robot = arm();
-        let bodies = RigidBodies::new(&robot);
-        let times: Vec<f64> = (0..500).map(|k| f64::from(k) * 0.005).collect();
-        let positions = vec![vec![0.1, 0.2, 0.3]; 500];
-        let torques = vec![vec![0.0; 3]; 500];
-        let settings = CalibrationSettings::default();
-        let err = calibrate(&bodies, names(), &times, &positions, &torques, &settings).unwrap_err();
-        assert!(matches!(err, CalibrationError::NoMotion { .. }), "{err}");
-        let err = calibrate(
-            &bodies,
-            names(),
-            &times[..10],
-            &positions[..10],
-            &torques[..10],
-            &settings,
-        )
-        .unwrap_err();
-        assert!(err.to_string().contains("at least"), "{err}");
-        let mut short = torques.clone();
-        short[7] = vec![0.0; 2];
-        let err = calibrate(&bodies, names(), &times, &positions, &short, &settings).unwrap_err();
-        assert!(err.to_string().contains("frame 7"), "{err}");
-        let bad_gain = CalibrationSettings {
-            observer_gain: ObserverGain::PerSecond(-1.0),
-            ..settings
-        };
-        let err = calibrate(&bodies, names(), &times, &positions, &torques, &bad_gain).unwrap_err();
-        assert!(err.to_string().contains("observer gain"), "{err}");
-    }
-}
+#[path = "calibration_tests.rs"]
+mod tests;

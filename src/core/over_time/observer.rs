@@ -9,6 +9,8 @@
 //! arms that sense motor current, the joints' friction). Every correction
 //! of `e` must pass through the same lag before it is taken off `r`.
 
+use crate::core::over_time::temporal::median_interval_secs;
+
 /// A first-order lag of gain `K`, one state per channel, stepped frame by
 /// frame with the exact discrete pole `e^{−K dt}`; `K = ∞` passes the
 /// input through.
@@ -91,6 +93,34 @@ impl Unlag {
         self.previous = Some(lagged.to_vec());
         out
     }
+}
+
+/// A gap longer than this many times the median frame step restarts a
+/// lag (the observer's state across it is unknown).
+pub const GAP_STEPS: f64 = 5.0;
+
+/// The typical step between frames, s: the median interval, or 1 s where
+/// there is none (fewer than two frames, or repeated times).
+#[must_use]
+pub fn typical_step_secs(times_secs: &[f64]) -> f64 {
+    median_interval_secs(times_secs).filter(|d| *d > 0.0).unwrap_or(1.0)
+}
+
+/// Each frame's step from the one before, s (0 for the first), and
+/// whether a lag starts again there (the first frame, or after a gap of
+/// more than [`GAP_STEPS`] typical steps).
+#[must_use]
+pub fn frame_steps(times_secs: &[f64]) -> Vec<(f64, bool)> {
+    let typical = typical_step_secs(times_secs);
+    let mut previous: Option<f64> = None;
+    times_secs
+        .iter()
+        .map(|&t| {
+            let dt = previous.map_or(0.0, |p| t - p);
+            previous = Some(t);
+            (dt, dt > GAP_STEPS * typical)
+        })
+        .collect()
 }
 
 /// Joint velocities and accelerations from positions by central

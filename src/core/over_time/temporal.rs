@@ -549,6 +549,13 @@ pub fn smoother_bytes(frames: usize, points: usize, offsets: bool) -> usize {
 /// frames a second apart, as in a set of unrelated pushes, are not).
 #[must_use]
 pub fn is_continuous_recording(times_secs: &[f64], settings: &TemporalSettings) -> bool {
+    median_interval_secs(times_secs).is_some_and(|median| median * settings.release_per_s <= std::f64::consts::LN_2)
+}
+
+/// The median of the finite intervals between consecutive frames, s;
+/// `None` for fewer than two frames.
+#[must_use]
+pub fn median_interval_secs(times_secs: &[f64]) -> Option<f64> {
     let mut intervals: Vec<f64> = times_secs
         .windows(2)
         .filter_map(|w| match w {
@@ -558,11 +565,10 @@ pub fn is_continuous_recording(times_secs: &[f64], settings: &TemporalSettings) 
         .filter(|dt| dt.is_finite())
         .collect();
     if intervals.is_empty() {
-        return false;
+        return None;
     }
     let mid = intervals.len() / 2;
-    let median = *intervals.select_nth_unstable_by(mid, f64::total_cmp).1;
-    median * settings.release_per_s <= std::f64::consts::LN_2
+    Some(*intervals.select_nth_unstable_by(mid, f64::total_cmp).1)
 }
 
 /// Checks that `t_secs` follows `previous` and gives the interval.

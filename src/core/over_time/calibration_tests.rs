@@ -1,0 +1,189 @@
+//! The calibration against a simulated three-joint arm whose observer,
+//! model error, friction and press are known.
+
+use glam::{DAffine3, DMat3, DVec3};
+
+use super::*;
+use crate::core::numerics::rng::Rng;
+use crate::core::robot::model::{JointKind, JointSpec, LinkSpec, Robot};
+use crate::core::robot::spatial::Inertial;
+
+/// A three-joint arm with inertials.
+fn arm() -> Robot {
+    let names = ["base", "a", "b", "c"];
+    let links: Vec<LinkSpec> = names
+        .iter()
+        .enumerate()
+        .map(|(k, n)| LinkSpec {
+            name: (*n).into(),
+            inertial: Inertial {
+                mass_kg: 2.0 + 0.5 * k as f64,
+                com_in_link_m: DVec3::new(0.01, 0.03, 0.12),
+                inertia_about_com: DMat3::from_diagonal(DVec3::new(0.02, 0.02, 0.005)),
+            },
+            ..LinkSpec::default()
+        })
+        .collect();
+    let axes = [DVec3::Z, DVec3::Y, DVec3::Y];
+    let joints: Vec<JointSpec> = (0..3)
+        .map(|k| JointSpec {
+            name: format!("j{k}"),
+            kind: JointKind::Continuous,
+            parent: names[k].into(),
+            child: names[k + 1].into(),
+            parent_from_joint: DAffine3::from_translation(DVec3::new(0.0, 0.0, 0.3)),
+            axis: axes[k],
+            limits: None,
+            mimic: None,
+        })
+        .collect();
+    Robot::new("three", &links, &joints).unwrap()
+}
+
+const COULOMB: [f64; 3] = [0.5, 0.3, 0.4];
+const VISCOUS: [f64; 3] = [0.5, 0.4, 0.3];
+
+/// A moving arm at 1 kHz whose observer (K = 50/s) sees a model with
+/// masses off by up to 8 %, motor-side friction, sensor noise and one
+/// press; or, with `ideal`, only white noise.
+/// Frame times, joint positions and observer torques.
+type Recorded = (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>);
+
+fn recording(ideal: bool) -> Recorded {
+    let robot = arm();
+    let model = RigidBodies::new(&robot);
+    let mut plant_parameters = model.parameters();
+    for (link, scale) in [(1, 1.08), (2, 0.93), (3, 1.05)] {
+        for p in &mut plant_parameters[link * 10..link * 10 + 10] {
+            *p *= scale;
+        }
+    }
+    let plant = model.clone().with_parameters(&plant_parameters).unwrap();
+    let mut rng = Rng::new(3);
+    let dt = 0.001;
+    let times: Vec<f64> = (0..6000).map(|k| f64::from(k) * dt).collect();
+    let positions: Vec<Vec<f64>> = times
+        .iter()
+        .map(|t| {
+            vec![
+                0.6 * (1.1 * t).sin(),
+                0.4 + 0.5 * (0.8 * t + 1.0).sin(),
+                -0.3 + 0.4 * (1.4 * t).cos(),
+            ]
+        })
+        .collect();
+    let (velocities, accelerations) = differentiate(&times, &positions);
+    let mut lag = Lag::new(Some(50.0), 3);
+    let mut torques = Vec::new();
+    for k in 0..times.len() {
+        let (q, v, a) = (&positions[k], &velocities[k], &accelerations[k]);
+        let ours = model.inverse_dynamics(q, v, a).unwrap();
+        let theirs = plant.inverse_dynamics(q, v, a).unwrap();
+        let pressed = (2.0..2.5).contains(&times[k]);
+        let input: Vec<f64> = (0..3)
+            .map(|j| {
+                let noise = 0.02 * rng.normal();
+                if ideal {
+                    return noise;
+                }
+                let friction = COULOMB[j] * (v[j] / STICTION_SPEED_RAD_S).tanh() + VISCOUS[j] * v[j];
+                let contact = if pressed { [3.0, -2.0, 1.0][j] } else { 0.0 };
+                ours[j] - theirs[j] - friction + contact + noise
+            })
+            .collect();
+        torques.push(lag.step(dt, &input).to_vec());
+    }
+    (times, positions, torques)
+}
+
+fn names() -> Vec<String> {
+    vec!["j0".into(), "j1".into(), "j2".into()]
+}
+
+/// The calibration with the default settings.
+fn learned(bodies: &RigidBodies, times: &[f64], positions: &[Vec<f64>], torques: &[Vec<f64>]) -> Calibration {
+    calibrate(
+        bodies,
+        names(),
+        times,
+        positions,
+        torques,
+        &CalibrationSettings::default(),
+    )
+    .unwrap()
+}
+
+#[test]
+fn friction_gain_and_inertial_error_are_learned() {
+    let robot = arm();
+    let bodies = RigidBodies::new(&robot);
+    let (times, positions, torques) = recording(false);
+    let c = learned(&bodies, &times, &positions, &torques);
+    assert!(c.found, "{c:?}");
+    assert_eq!(c.observer_gain_per_s, Some(50.0), "{c:?}");
+    for j in 0..3 {
+        let (fc, fv) = (c.coulomb_nm[j], c.viscous_nms_per_rad[j]);
+        assert!((fc / COULOMB[j] - 1.0).abs() < 0.25, "joint {j} Coulomb {fc}");
+        assert!((fv / VISCOUS[j] - 1.0).abs() < 0.25, "joint {j} viscous {fv}");
+        assert!(c.rms_after_nm[j] * 3.0 < c.rms_before_nm[j], "joint {j}: {c:?}");
+        // The lag taken off, the sensor's white noise is what is left.
+        assert!(
+            (c.sigma_nm[j] / 0.02 - 1.0).abs() < 0.3,
+            "joint {j} σ {}",
+            c.sigma_nm[j]
+        );
+    }
+    // The press is not free, and the correction keeps it.
+    assert!(c.free_frames < times.len() - 500, "{c:?}");
+    let corrected = c.corrected(&bodies, &times, &positions, &torques).unwrap();
+    let pressed = corrected[2250].clone();
+    assert!(
+        (pressed[0] - 3.0).abs() < 0.2 && (pressed[1] + 2.0).abs() < 0.2,
+        "{pressed:?}"
+    );
+    let free = &corrected[4000];
+    assert!(free.iter().all(|t| t.abs() < 0.1), "{free:?}");
+}
+
+#[test]
+fn white_noise_has_no_model_error_to_find() {
+    let robot = arm();
+    let bodies = RigidBodies::new(&robot);
+    let (times, positions, torques) = recording(true);
+    let c = learned(&bodies, &times, &positions, &torques);
+    assert!(!c.found, "{c:?}");
+    let corrected = c.corrected(&bodies, &times, &positions, &torques).unwrap();
+    assert_eq!(corrected, torques);
+}
+
+#[test]
+fn a_held_arm_and_bad_input_are_refused() {
+    let robot = arm();
+    let bodies = RigidBodies::new(&robot);
+    let times: Vec<f64> = (0..500).map(|k| f64::from(k) * 0.005).collect();
+    let positions = vec![vec![0.1, 0.2, 0.3]; 500];
+    let torques = vec![vec![0.0; 3]; 500];
+    let settings = CalibrationSettings::default();
+    let err = calibrate(&bodies, names(), &times, &positions, &torques, &settings).unwrap_err();
+    assert!(matches!(err, CalibrationError::NoMotion { .. }), "{err}");
+    let err = calibrate(
+        &bodies,
+        names(),
+        &times[..10],
+        &positions[..10],
+        &torques[..10],
+        &settings,
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("at least"), "{err}");
+    let mut short = torques.clone();
+    short[7] = vec![0.0; 2];
+    let err = calibrate(&bodies, names(), &times, &positions, &short, &settings).unwrap_err();
+    assert!(err.to_string().contains("frame 7"), "{err}");
+    let bad_gain = CalibrationSettings {
+        observer_gain: ObserverGain::PerSecond(-1.0),
+        ..settings
+    };
+    let err = calibrate(&bodies, names(), &times, &positions, &torques, &bad_gain).unwrap_err();
+    assert!(err.to_string().contains("observer gain"), "{err}");
+}
