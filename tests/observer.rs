@@ -34,8 +34,7 @@ fn link_side_observer_torques_with_the_defaults() {
 
 /// Motor side (plus joint friction that sticks at reversals): the
 /// defaults find the observer's gain and cut the false alarms from
-/// 99.7 % to about 5 % (the target is 2 %; `docs/validation.md` says
-/// what is missing).
+/// 99.7 % to the target of 2 % or fewer.
 #[test]
 #[ignore = "needs ../shared"]
 fn motor_side_observer_torques_with_the_defaults() {
@@ -44,7 +43,7 @@ fn motor_side_observer_torques_with_the_defaults() {
     assert!(ran.out.contains("observer gain 50 1/s"), "{}", ran.out);
     let (detected, false_alarms, median_mm) = estimate_figures(&ran.out);
     assert!(detected >= 90.0, "{}", ran.out);
-    assert!(false_alarms <= 6.0, "{}", ran.out);
+    assert!(false_alarms <= 2.0, "{}", ran.out);
     assert!(median_mm <= 40.0, "{}", ran.out);
 }
 

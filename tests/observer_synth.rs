@@ -87,8 +87,13 @@ fn the_calibration_finds_the_simulated_friction_and_model_error() {
 #[test]
 fn estimate_with_its_defaults_keeps_generated_free_motion_free() {
     let dir = temp_dir("observer-synth");
-    for (sensing, most_false_alarms) in [("link", 1.0), ("motor", 5.0)] {
-        let path = dir.join(format!("{sensing}.session.json"));
+    for (sensing, seed, most_false_alarms) in [
+        ("link", "1", 1.0),
+        ("link", "2", 1.0),
+        ("motor", "1", 2.0),
+        ("motor", "2", 2.0),
+    ] {
+        let path = dir.join(format!("{sensing}-{seed}.session.json"));
         let path = path.to_str().unwrap();
         let made = run(&[
             "synth",
@@ -98,7 +103,7 @@ fn estimate_with_its_defaults_keeps_generated_free_motion_free() {
             "--rate",
             "1000",
             "--seed",
-            "1",
+            seed,
             "--observer-gain",
             "50",
             "--sensing",

@@ -59,9 +59,8 @@ fn taking_off_the_bias_estimates_as_the_command_line_does() {
     ]);
     let cli_out = dir.join("biased.jsonl");
     // The defaults the app and the command line share (one
-    // configuration); a recording opens smoothed. The app does not yet
-    // learn σ or the model error from a recording: the command line is
-    // told the app's σ.
+    // configuration: σ learned, the model error taken off after the
+    // bias); a recording opens smoothed.
     proprioscope(&[
         "estimate",
         path_str,
@@ -69,10 +68,6 @@ fn taking_off_the_bias_estimates_as_the_command_line_does() {
         "auto",
         "--temporal",
         "smooth",
-        "--sigma",
-        "0.05",
-        "--calibrate",
-        "none",
         "--out",
         cli_out.to_str().unwrap(),
     ]);

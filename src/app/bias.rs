@@ -42,7 +42,7 @@ impl ProprioscopeApp {
         };
         let key = BiasKey {
             session: Arc::as_ptr(&replay.session) as usize,
-            sigma: self.model.sigma().to_vec(),
+            sigma: self.model.set_sigma().to_vec(),
         };
         match &self.session.bias {
             Some((k, BiasState::Done(_))) if *k == key => {}
@@ -58,7 +58,7 @@ impl ProprioscopeApp {
             }
             _ => {
                 let session = replay.session.clone();
-                let sigma = self.model.sigma().to_vec();
+                let sigma = self.model.set_sigma().to_vec();
                 let ctx = self.ctx.clone();
                 let job = worker::Background::spawn(
                     "the torque bias".to_owned(),

@@ -23,10 +23,19 @@ pub enum Command {
     SetForce(f64),
     /// Remove the push.
     ClearPush,
-    /// Set the likelihood σ of every joint, N·m.
+    /// Set the likelihood σ of every joint, N·m (on a session σ is then
+    /// no longer learned).
     SetSigma(f64),
-    /// Set one joint's likelihood σ, N·m.
+    /// Set one joint's likelihood σ, N·m (on a session σ is then no
+    /// longer learned).
     SetJointSigma(usize, f64),
+    /// σ per joint learned from the session, N·m (used while σ is
+    /// learned; the σ set is kept).
+    SetLearnedSigma(Vec<f64>),
+    /// σ learned from the session (true) or as set.
+    SetSigmaAuto(bool),
+    /// Learn the model error from the session and take it off (true) or not.
+    SetCalibrate(bool),
     /// Set the surface resolution.
     SetSurfacePoints(usize),
     /// Make a link a candidate (true) or not.
@@ -97,6 +106,16 @@ impl Model {
             Command::SetNoise(s) => why(limits::NOISE.check(s)),
             Command::SetView(view) => why(limits::THRESHOLD.check(view.threshold)),
             Command::SetSpeed(speed) => why(super::SPEED.check(speed)),
+            Command::SetLearnedSigma(ref sigma) => {
+                if sigma.len() != self.robot.sensed().len() {
+                    return Some(format!(
+                        "{} learned σ for {} sensed joints",
+                        sigma.len(),
+                        self.robot.sensed().len()
+                    ));
+                }
+                sigma.iter().find_map(|s| why(limits::SIGMA.check(*s)))
+            }
             _ => None,
         }
     }
@@ -108,12 +127,19 @@ impl Model {
         let mut config = self.config.clone();
         let joints = self.robot.sensed().len();
         match command {
-            Command::SetSigma(s) => config.sigma = Sigma::PerJoint(vec![*s; joints]),
+            // σ set by hand on a session is no longer learned from it.
+            Command::SetSigma(s) => {
+                config.sigma = Sigma::PerJoint(vec![*s; joints]);
+                config.torques.sigma_auto &= self.replay.is_none();
+            }
             Command::SetJointSigma(i, s) => {
                 let mut sigma = super::per_joint(self.sigma(), joints);
                 *sigma.get_mut(*i)? = *s;
                 config.sigma = Sigma::PerJoint(sigma);
+                config.torques.sigma_auto &= self.replay.is_none();
             }
+            Command::SetSigmaAuto(on) => config.torques.sigma_auto = *on,
+            Command::SetCalibrate(on) => config.torques.calibrate = *on,
             Command::SetSurfacePoints(n) => config.surface_points = *n,
             Command::SetForceRange(lo, hi) => config.force_range_newtons = (*lo, *hi),
             Command::SetSlide(slide) => config.temporal.slide_m_per_sqrt_s = *slide,
@@ -261,9 +287,16 @@ impl Model {
                 }
             }
             Command::Tick(dt_secs) => self.tick(dt_secs),
+            Command::SetLearnedSigma(sigma) => {
+                if let Some(r) = &mut self.replay {
+                    r.learned_sigma = Some(sigma);
+                }
+            }
             // Applied above, as configurations.
             Command::SetSigma(_)
             | Command::SetJointSigma(..)
+            | Command::SetSigmaAuto(_)
+            | Command::SetCalibrate(_)
             | Command::SetSurfacePoints(_)
             | Command::SetForceRange(..)
             | Command::SetSlide(_)

@@ -3,6 +3,7 @@
 //! The only place where egui, `render` and `io` meet.
 
 pub mod bias;
+pub mod calibration;
 mod commands;
 mod estimator_panel;
 pub mod files;
@@ -313,7 +314,7 @@ impl ProprioscopeApp {
             robot: self.model.robot.clone(),
             joint_positions: positions,
             tau,
-            config: self.model.config.clone(),
+            config: self.model.estimation_config(),
             links: self.model.candidate_links.clone(),
         });
     }
@@ -367,9 +368,16 @@ impl ProprioscopeApp {
     #[must_use]
     pub fn measured_less_bias(&mut self, pose: &RobotPose) -> Vec<f64> {
         self.update_session_bias();
+        self.update_session_calibration();
         let tau = self.model.measured_torques(pose);
-        match self.model.replay.as_ref().and_then(|r| self.frame_bias(r.frame)) {
-            Some(bias) => tau.iter().zip(bias).map(|(t, b)| t - b).collect(),
+        let correction = self.session_correction();
+        match self
+            .model
+            .replay
+            .as_ref()
+            .and_then(|r| correction.as_ref()?.get(r.frame))
+        {
+            Some(c) => tau.iter().zip(c).map(|(t, b)| t - b).collect(),
             None => tau,
         }
     }
@@ -440,6 +448,7 @@ impl eframe::App for ProprioscopeApp {
         self.poll_loader();
         self.poll_live();
         self.poll_opening();
+        self.poll_calibrating_from();
         self.update_session_estimates();
         let mut commands = self.playback_keys(ui.ctx());
         egui::Panel::top("menu").show(ui, |ui| self.menu_ui(ui));
@@ -476,6 +485,8 @@ impl eframe::App for ProprioscopeApp {
                 .max_size(side_max)
                 .show(ui, |ui| {
                     egui::ScrollArea::vertical().show(ui, |ui| {
+                        // A recording's torque model first: it sets σ.
+                        commands.extend(self.torque_model_ui(ui));
                         commands.extend(estimator_panel::EstimatorPanel::ui(
                             ui,
                             &self.model,

@@ -71,6 +71,9 @@ pub struct Replay {
     /// Take each joint's torque bias, estimated from the session, off
     /// every frame (as `estimate --bias auto`).
     pub bias_auto: bool,
+    /// σ per joint learned from the session (used while σ is learned,
+    /// [`crate::core::config::estimator::TorqueModel::sigma_auto`]), N·m.
+    pub learned_sigma: Option<Vec<f64>>,
 }
 
 /// Slowest and fastest playback.
@@ -188,7 +191,7 @@ impl Model {
         EstimateInputs {
             q: self.q.clone(),
             push: self.push,
-            config: self.config.clone(),
+            config: self.estimation_config(),
             candidate_links: self.candidate_links.clone(),
             noise: (self.noise_sigma, self.noise_seed),
             frame: self.replay.as_ref().map(|r| r.frame),
@@ -197,12 +200,46 @@ impl Model {
         }
     }
 
-    /// Likelihood σ per sensed joint, N·m.
+    /// Likelihood σ per sensed joint in use, N·m: the one learned from
+    /// the session while σ is learned and known, else the one set.
     #[must_use]
     pub fn sigma(&self) -> &[f64] {
+        match self.learned_sigma() {
+            Some(learned) => learned,
+            None => self.set_sigma(),
+        }
+    }
+
+    /// Likelihood σ per sensed joint as set (by hand, a scene or the
+    /// defaults), N·m.
+    #[must_use]
+    pub fn set_sigma(&self) -> &[f64] {
         match &self.config.sigma {
             Sigma::PerJoint(v) => v,
             Sigma::All(s) => std::slice::from_ref(s),
+        }
+    }
+
+    /// σ learned from the session, while it is used.
+    #[must_use]
+    pub fn learned_sigma(&self) -> Option<&[f64]> {
+        self.replay
+            .as_ref()
+            .filter(|_| self.config.torques.sigma_auto)?
+            .learned_sigma
+            .as_deref()
+    }
+
+    /// The configuration the estimator runs with: the one set, with σ
+    /// learned from the session while it is used.
+    #[must_use]
+    pub fn estimation_config(&self) -> EstimatorConfig {
+        match self.learned_sigma() {
+            Some(learned) => EstimatorConfig {
+                sigma: Sigma::PerJoint(learned.to_vec()),
+                ..self.config.clone()
+            },
+            None => self.config.clone(),
         }
     }
 
@@ -212,7 +249,7 @@ impl Model {
         let joints = self.robot.sensed().len();
         // The commands keep the configuration valid, σ one per joint: the
         // fallback is never taken.
-        self.config
+        self.estimation_config()
             .settings(joints, temporal)
             .unwrap_or_else(|_| EstimatorSettings::exact(per_joint(self.sigma(), joints)))
     }

@@ -35,6 +35,13 @@ pub struct SessionPart {
     /// The session's torque bias, when it is taken off, with what it was
     /// estimated from.
     pub(crate) bias: Option<(super::bias::BiasKey, super::bias::BiasState)>,
+    /// The session's calibration, with what it was made from.
+    pub(crate) calibration: Option<(super::calibration::CalibrationKey, super::calibration::CalibrationState)>,
+    /// A calibration from a free-motion recording or a file, used in
+    /// place of one learned from the session.
+    pub external_calibration: Option<Arc<super::calibration::ExternalCalibration>>,
+    /// A calibration being learned from a free-motion recording.
+    pub(crate) calibrating_from: Option<super::worker::Background<super::calibration::ExternalCalibration>>,
 }
 
 impl SessionPart {
@@ -52,6 +59,9 @@ impl SessionPart {
             first_frame: None,
             metrics: None,
             bias: None,
+            calibration: None,
+            external_calibration: None,
+            calibrating_from: None,
         }
     }
 }
@@ -76,6 +86,9 @@ pub(crate) struct SessionKey {
     /// Whether the bias taken off is known (it is estimated on a thread:
     /// the frames are estimated once it is there).
     bias_known: bool,
+    /// Whether the calibration is settled (made on a thread too; made,
+    /// or known not to be possible).
+    calibration_settled: bool,
 }
 
 impl ProprioscopeApp {
@@ -171,6 +184,7 @@ impl ProprioscopeApp {
                 clock_secs: 0.0,
                 over_time,
                 bias_auto: false,
+                learned_sigma: None,
             }),
             refused: None,
         };
@@ -195,6 +209,7 @@ impl ProprioscopeApp {
     /// settings changed, and collects what it has done.
     pub(super) fn update_session_estimates(&mut self) {
         self.update_session_bias();
+        self.update_session_calibration();
         let Some(replay) = &self.model.replay else {
             return;
         };
@@ -213,8 +228,9 @@ impl ProprioscopeApp {
             self.session.estimates = vec![None; replay.session.frames.len()];
             self.session.done = 0;
             self.session.failures.clear();
-            if self.bias_pending() {
-                // Estimated once the bias is known (the key changes then).
+            if self.correction_pending() {
+                // Estimated once the bias or the calibration is known (the
+                // key changes then).
                 self.session.key = Some(key);
                 return;
             }
@@ -222,11 +238,11 @@ impl ProprioscopeApp {
                 generation: self.session.generation,
                 robot: m.robot.clone(),
                 session: replay.session.clone(),
-                config: m.config.clone(),
+                config: m.estimation_config(),
                 links: m.candidate_links.clone(),
                 first: replay.frame,
                 over_time: replay.over_time,
-                bias: self.session_bias().cloned(),
+                bias: self.session_correction(),
             });
             self.session.key = Some(key);
         }
@@ -274,7 +290,7 @@ impl ProprioscopeApp {
                 generation: self.session.generation,
                 robot: m.robot.clone(),
                 frames: frames.clone(),
-                config: m.config.clone(),
+                config: m.estimation_config(),
                 links: m.candidate_links.clone(),
             });
             live.filtered_sent = frames.len();
@@ -331,13 +347,14 @@ impl ProprioscopeApp {
                 Arc::as_ptr(&replay.session) as usize
             },
             live_epoch,
-            config: m.config.clone(),
+            config: m.estimation_config(),
             candidate_links: m.candidate_links.clone(),
             over_time: replay.over_time,
             // Live frames are filtered as they come, bias and all; the
             // bias is taken off once the stream stops.
             bias_auto: replay.bias_auto && live_epoch.is_none(),
             bias_known: self.session_bias().is_some() && live_epoch.is_none(),
+            calibration_settled: !self.calibration_pending() && live_epoch.is_none(),
         })
     }
 
@@ -443,6 +460,7 @@ impl ProprioscopeApp {
                 self.model.config.temporal.slide_m_per_sqrt_s,
                 self.bias_pending(),
             ));
+            self.calibration_status_ui(ui);
             if let Some(frame) = frames.get(replay.frame) {
                 let file_frame = replay.session.file_frames.get(replay.frame).copied().unwrap_or(0);
                 ui.label(format!(
@@ -553,9 +571,11 @@ impl ProprioscopeApp {
     fn torque_and_bias_lines(&self, replay: &Replay, stride: usize) -> (PlotLines, Option<PlotLines>) {
         let frames = &replay.session.frames;
         let robot = &self.model.robot;
-        // With the bias taken off, the torques as the estimator sees them,
-        // and the bias in a plot of its own.
-        let bias = self.session_bias();
+        // With the calibration's model error or the bias taken off, the
+        // torques as the estimator sees them, and what was taken off in a
+        // plot of its own.
+        let correction = self.session_correction();
+        let bias = correction.as_ref();
         let less_bias =
             |i: usize, j: usize, tau: f64| tau - bias.and_then(|b| b.get(i)?.get(j).copied()).unwrap_or(0.0);
         let torque_lines: Vec<(String, Vec<[f64; 2]>)> = (0..robot.sensed().len())
@@ -588,6 +608,24 @@ impl ProprioscopeApp {
                 .collect()
         });
         (torque_lines, bias_lines)
+    }
+
+    /// The titles of the torque plot and of the plot of what is taken off
+    /// the torques (the calibration's model error, or the bias).
+    fn torque_titles(&self, bias: bool) -> (&'static str, &'static str) {
+        if self
+            .session_calibration()
+            .is_some_and(|c| c.applied && c.calibration.found)
+        {
+            (
+                "torque less the model error, unlagged [N·m]",
+                "taken off: model error and lag [N·m]",
+            )
+        } else if bias {
+            ("measured torque less bias [N·m]", "estimated torque bias [N·m]")
+        } else {
+            ("measured torque [N·m]", "estimated torque bias [N·m]")
+        }
     }
 
     fn session_plots_ui(&self, ui: &mut egui::Ui, replay: &Replay) -> Option<f64> {
@@ -653,14 +691,10 @@ impl ProprioscopeApp {
         let height = (ui.available_height() - 24.0).max(150.0);
         let mut clicked = None;
         let columns = if bias_lines.is_some() { 5 } else { 4 };
+        let (torque_title, taken_off_title) = self.torque_titles(bias_lines.is_some());
         ui.columns(columns, |columns| {
             // The error exists only in frames with a contact: dots, so
             // that no line runs across the frames without one.
-            let torque_title = if bias_lines.is_some() {
-                "measured torque less bias [N·m]"
-            } else {
-                "measured torque [N·m]"
-            };
             let mut plots = vec![
                 ("plot-torques", torque_title, torque_lines, false),
                 ("plot-force", "force [N]: estimated, true", force_lines, false),
@@ -677,7 +711,7 @@ impl ProprioscopeApp {
                 ),
             ];
             if let Some(lines) = bias_lines {
-                plots.push(("plot-bias", "estimated torque bias [N·m]", lines, false));
+                plots.push(("plot-bias", taken_off_title, lines, false));
             }
             for (ui, (id, title, lines, dots)) in columns.iter_mut().zip(plots) {
                 ui.label(title);

@@ -6,16 +6,14 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context as _, Result};
+use anyhow::Result;
+use proprioscope::batch::calibration::{corrected, learn, learned_sigma};
 use proprioscope::batch::session_robot;
 use proprioscope::core::config::estimator::TorqueModel;
-use proprioscope::core::config::limits;
 use proprioscope::core::over_time::calibration::{
-    Calibration, CalibrationError, CalibrationSettings, ObserverGain, calibrate,
+    Calibration, CalibrationError, CalibrationSettings, ObserverGain, STICTION_SPEED_RAD_S,
 };
-use proprioscope::core::over_time::observer::typical_step_secs;
 use proprioscope::core::over_time::sequence::Temporal;
-use proprioscope::core::robot::dynamics::RigidBodies;
 use proprioscope::core::robot::model::Robot;
 use proprioscope::io::calibration::CalibrationFile;
 use proprioscope::io::session::Session;
@@ -63,7 +61,7 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
         ..CalibrationSettings::default()
     };
     let torques: Vec<Vec<f64>> = session.frames.iter().map(|f| f.tau.clone()).collect();
-    let calibration = learn(&robot, &session, &torques, &settings)?;
+    let calibration = learn(&robot, (&session.path, &session.frames), &torques, &settings)?;
     print_calibration(&robot, &calibration)?;
     if let Some(out) = &args.out {
         let robot_name = args.robot.clone().or_else(|| session.robot.clone()).unwrap_or_default();
@@ -72,21 +70,6 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
         outln!("calibration written to {}", out.display());
     }
     Ok(())
-}
-
-/// Learns the calibration of `torques` (`session`'s, or what was made of
-/// them: less the bias).
-pub fn learn(
-    robot: &Robot,
-    session: &Session,
-    torques: &[Vec<f64>],
-    settings: &CalibrationSettings,
-) -> Result<Calibration> {
-    let times: Vec<f64> = session.frames.iter().map(|f| f.t).collect();
-    let positions: Vec<Vec<f64>> = session.frames.iter().map(|f| f.q.clone()).collect();
-    let names = robot.sensed_names().iter().map(|s| (*s).to_owned()).collect();
-    calibrate(&RigidBodies::new(robot), names, &times, &positions, torques, settings)
-        .with_context(|| format!("calibrating {}", session.path.display()))
 }
 
 /// The calibration per joint, on stdout.
@@ -110,17 +93,19 @@ pub fn print_calibration(robot: &Robot, c: &Calibration) -> Result<()> {
         }
     );
     outln!(
-        "| joint | RMS before [N·m] | RMS after [N·m] | σ without the lag [N·m] | its correlation [ms] | Coulomb [N·m] | viscous [N·m·s/rad] | offset [N·m] |"
+        "| joint | RMS before [N·m] | RMS after [N·m] | σ without the lag [N·m] | its correlation [ms] | Coulomb [N·m] | its lead [ms] | its switch [rad/s] | viscous [N·m·s/rad] | offset [N·m] |"
     );
-    outln!("|---|---:|---:|---:|---:|---:|---:|---:|");
+    outln!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for (j, name) in robot.sensed_names().iter().enumerate() {
         outln!(
-            "| {name} | {:.4} | {:.4} | {:.4} | {:.1} | {:.3} | {:.3} | {:+.4} |",
+            "| {name} | {:.4} | {:.4} | {:.4} | {:.1} | {:.3} | {:.0} | {:.3} | {:.3} | {:+.4} |",
             c.rms_before_nm[j],
             c.rms_after_nm[j],
             c.sigma_nm[j],
             c.correlation_secs[j] * 1e3,
             c.coulomb_nm[j],
+            c.coulomb_lead_secs.get(j).copied().unwrap_or(0.0) * 1e3,
+            c.coulomb_switch_rad_s.get(j).copied().unwrap_or(STICTION_SPEED_RAD_S),
             c.viscous_nms_per_rad[j],
             c.offset_nm[j]
         );
@@ -130,15 +115,16 @@ pub fn print_calibration(robot: &Robot, c: &Calibration) -> Result<()> {
 
 /// What `estimate` takes as torques and σ: the session's torques less
 /// the calibration's model error (from `file`, or learned where `model`
-/// says so over time), and σ learned per joint where `model` says so
-/// (else `sigma`). Said on stdout.
+/// says so on a `recording` or frames combined over `temporal`), and σ
+/// learned per joint where `model` says so (else `sigma`; widened for
+/// the correlation over time unless frames are alone). Said on stdout.
 pub fn torques_and_sigma(
     robot: &Robot,
     session: &Session,
     torques: Vec<Vec<f64>>,
     sigma: Vec<f64>,
     model: &TorqueModel,
-    temporal: Temporal,
+    (temporal, recording): (Temporal, bool),
     file: Option<&Path>,
 ) -> Result<(Vec<Vec<f64>>, Vec<f64>)> {
     let over_time = temporal != Temporal::None;
@@ -154,8 +140,8 @@ pub fn torques_and_sigma(
             );
         }
         Some(c)
-    } else if over_time && (model.calibrate || model.sigma_auto) {
-        match learn(robot, session, &torques, &model.calibration) {
+    } else if (over_time || recording) && (model.calibrate || model.sigma_auto) {
+        match learn(robot, (&session.path, &session.frames), &torques, &model.calibration) {
             Ok(c) => Some(c),
             Err(e) => {
                 let held = matches!(
@@ -178,36 +164,15 @@ pub fn torques_and_sigma(
     };
     print_calibration(robot, &calibration)?;
     let apply = file.is_some() || model.calibrate;
-    let times: Vec<f64> = session.frames.iter().map(|f| f.t).collect();
-    let positions: Vec<Vec<f64>> = session.frames.iter().map(|f| f.q.clone()).collect();
     let torques = if apply {
-        calibration
-            .corrected(&RigidBodies::new(robot), &times, &positions, &torques)
-            .with_context(|| format!("applying the calibration to {}", session.path.display()))?
+        corrected(robot, (&session.path, &session.frames), &calibration, &torques)?
     } else {
         torques
     };
     if !model.sigma_auto {
         return Ok((torques, sigma));
     }
-    let left = if apply {
-        calibration.clone()
-    } else {
-        Calibration {
-            sigma_nm: calibration.rms_before_nm.clone(),
-            ..calibration.clone()
-        }
-    };
-    let rate_hz = 1.0 / typical_step_secs(&times);
-    let learned = if over_time {
-        left.sigma_over_time(rate_hz)
-    } else {
-        left.sigma_nm.clone()
-    };
-    let learned: Vec<f64> = learned
-        .iter()
-        .map(|s| s.clamp(limits::SIGMA.min, limits::SIGMA.max))
-        .collect();
+    let learned = learned_sigma(&calibration, &session.frames, apply, over_time);
     outln!(
         "σ (learned, N·m{}): {}",
         if over_time {

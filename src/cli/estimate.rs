@@ -17,6 +17,7 @@ use proprioscope::core::eval::metrics::{
 use proprioscope::core::over_time::bias::{estimate_drifting_bias, without_drifting_bias};
 use proprioscope::core::over_time::frame::SequenceFrame;
 use proprioscope::core::over_time::sequence::{Temporal, automatic_temporal, estimate_sequence};
+use proprioscope::core::over_time::temporal::is_continuous_recording;
 use proprioscope::core::robot::model::Robot;
 use proprioscope::io::mcap_out::{EstimateMessage, EstimateWriter};
 use proprioscope::io::recording::{is_recording, read_bytes};
@@ -287,13 +288,14 @@ fn frame_torques(
     temporal: Temporal,
 ) -> Result<(Vec<Vec<f64>>, Vec<f64>)> {
     let taus = debiased_torques(args, robot, session, sigma)?;
+    let times: Vec<f64> = session.frames.iter().map(|f| f.t).collect();
     super::calibrate::torques_and_sigma(
         robot,
         session,
         taus,
         sigma.to_vec(),
         &config.torques,
-        temporal,
+        (temporal, is_continuous_recording(&times, &config.temporal)),
         args.calibration.as_deref(),
     )
 }

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::core::over_time::calibration::Calibration;
+use crate::core::over_time::calibration::{Calibration, STICTION_SPEED_RAD_S};
 
 /// The `format` field.
 pub const CALIBRATION_FORMAT: &str = "proprioscope-calibration";
@@ -39,6 +39,13 @@ pub struct CalibrationFile {
     pub inertial_corrections: Vec<f64>,
     /// Coulomb friction per joint, N·m.
     pub coulomb_nm: Vec<f64>,
+    /// The Coulomb term's lead per joint, s (absent: none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub coulomb_lead_secs: Vec<f64>,
+    /// The Coulomb term's transition speed per joint, rad/s (absent:
+    /// [`STICTION_SPEED_RAD_S`] for every joint).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub coulomb_switch_rad_s: Vec<f64>,
     /// Viscous friction per joint, N·m·s/rad.
     pub viscous_nms_per_rad: Vec<f64>,
     /// Constant offset per joint, N·m.
@@ -116,6 +123,8 @@ impl CalibrationFile {
             },
             inertial_corrections: calibration.inertial_corrections.clone(),
             coulomb_nm: calibration.coulomb_nm.clone(),
+            coulomb_lead_secs: calibration.coulomb_lead_secs.clone(),
+            coulomb_switch_rad_s: calibration.coulomb_switch_rad_s.clone(),
             viscous_nms_per_rad: calibration.viscous_nms_per_rad.clone(),
             offset_nm: calibration.offset_nm.clone(),
             sigma_nm: calibration.sigma_nm.clone(),
@@ -168,6 +177,7 @@ impl CalibrationFile {
                 return Err(field(name, format!("value {i} is {v}, not a finite number")));
             }
         }
+        let (lead, switch) = self.coulomb_shapes(path)?;
         if let Some((i, v)) = self.sigma_nm.iter().enumerate().find(|(_, v)| **v <= 0.0) {
             return Err(field("sigma_nm", format!("value {i} is {v}, must be > 0")));
         }
@@ -205,6 +215,8 @@ impl CalibrationFile {
             observer_gain_per_s: self.observer_gain_per_s,
             inertial_corrections: self.inertial_corrections.clone(),
             coulomb_nm: self.coulomb_nm.clone(),
+            coulomb_lead_secs: lead,
+            coulomb_switch_rad_s: switch,
             viscous_nms_per_rad: self.viscous_nms_per_rad.clone(),
             offset_nm: self.offset_nm.clone(),
             sigma_nm: self.sigma_nm.clone(),
@@ -215,6 +227,44 @@ impl CalibrationFile {
             free_frames: self.free_frames,
             found: self.found,
         })
+    }
+
+    /// Each joint's Coulomb lead and transition speed, checked (absent:
+    /// no lead, [`STICTION_SPEED_RAD_S`]).
+    fn coulomb_shapes(&self, path: &Path) -> Result<(Vec<f64>, Vec<f64>), CalibrationFileError> {
+        let n = self.joints.len();
+        let lead = if self.coulomb_lead_secs.is_empty() {
+            vec![0.0; n]
+        } else {
+            self.coulomb_lead_secs.clone()
+        };
+        let switch = if self.coulomb_switch_rad_s.is_empty() {
+            vec![STICTION_SPEED_RAD_S; n]
+        } else {
+            self.coulomb_switch_rad_s.clone()
+        };
+        for (field, values, lo, hi) in [
+            ("coulomb_lead_secs", &lead, 0.0, 10.0),
+            ("coulomb_switch_rad_s", &switch, 1e-6, 100.0),
+        ] {
+            let message = if values.len() == n {
+                values
+                    .iter()
+                    .enumerate()
+                    .find(|(_, v)| !(**v >= lo && **v <= hi))
+                    .map(|(i, v)| format!("value {i} is {v}, must lie in [{lo}, {hi}]"))
+            } else {
+                Some(format!("{} values for {n} joints", values.len()))
+            };
+            if let Some(message) = message {
+                return Err(CalibrationFileError::Field {
+                    path: path.to_owned(),
+                    field,
+                    message,
+                });
+            }
+        }
+        Ok((lead, switch))
     }
 
     /// Parses a calibration file's text.

@@ -40,8 +40,35 @@ pub const OBSERVER_GAINS_PER_S: [f64; 13] = [
 ];
 
 /// The joint speed at which the smooth Coulomb term reaches 76 % of its
-/// value (`tanh(1)`), rad/s.
+/// value (`tanh(1)`) unless the fit finds another, rad/s.
 pub const STICTION_SPEED_RAD_S: f64 = 0.01;
+
+/// How long before and after its Coulomb term switches sign a joint's
+/// friction counts as sticking when the calibration is applied, s.
+pub const STICK_WINDOW_SECS: f64 = 0.03;
+
+/// The share of a joint's squared residual that a Coulomb shape other
+/// than the plain one (no lead, [`STICTION_SPEED_RAD_S`]) must take off
+/// to be chosen.
+const SHAPE_GAIN: f64 = 0.1;
+
+/// Speeds tried for each joint's Coulomb transition, rad/s.
+pub const COULOMB_SPEEDS_RAD_S: [f64; 4] = [0.003, 0.01, 0.03, 0.1];
+
+/// Leads tried for each joint's Coulomb switch, s: the Coulomb term
+/// follows the sign of `q̇ + lead·q̈`, the speed `lead` seconds ahead.
+/// A joint whose friction sticks turns round when its net drive does,
+/// which comes before its velocity turns (the more, the lighter the
+/// link it moves); without a lead the residual steps by twice the
+/// Coulomb value at every reversal until the velocity catches up.
+pub const COULOMB_LEADS_SECS: [f64; 7] = [0.0, 0.01, 0.02, 0.04, 0.08, 0.16, 0.32];
+
+/// The Coulomb column as the residual sees it (friction acts against
+/// the motion): `−tanh((q̇ + lead·q̈) / speed)`.
+#[must_use]
+pub fn coulomb_shape(speed_rad_s: f64, acceleration_rad_s2: f64, lead_secs: f64, switch_rad_s: f64) -> f64 {
+    -((speed_rad_s + lead_secs * acceleration_rad_s2) / switch_rad_s).tanh()
+}
 
 /// Most frames a fit reads (from the recording's start); the correction
 /// then applies to every frame.
@@ -186,6 +213,10 @@ pub struct Calibration {
     pub inertial_corrections: Vec<f64>,
     /// Each joint's Coulomb friction, N·m.
     pub coulomb_nm: Vec<f64>,
+    /// Each joint's Coulomb lead ([`COULOMB_LEADS_SECS`]), s.
+    pub coulomb_lead_secs: Vec<f64>,
+    /// Each joint's Coulomb transition speed ([`COULOMB_SPEEDS_RAD_S`]), rad/s.
+    pub coulomb_switch_rad_s: Vec<f64>,
     /// Each joint's viscous friction, N·m·s/rad.
     pub viscous_nms_per_rad: Vec<f64>,
     /// Each joint's constant offset, N·m.
@@ -209,6 +240,9 @@ pub struct Calibration {
     pub found: bool,
 }
 
+/// Per frame, one value per joint.
+type PerFrame = Vec<Vec<f64>>;
+
 /// One frame's columns before the lag, row-major (joints × columns).
 struct Design {
     base: Vec<usize>,
@@ -217,6 +251,8 @@ struct Design {
     columns: usize,
     joints: usize,
     rows: Vec<f32>,
+    /// Each joint's Coulomb (lead s, transition speed rad/s).
+    shapes: Vec<(f64, f64)>,
 }
 
 impl Calibration {
@@ -229,6 +265,8 @@ impl Calibration {
             observer_gain_per_s: None,
             inertial_corrections: Vec::new(),
             coulomb_nm: vec![0.0; n],
+            coulomb_lead_secs: vec![0.0; n],
+            coulomb_switch_rad_s: vec![STICTION_SPEED_RAD_S; n],
             viscous_nms_per_rad: vec![0.0; n],
             offset_nm: vec![0.0; n],
             correlation_secs: vec![0.0; n],
@@ -274,13 +312,61 @@ impl Calibration {
         if !self.found {
             return Ok(torques.to_vec());
         }
-        let model_error = self.model_error(bodies, times_secs, positions)?;
+        let (model_error, coulomb) = self.model_error(bodies, times_secs, positions)?;
+        let sticking = self.sticking(times_secs, positions);
         let unlagged = unlag_all(self.observer_gain_per_s, times_secs, torques);
         Ok(unlagged
             .into_iter()
             .zip(model_error)
-            .map(|(t, e)| t.iter().zip(e).map(|(a, b)| a - b).collect())
+            .zip(coulomb)
+            .zip(sticking)
+            .map(|(((t, e), c), stick)| {
+                (0..n)
+                    .map(|j| {
+                        if stick[j] {
+                            // Sticking, the friction is whatever the rest
+                            // leaves, up to its Coulomb value.
+                            let rest = t[j] - (e[j] - c[j]);
+                            let bound = self.coulomb_nm[j].abs();
+                            rest - rest.clamp(-bound, bound)
+                        } else {
+                            t[j] - e[j]
+                        }
+                    })
+                    .collect()
+            })
             .collect())
+    }
+
+    /// Per frame and joint: whether the Coulomb term is within
+    /// [`STICK_WINDOW_SECS`] of switching sign, where its timing is least
+    /// sure and the friction may hold any value within its bound.
+    fn sticking(&self, times_secs: &[f64], positions: &[Vec<f64>]) -> Vec<Vec<bool>> {
+        let n = self.joints.len();
+        let (velocities, accelerations) = differentiate(times_secs, positions);
+        let mut out = vec![vec![false; n]; positions.len()];
+        for j in 0..n {
+            let lead = self.coulomb_lead_secs.get(j).copied().unwrap_or(0.0);
+            let argument: Vec<f64> = velocities
+                .iter()
+                .zip(&accelerations)
+                .map(|(v, a)| v[j] + lead * a[j])
+                .collect();
+            let switches: Vec<f64> = (1..argument.len())
+                .filter(|&k| (argument[k] > 0.0) != (argument[k - 1] > 0.0))
+                .map(|k| 0.5 * (times_secs[k] + times_secs[k - 1]))
+                .collect();
+            let mut next = 0;
+            for (k, t) in times_secs.iter().enumerate() {
+                while next < switches.len() && switches[next] < t - STICK_WINDOW_SECS {
+                    next += 1;
+                }
+                if next < switches.len() && switches[next] <= t + STICK_WINDOW_SECS {
+                    out[k][j] = true;
+                }
+            }
+        }
+        out
     }
 
     /// The model error at every frame, before the observer's lag.
@@ -289,9 +375,10 @@ impl Calibration {
         bodies: &RigidBodies,
         times_secs: &[f64],
         positions: &[Vec<f64>],
-    ) -> Result<Vec<Vec<f64>>, CalibrationError> {
+    ) -> Result<(PerFrame, PerFrame), CalibrationError> {
         let n = bodies.dof();
         let (velocities, accelerations) = differentiate(times_secs, positions);
+        let mut coulomb_parts = Vec::with_capacity(positions.len());
         let corrected_model = if self.inertial_corrections.is_empty() {
             None
         } else {
@@ -305,14 +392,22 @@ impl Calibration {
                 Some(model) => model.inverse_dynamics(&positions[k], &velocities[k], &accelerations[k])?,
                 None => vec![0.0; n],
             };
+            let mut coulomb = vec![0.0; n];
             for j in 0..n {
-                let v = velocities[k][j];
-                error[j] += -self.coulomb_nm[j] * (v / STICTION_SPEED_RAD_S).tanh() - self.viscous_nms_per_rad[j] * v
-                    + self.offset_nm[j];
+                let (v, a) = (velocities[k][j], accelerations[k][j]);
+                let lead = self.coulomb_lead_secs.get(j).copied().unwrap_or(0.0);
+                let switch = self
+                    .coulomb_switch_rad_s
+                    .get(j)
+                    .copied()
+                    .unwrap_or(STICTION_SPEED_RAD_S);
+                coulomb[j] = self.coulomb_nm[j] * coulomb_shape(v, a, lead, switch);
+                error[j] += coulomb[j] - self.viscous_nms_per_rad[j] * v + self.offset_nm[j];
             }
             out.push(error);
+            coulomb_parts.push(coulomb);
         }
-        Ok(out)
+        Ok((out, coulomb_parts))
     }
 }
 
@@ -420,7 +515,7 @@ impl Design {
                 }
                 for i in 0..joints {
                     let (coulomb, viscous, offset) = if i == j && settings.friction {
-                        (-(qd[j] / STICTION_SPEED_RAD_S).tanh(), -qd[j], 1.0)
+                        (coulomb_shape(qd[j], qdd[j], 0.0, STICTION_SPEED_RAD_S), -qd[j], 1.0)
                     } else if i == j {
                         (0.0, 0.0, 1.0)
                     } else {
@@ -445,7 +540,23 @@ impl Design {
             columns,
             joints,
             rows,
+            shapes: vec![(0.0, STICTION_SPEED_RAD_S); joints],
         })
+    }
+
+    /// Where joint `j`'s Coulomb column sits in a frame's row block.
+    fn coulomb_index(&self, j: usize) -> usize {
+        j * self.columns + self.base.len() + 3 * j
+    }
+
+    /// Reshapes joint `j`'s Coulomb column to `(lead, switch)`.
+    fn set_coulomb(&mut self, j: usize, shape: (f64, f64), velocities: &[Vec<f64>], accelerations: &[Vec<f64>]) {
+        let width = self.joints * self.columns;
+        let at = self.coulomb_index(j);
+        for ((row, v), a) in self.rows.chunks_exact_mut(width).zip(velocities).zip(accelerations) {
+            row[at] = coulomb_shape(v[j], a[j], shape.0, shape.1) as f32;
+        }
+        self.shapes[j] = shape;
     }
 
     /// The lagged columns at every frame, row-major per frame.
@@ -476,6 +587,9 @@ struct Fit {
     residuals: Vec<Vec<f64>>,
     /// Each joint's weighted squared residual on the free frames.
     joint_sse: Vec<f64>,
+    /// The coefficients' covariance (the inverse of the normal matrix
+    /// with the prior), row-major.
+    covariance: Vec<f64>,
 }
 
 /// Fits the columns at `gain` over the `free` frames with `weights`.
@@ -517,7 +631,7 @@ fn fit_at(
     }
     // Rows within one correlation time of the lag are one vote, not many.
     let correlated = gain.map_or(1.0, |k| {
-        let pole = (-k * step).exp();
+        let pole = (1.0 - k * step).clamp(0.0, 1.0 - 1e-9);
         ((1.0 + pole) / (1.0 - pole) / stride as f64).max(1.0)
     });
     for c1 in 0..p {
@@ -533,6 +647,16 @@ fn fit_at(
         normal[c1 * p + c1] += 1.0 / (design.prior_sd[c1] * design.prior_sd[c1]);
     }
     let coefficients = solve_spd(&normal, &rhs)?;
+    let mut covariance = vec![0.0; p * p];
+    let mut unit = vec![0.0; p];
+    for c in 0..p {
+        unit.iter_mut()
+            .enumerate()
+            .for_each(|(i, u)| *u = f64::from(u8::from(i == c)));
+        for (i, v) in solve_spd(&normal, &unit)?.into_iter().enumerate() {
+            covariance[i * p + c] = v;
+        }
+    }
     let mut per_joint = vec![0.0; n];
     let residuals: Vec<Vec<f64>> = lagged
         .iter()
@@ -556,6 +680,7 @@ fn fit_at(
         coefficients,
         residuals,
         joint_sse: per_joint,
+        covariance,
     })
 }
 
@@ -566,9 +691,10 @@ fn fit_at(
 /// less lag lets the fit follow the misfit, and the error only falls
 /// toward the highest gain. So the gain is the joint minimum inside the
 /// grid that stands out most (its error at least 5 % lower than the
-/// worst on either side); without one, the lowest sum over joints of the
-/// logarithm of the error.
-fn best_gain(fits: Vec<Fit>) -> Option<Fit> {
+/// worst on either side); without one, the gain found before when there
+/// is one (a fit that leaves only noise has no say in the lag), else the
+/// lowest sum over joints of the logarithm of the error.
+fn best_gain(fits: Vec<Fit>, before: &[Option<f64>]) -> Option<Fit> {
     let joints = fits.first()?.joint_sse.len();
     let last = fits.len().checked_sub(1)?;
     let mut chosen: Option<(usize, f64)> = None;
@@ -587,7 +713,10 @@ fn best_gain(fits: Vec<Fit>) -> Option<Fit> {
             chosen = Some((at, prominence));
         }
     }
+    let kept = before.first().and_then(|g| fits.iter().position(|f| f.gain == *g));
     let at = if let Some((at, _)) = chosen {
+        at
+    } else if let Some(at) = kept {
         at
     } else {
         let score = |f: &Fit| f.joint_sse.iter().map(|v| v.max(1e-300).ln()).sum::<f64>();
@@ -651,7 +780,7 @@ pub fn calibrate(
     if rms_speed_rad_s < MIN_RMS_SPEED_RAD_S && !settings.free_motion {
         return Err(CalibrationError::NoMotion { rms_speed_rad_s });
     }
-    let design = Design::new(bodies, settings, positions, &velocities, &accelerations)?;
+    let mut design = Design::new(bodies, settings, positions, &velocities, &accelerations)?;
     // Contacts give χ² in the thousands; a margin of 2 σ over the 99.9 %
     // point keeps the free frames whose residual is merely heavy-tailed.
     let threshold = 4.0 * chi_square_quantile(1e-3, n);
@@ -684,14 +813,35 @@ pub fn calibrate(
     };
     let mut gain = gains[0];
     let mut best: Option<Fit> = None;
-    for round in 0..6 {
+    for round in 0..9 {
         let search = round == 0 || round == 5;
         let candidates: Vec<Option<f64>> = if search { gains.clone() } else { vec![gain] };
-        let fits = candidates
-            .into_iter()
-            .map(|g| fit_at(&design, times, torques, &free, &weights, &sigma, g))
-            .collect::<Result<Vec<Fit>, _>>()?;
-        let Some(fit) = best_gain(fits) else { break };
+        // The gain is found with the plain Coulomb term; only then is
+        // each joint's Coulomb term shaped at that gain, since a lead in
+        // the friction can stand in for less lag in the observer.
+        let shape = settings.friction && round >= 6;
+        let mut fits = Vec::with_capacity(candidates.len());
+        for g in candidates {
+            let mut fit = fit_at(&design, times, torques, &free, &weights, &sigma, g)?;
+            if shape {
+                let search = ShapeSearch {
+                    times_secs: times,
+                    velocities: &velocities,
+                    accelerations: &accelerations,
+                    free: &free,
+                    weights: &weights,
+                };
+                for (j, s) in best_coulomb_shapes(&design, &fit, &search)?.into_iter().enumerate() {
+                    design.set_coulomb(j, s, &velocities, &accelerations);
+                }
+                fit = fit_at(&design, times, torques, &free, &weights, &sigma, g)?;
+            }
+            fits.push(fit);
+        }
+        let before = if round > 0 { vec![gain] } else { Vec::new() };
+        let Some(fit) = best_gain(fits, &before) else {
+            break;
+        };
         gain = fit.gain;
         // σ of the gate from the quietest 30 % of frames under the last
         // σ (widened by the truncation of a χ² at its 30 % point): the
@@ -718,10 +868,12 @@ pub fn calibrate(
                 ((sum / count.max(1) as f64).sqrt() * widen).max(1e-6)
             })
             .collect();
+        let spread = prediction_spread(&design, times, &fit);
         let chi2: Vec<f64> = fit
             .residuals
             .iter()
-            .map(|e| e.iter().zip(&sigma).map(|(x, s)| (x / s).powi(2)).sum())
+            .zip(&spread)
+            .map(|(e, v)| e.iter().zip(&sigma).zip(v).map(|((x, s), v)| x * x / (s * s + v)).sum())
             .collect();
         weights = chi2.iter().map(|z| if *z <= huber { 1.0 } else { huber / z }).collect();
         // The quietest 30 % always stay: a first fit that generalises
@@ -809,6 +961,8 @@ pub fn calibrate(
         observer_gain_per_s: gain,
         inertial_corrections,
         coulomb_nm: (0..n).map(|j| friction[3 * j]).collect(),
+        coulomb_lead_secs: design.shapes.iter().map(|s| s.0).collect(),
+        coulomb_switch_rad_s: design.shapes.iter().map(|s| s.1).collect(),
         viscous_nms_per_rad: (0..n).map(|j| friction[3 * j + 1]).collect(),
         offset_nm: (0..n).map(|j| friction[3 * j + 2]).collect(),
         sigma_nm: white.iter().map(|a| a.0.max(1e-4)).collect(),
@@ -820,6 +974,10 @@ pub fn calibrate(
         found,
     })
 }
+
+#[path = "calibration_shapes.rs"]
+mod shapes;
+use shapes::{ShapeSearch, best_coulomb_shapes, prediction_spread};
 
 #[cfg(test)]
 #[path = "calibration_tests.rs"]
