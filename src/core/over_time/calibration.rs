@@ -691,9 +691,9 @@ fn fit_at(
 /// less lag lets the fit follow the misfit, and the error only falls
 /// toward the highest gain. So the gain is the joint minimum inside the
 /// grid that stands out most (its error at least 5 % lower than the
-/// worst on either side); without one, the gain found before when there
-/// is one (a fit that leaves only noise has no say in the lag), else the
-/// lowest sum over joints of the logarithm of the error.
+/// worst on either side); without one, after the first round, the knee
+/// of the joints' error over the grid ([`knee`]), else the lowest sum
+/// over joints of the logarithm of the error.
 fn best_gain(fits: Vec<Fit>, before: &[Option<f64>]) -> Option<Fit> {
     let joints = fits.first()?.joint_sse.len();
     let last = fits.len().checked_sub(1)?;
@@ -713,10 +713,11 @@ fn best_gain(fits: Vec<Fit>, before: &[Option<f64>]) -> Option<Fit> {
             chosen = Some((at, prominence));
         }
     }
-    let kept = before.first().and_then(|g| fits.iter().position(|f| f.gain == *g));
     let at = if let Some((at, _)) = chosen {
         at
-    } else if let Some(at) = kept {
+    } else if !before.is_empty()
+        && let Some(at) = knee(&fits)
+    {
         at
     } else {
         let score = |f: &Fit| f.joint_sse.iter().map(|v| v.max(1e-300).ln()).sum::<f64>();
@@ -724,6 +725,38 @@ fn best_gain(fits: Vec<Fit>, before: &[Option<f64>]) -> Option<Fit> {
     };
     fits.into_iter().nth(at)
 }
+
+/// The least gain whose fit is within [`KNEE`] of the best, each joint's
+/// error over its least, averaged with weights by how much the joint's
+/// error changes over the grid: more gain always fits a little better
+/// (less lag lets the fit follow its misfit), so the error falls steeply
+/// up to the observer's gain and barely after it; joints whose error
+/// hardly depends on the gain say nothing of it. `None` when no joint's
+/// error changes.
+fn knee(fits: &[Fit]) -> Option<usize> {
+    let joints = fits.first()?.joint_sse.len();
+    let (mut weights, mut least) = (vec![0.0; joints], vec![0.0; joints]);
+    for j in 0..joints {
+        let sse = fits.iter().map(|f| f.joint_sse[j].max(1e-300));
+        let (lo, hi) = sse.fold((f64::INFINITY, 0.0_f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
+        least[j] = lo;
+        weights[j] = hi / lo - 1.0;
+    }
+    let total: f64 = weights.iter().sum();
+    if total <= 1e-6 {
+        return None;
+    }
+    fits.iter().position(|f| {
+        let ratio: f64 = (0..joints)
+            .map(|j| weights[j] * f.joint_sse[j].max(1e-300) / least[j])
+            .sum::<f64>()
+            / total;
+        ratio <= 1.0 + KNEE
+    })
+}
+
+/// How far above the best fit the knee of the gain may lie.
+const KNEE: f64 = 0.01;
 
 /// Free frames: χ² below the gate, away from any frame that is not.
 fn free_frames(times_secs: &[f64], chi2: &[f64], threshold: f64, gain: Option<f64>) -> Vec<bool> {
