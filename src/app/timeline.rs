@@ -8,7 +8,7 @@ use eframe::egui;
 
 use super::{Command, Model, ProprioscopeApp, Replay, SPEED_RANGE, per_joint};
 use crate::batch::{self, EstimateJob, FrameEstimate, LoadFailure, Loader, SessionData};
-use crate::core::config::estimator::{EstimatorConfig, ModeKind, Sigma};
+use crate::core::config::estimator::{EstimatorConfig, Sigma};
 use crate::core::estimate::summary::Verdict;
 use crate::core::over_time::sequence::{Temporal, automatic_temporal};
 use crate::core::robot::model::{LinkId, Robot};
@@ -151,12 +151,7 @@ impl ProprioscopeApp {
         let joints = robot.sensed().len();
         // As `estimate --temporal auto`.
         let times: Vec<f64> = data.frames.iter().map(|f| f.t).collect();
-        let (over_time, _) = automatic_temporal(
-            &times,
-            &self.model.config.temporal,
-            self.model.config.surface_points,
-            self.model.config.mode == ModeKind::Exact,
-        );
+        let (over_time, _) = automatic_temporal(&times, &self.model.config.temporal);
         let candidate_links = robot.default_candidate_links();
         let q = data.frames.first().map_or_else(|| vec![0.0; joints], |f| f.q.clone());
         let old = &self.model;

@@ -75,6 +75,22 @@ pub struct BenchArgs {
     /// with the table and the plot.
     #[arg(long)]
     pub doc: Option<PathBuf>,
+    /// Instead of the tables: synthesise a recording this long, s (presses
+    /// on links 4–7, σ the noise drawn) and smooth it at each of
+    /// `--threads`, reporting wall time, frames per second, the real-time
+    /// factor, peak memory and the smoothed accuracy (valid: (0, 3600] s).
+    #[arg(long, value_parser = super::within(&limits::SECONDS))]
+    pub recording: Option<f64>,
+    /// `--recording`'s frame rate, Hz (valid: (0, 10000] Hz).
+    #[arg(long, default_value_t = 1000.0, value_parser = super::within(&limits::RATE_HZ))]
+    pub rate: f64,
+    /// `--recording`'s thread counts (default: 1, 2 and every core).
+    #[arg(long, value_delimiter = ',', value_parser = super::counted(&limits::THREADS))]
+    pub threads: Vec<usize>,
+    /// `--recording`: memory the smoothing may take, MiB (see `estimate
+    /// --memory`; valid: 64 to 1048576).
+    #[arg(long, default_value_t = proprioscope::core::config::estimator::DEFAULT_MEMORY_MIB, value_parser = super::counted(&limits::MEMORY_MIB))]
+    pub memory: usize,
     /// A TrueType font for the plot's text.
     #[arg(long, default_value = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf")]
     pub font: PathBuf,
@@ -258,6 +274,9 @@ fn run_config(robot: &Robot, config: &Config, contacts: &[Contact], seed: u64) -
 
 /// Runs the command.
 pub fn run(args: &BenchArgs) -> Result<()> {
+    if let Some(seconds) = args.recording {
+        return super::bench_recording::run(args, seconds);
+    }
     // The document's table and plot are committed: quick figures (fewer
     // contacts and configurations) must not replace them.
     if args.quick && args.doc.is_some() {

@@ -301,12 +301,12 @@ fn frame_torques(
 }
 
 /// `--temporal`, with `auto` decided for this session (and said on stderr).
-fn chosen_temporal(args: &EstimateArgs, session: &Session, points: usize, patches: bool) -> Temporal {
+fn chosen_temporal(args: &EstimateArgs, session: &Session) -> Temporal {
     if args.temporal.temporal != TemporalArg::Auto {
         return args.temporal.temporal.into();
     }
     let times: Vec<f64> = session.frames.iter().map(|f| f.t).collect();
-    let (chosen, why) = automatic_temporal(&times, &args.temporal.settings(), points, patches);
+    let (chosen, why) = automatic_temporal(&times, &args.temporal.settings());
     log::info!("--temporal auto: {why} (choose with --temporal none|filter|smooth)");
     chosen
 }
@@ -358,7 +358,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
         Some(out_path) => Some(Out::create(out_path, path, &session, &robot, origin_ns)?),
         None => None,
     };
-    let temporal = chosen_temporal(args, &session, estimator.surface.len(), estimator.uses_patches());
+    let temporal = chosen_temporal(args, &session);
     estimator.settings.friction = friction_for(&config, robot.sensed().len(), temporal)?;
     let model = match temporal {
         Temporal::None => None,

@@ -1,6 +1,7 @@
 //! Headless commands that run the estimator.
 
 pub mod bench;
+pub mod bench_recording;
 pub mod calibrate;
 pub mod estimate;
 pub mod live;
@@ -281,6 +282,10 @@ pub struct EstimatorArgs {
     /// friction is taken only where a press says so; valid: [0, 2]).
     #[arg(long, default_value = "auto", value_parser = friction_arg)]
     pub friction: Friction,
+    /// Memory a smoothed recording may take, MiB: half for the smoother's
+    /// store, whatever the recording's length (valid: 64 to 1048576).
+    #[arg(long, default_value_t = EstimatorConfig::default().memory_mib, value_parser = counted(&limits::MEMORY_MIB))]
+    pub memory: usize,
 }
 
 /// One `--sigma` value.
@@ -389,6 +394,7 @@ impl EstimatorArgs {
                     ..CalibrationSettings::default()
                 },
             },
+            memory_mib: self.memory,
         };
         config.validate(None).map_err(|e| option_error(&e))?;
         Ok(config)

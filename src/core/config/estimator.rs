@@ -99,6 +99,10 @@ pub struct EstimatorConfig {
     pub temporal: TemporalSettings,
     /// What a recording's torques are taken to carry besides contacts.
     pub torques: TorqueModel,
+    /// Memory a smoothed recording may take, MiB: half for the
+    /// smoother's store (whatever the recording's length), half for the
+    /// rest (the session, the frames under way).
+    pub memory_mib: usize,
 }
 
 /// What a recording's torques carry besides contacts, and what the
@@ -150,9 +154,13 @@ impl Default for EstimatorConfig {
             surface_seed: 0,
             temporal: TemporalSettings::default(),
             torques: TorqueModel::default(),
+            memory_mib: DEFAULT_MEMORY_MIB,
         }
     }
 }
+
+/// [`EstimatorConfig::memory_mib`] when the user has not said: 2 GiB.
+pub const DEFAULT_MEMORY_MIB: usize = 2048;
 
 /// A field of the configuration, for the message of a value it refuses:
 /// scenes, the command line and the app each name it their own way
@@ -187,6 +195,8 @@ pub enum ConfigField {
     JumpRate,
     /// The observer gain of [`TorqueModel::calibration`].
     ObserverGain,
+    /// [`EstimatorConfig::memory_mib`].
+    Memory,
 }
 
 impl ConfigField {
@@ -208,6 +218,7 @@ impl ConfigField {
             Self::Slide => "temporal.slide_m_per_sqrt_s",
             Self::JumpRate => "temporal.jump_per_s",
             Self::ObserverGain => "torques.observer_gain_per_s",
+            Self::Memory => "memory_mib",
         }
     }
 
@@ -229,6 +240,7 @@ impl ConfigField {
             Self::Slide => "--slide",
             Self::JumpRate => "--jump-rate",
             Self::ObserverGain => "--observer-gain",
+            Self::Memory => "--memory",
         }
     }
 }
@@ -353,6 +365,7 @@ impl EstimatorConfig {
         in_range(F::ReleaseRate, &limits::EVENT_RATE, t.release_per_s)?;
         in_range(F::Slide, &limits::SLIDE, t.slide_m_per_sqrt_s)?;
         in_range(F::JumpRate, &limits::EVENT_RATE, t.jump_per_s)?;
+        counted(F::Memory, &limits::MEMORY_MIB, self.memory_mib)?;
         Ok(())
     }
 
@@ -452,7 +465,13 @@ impl EstimatorConfig {
     /// # Errors
     /// Settings the model refuses.
     pub fn temporal_model(&self, surface: &Surface, patches: bool) -> Result<TemporalModel, BuildError> {
-        Ok(TemporalModel::new(surface, self.temporal, patches)?)
+        Ok(TemporalModel::new(surface, self.temporal, patches)?.with_store_limit(self.store_bytes()))
+    }
+
+    /// The smoother's store: half of [`EstimatorConfig::memory_mib`].
+    #[must_use]
+    pub fn store_bytes(&self) -> usize {
+        self.memory_mib.saturating_mul(1 << 20) / 2
     }
 }
 

@@ -285,6 +285,9 @@ pub const THREADS: CountRange = CountRange::new("threads", 1, 1024);
 /// Frames a live estimate takes before it stops.
 pub const LIVE_FRAMES: CountRange = CountRange::new("live frames", 1, usize::MAX);
 
+/// Memory a smoothed recording may take, MiB.
+pub const MEMORY_MIB: CountRange = CountRange::new("memory (MiB)", 64, 1 << 20);
+
 /// Random contacts of a bench run.
 pub const CONTACTS: CountRange = CountRange::new("contacts", 1, 1_000_000);
 
@@ -317,7 +320,7 @@ pub const RANGES: [&Range; 24] = [
 ];
 
 /// Every count range above.
-pub const COUNTS: [&CountRange; 7] = [
+pub const COUNTS: [&CountRange; 8] = [
     &SURFACE_POINTS,
     &PARTICLES,
     &MAGNITUDES,
@@ -325,6 +328,7 @@ pub const COUNTS: [&CountRange; 7] = [
     &THREADS,
     &CONTACTS,
     &LIVE_FRAMES,
+    &MEMORY_MIB,
 ];
 
 #[cfg(test)]

@@ -518,7 +518,8 @@ pub(crate) fn overlap(forward: &Offset, backward: &Offset, rho_m: f64) -> f64 {
     if !(df > 0.0 && db > 0.0 && d > 0.0 && both.precision[0] > 0.0 && d.is_finite()) {
         return 0.0;
     }
-    0.5 * (both.explained() - forward.explained() - backward.explained()) + 0.5 * (df * db / (d * d0)).ln()
+    0.5 * (both.explained() - forward.explained() - backward.explained())
+        + 0.5 * crate::core::over_time::temporal::ln_or_minus_infinity(df * db / (d * d0))
 }
 
 impl FrameLikelihood {

@@ -2,20 +2,19 @@
 //! before) or smoothed (with the whole recording), through the temporal
 //! model's belief; and a stream filtered as it arrives.
 
-use std::time::Instant;
-
 use crate::core::estimate::contact::PatchForms;
-use crate::core::estimate::estimator::{BeliefAtFrame, Estimator, PendingUpdate, Update, elapsed_ms, finite};
+use crate::core::estimate::estimator::{BeliefAtFrame, Estimator, PendingUpdate, Update, finite};
 use crate::core::estimate::posterior::Posterior;
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Summary;
 use crate::core::numerics::lanes;
 use crate::core::over_time::frame::SequenceFrame;
 use crate::core::over_time::offsets::{FrameLikelihood, PatchInformation};
-use crate::core::over_time::presses::{FrictionGate, PressQueue};
-use crate::core::over_time::smoother::{FilterState, Smoother};
+use crate::core::over_time::parallel::{self, Callbacks};
+use crate::core::over_time::presses::FrictionGate;
+use crate::core::over_time::smoother::FilterState;
 use crate::core::over_time::temporal::{
-    Belief, MAX_SMOOTHER_BYTES, TemporalError, TemporalModel, TemporalSettings, is_continuous_recording, smoother_bytes,
+    Belief, TemporalError, TemporalModel, TemporalSettings, is_continuous_recording,
 };
 use crate::core::robot::model::Robot;
 use crate::core::robot::torque::TorqueModel;
@@ -42,7 +41,7 @@ impl Estimator {
 
     /// The posterior of an update, not yet summarised (a sequence's second
     /// pass: its likelihoods are in the smoother already).
-    fn pending_update(
+    pub(crate) fn pending_update(
         &self,
         robot: &Robot,
         joint_positions: &[f64],
@@ -56,7 +55,13 @@ impl Estimator {
     /// recording (`belief`) calls its frame a contact and contacts are
     /// placed on the continuous surface: what its press is checked
     /// against ([`PRESS_MISFIT_PER_FRAME`]).
-    fn summary_alone(&self, robot: &Robot, update: &PendingUpdate, tau: &[f64], belief: &Belief) -> Option<Summary> {
+    pub(crate) fn summary_alone(
+        &self,
+        robot: &Robot,
+        update: &PendingUpdate,
+        tau: &[f64],
+        belief: &Belief,
+    ) -> Option<Summary> {
         (belief.contact_probability() >= 0.5 && self.uses_patches()).then(|| {
             let torque_model = TorqueModel::new(robot, &update.pose, &self.links);
             self.conclude_alone(&torque_model, &update.pose, &update.posterior, tau)
@@ -89,7 +94,7 @@ impl Estimator {
     /// [`Estimator::with_belief`]; with `friction_at_place` false the
     /// force at the believed place is the frictionless one (a smoothed
     /// press brings friction in as a whole, [`Estimator::settle_press`]).
-    fn with_belief_as(
+    pub(crate) fn with_belief_as(
         &self,
         robot: &Robot,
         update: PendingUpdate,
@@ -194,22 +199,16 @@ impl Temporal {
 
 /// How a session is best estimated over time when the user has not said
 /// (`estimate --temporal auto`, the app): a recording (frames closer than
-/// a contact lasts, see [`is_continuous_recording`]) smoothed, or filtered
-/// when the smoother would hold more than [`MAX_SMOOTHER_BYTES`]; a set of
-/// unrelated frames each alone. With why, in words.
+/// a contact lasts, see [`is_continuous_recording`]) smoothed, whatever
+/// its length (in stretches of bounded memory,
+/// [`crate::core::over_time::stretches`]); a set of unrelated frames each
+/// alone. With why, in words.
 #[must_use]
-pub fn automatic_temporal(
-    times_secs: &[f64],
-    settings: &TemporalSettings,
-    points: usize,
-    offsets: bool,
-) -> (Temporal, &'static str) {
-    if !is_continuous_recording(times_secs, settings) {
-        (Temporal::None, "frames further apart than a contact lasts: each alone")
-    } else if smoother_bytes(times_secs.len(), points, offsets) > MAX_SMOOTHER_BYTES {
-        (Temporal::Filter, "a recording too long to smooth in memory: filtered")
-    } else {
+pub fn automatic_temporal(times_secs: &[f64], settings: &TemporalSettings) -> (Temporal, &'static str) {
+    if is_continuous_recording(times_secs, settings) {
         (Temporal::Smooth, "a recording: smoothed")
+    } else {
+        (Temporal::None, "frames further apart than a contact lasts: each alone")
     }
 }
 
@@ -304,107 +303,18 @@ pub fn estimate_sequence_while(
     robot: &Robot,
     (model, temporal): (Option<&TemporalModel>, Temporal),
     frames: &[SequenceFrame],
-    mut keep_going: impl FnMut() -> bool,
-    mut each: impl FnMut(usize, Update, f64),
-    mut failed: impl FnMut(usize, &EstimateError) -> bool,
+    keep_going: impl FnMut() -> bool,
+    each: impl FnMut(usize, Update, f64),
+    failed: impl FnMut(usize, &EstimateError) -> bool,
 ) -> Result<bool, SequenceError> {
-    // `Ok(None)`: failed and skipped.
-    fn checked<T>(
-        i: usize,
-        result: Result<T, EstimateError>,
-        failed: &mut impl FnMut(usize, &EstimateError) -> bool,
-    ) -> Result<Option<T>, SequenceError> {
-        match result {
-            Ok(value) => Ok(Some(value)),
-            Err(source) if failed(i, &source) => Ok(None),
-            Err(source) => Err(SequenceError::Frame { frame: i, source }),
-        }
-    }
-    let ms = elapsed_ms;
+    let calls = Callbacks {
+        keep_going,
+        each,
+        failed,
+    };
     match (model, temporal) {
-        (None, _) | (_, Temporal::None) => {
-            for (i, f) in frames.iter().enumerate() {
-                if !keep_going() {
-                    return Ok(false);
-                }
-                let t0 = Instant::now();
-                if let Some(update) = checked(i, estimator.update(robot, f.joint_positions, f.tau), &mut failed)? {
-                    each(i, update, ms(t0));
-                }
-            }
-        }
-        (Some(model), Temporal::Filter) => {
-            let mut stream = StreamFilter::default();
-            for (i, f) in frames.iter().enumerate() {
-                if !keep_going() {
-                    return Ok(false);
-                }
-                let t0 = Instant::now();
-                match stream.update(estimator, model, robot, (i, f.t_secs), f.joint_positions, f.tau) {
-                    Ok(update) => each(i, update, ms(t0)),
-                    Err(SequenceError::Frame { frame, source }) if failed(frame, &source) => {}
-                    Err(e) => return Err(e),
-                }
-            }
-        }
-        (Some(model), Temporal::Smooth) => {
-            // A smoothed frame whose estimate is not finite is left out
-            // and handed to `failed` once the presses are settled; the
-            // first it does not skip is the sequence's error.
-            let mut refused: Vec<(usize, EstimateError)> = Vec::new();
-            let mut each = |i: usize, update: Update, ms: f64| match finite(update) {
-                Ok(update) => each(i, update, ms),
-                Err(source) => refused.push((i, source)),
-            };
-            let mut smoother = Smoother::new(model);
-            // The frames pushed, and what each cost.
-            let mut pushed: Vec<(usize, f64)> = Vec::with_capacity(frames.len());
-            for (i, f) in frames.iter().enumerate() {
-                if !keep_going() {
-                    return Ok(false);
-                }
-                let t0 = Instant::now();
-                let Some((_, likelihood)) = checked(
-                    i,
-                    estimator.update_for_sequence(robot, f.joint_positions, f.tau),
-                    &mut failed,
-                )?
-                else {
-                    continue;
-                };
-                smoother.push(f.t_secs, &likelihood)?;
-                pushed.push((i, ms(t0)));
-            }
-            let t0 = Instant::now();
-            let beliefs = smoother.finish();
-            let backward_ms = ms(t0) / pushed.len().max(1) as f64;
-            let mut presses = PressQueue::new(estimator, robot, frames, model.settings().slide_m_per_sqrt_s);
-            for (&(i, first_ms), belief) in pushed.iter().zip(&beliefs) {
-                if !keep_going() {
-                    return Ok(false);
-                }
-                let Some(f) = frames.get(i) else {
-                    continue;
-                };
-                let t0 = Instant::now();
-                // It succeeded in the first pass; the same inputs again.
-                let Some(update) = checked(
-                    i,
-                    estimator.pending_update(robot, f.joint_positions, f.tau),
-                    &mut failed,
-                )?
-                else {
-                    continue;
-                };
-                let alone = estimator.summary_alone(robot, &update, f.tau, belief);
-                let update = estimator.with_belief_as(robot, update, f.tau, belief, !estimator.fits_presses());
-                presses.offer(i, (update, alone), ms(t0) + backward_ms + first_ms, &mut each);
-            }
-            presses.settle(&mut each);
-            if let Some((frame, source)) = refused.into_iter().find(|(i, e)| !failed(*i, e)) {
-                return Err(SequenceError::Frame { frame, source });
-            }
-        }
+        (None, _) | (_, Temporal::None) => parallel::alone(estimator, robot, frames, calls),
+        (Some(model), Temporal::Filter) => parallel::filter(estimator, robot, model, frames, calls),
+        (Some(model), Temporal::Smooth) => parallel::smooth(estimator, robot, model, frames, calls),
     }
-    Ok(true)
 }

@@ -85,7 +85,7 @@ pub struct Smoother<'a> {
 
 /// A frame's likelihoods in f32 (relative to `top`).
 #[derive(Debug, Clone)]
-struct StoredFrame {
+pub(crate) struct StoredFrame {
     top: f64,
     no_contact: f32,
     points: Vec<f32>,
@@ -94,14 +94,14 @@ struct StoredFrame {
 
 /// A belief in f32.
 #[derive(Debug, Clone)]
-struct StoredBelief {
+pub(crate) struct StoredBelief {
     no_contact: f32,
     points: Vec<f32>,
     offsets: Vec<[f32; 5]>,
 }
 
 impl StoredFrame {
-    fn of(likelihood: &FrameLikelihood) -> Self {
+    pub(crate) fn of(likelihood: &FrameLikelihood) -> Self {
         let top = likelihood.top();
         // Relative log-likelihoods (f32 keeps 7 digits of a difference of
         // a few hundred: plenty), -inf as is.
@@ -120,6 +120,11 @@ impl StoredFrame {
                 })
                 .collect(),
         }
+    }
+
+    /// Bytes held (the vectors' contents).
+    pub(crate) fn bytes(&self) -> usize {
+        size_of::<Self>() + self.points.len() * size_of::<f32>() + self.patch.len() * size_of::<[f32; 6]>()
     }
 
     fn likelihood(&self) -> FrameLikelihood {
@@ -154,7 +159,7 @@ impl StoredFrame {
 }
 
 impl StoredBelief {
-    fn of(belief: &Belief) -> Self {
+    pub(crate) fn of(belief: &Belief) -> Self {
         Self {
             no_contact: belief.no_contact as f32,
             points: belief.points.iter().map(|&p| p as f32).collect(),
@@ -170,7 +175,17 @@ impl StoredBelief {
         }
     }
 
-    fn belief(&self) -> Belief {
+    /// Bytes held (the vectors' contents).
+    pub(crate) fn bytes(&self) -> usize {
+        size_of::<Self>() + self.points.len() * size_of::<f32>() + self.offsets.len() * size_of::<[f32; 5]>()
+    }
+
+    /// Probability of a contact.
+    pub(crate) fn contact_probability(&self) -> f64 {
+        1.0 - f64::from(self.no_contact)
+    }
+
+    pub(crate) fn belief(&self) -> Belief {
         Belief {
             no_contact: f64::from(self.no_contact),
             points: self.points.iter().map(|&p| f64::from(p)).collect(),
@@ -234,55 +249,91 @@ impl<'a> Smoother<'a> {
     /// Every frame's belief given all frames, in order.
     #[must_use]
     pub fn finish(self) -> Vec<Belief> {
-        let tracked = self.filter.model.tracks_offsets() && self.frames.iter().all(|f| !f.patch.is_empty());
-        if tracked { self.two_filters() } else { self.messages() }
-    }
-
-    fn dt(&self, t: usize) -> f64 {
-        match (self.times.get(t + 1), self.times.get(t)) {
-            (Some(a), Some(b)) => (a - b).max(0.0),
-            _ => 0.0,
-        }
-    }
-
-    /// Forward filter × a filter run backwards in time, over the prior.
-    fn two_filters(self) -> Vec<Belief> {
-        let model = self.filter.model;
         let n = self.times.len();
         let mut out: Vec<Belief> = Vec::with_capacity(n);
-        let mut backward: Option<Belief> = None;
-        for t in (0..n).rev() {
-            let (Some(forward), Some(frame)) = (self.filtered.get(t), self.frames.get(t)) else {
-                continue;
-            };
-            let predicted = match &backward {
-                Some(b) => model.predict(b, self.dt(t)),
-                None => model.initial(),
-            };
-            out.push(model.combine(&forward.belief(), &predicted));
-            backward = Some(model.correct(&predicted, &frame.likelihood()));
-        }
+        backward_pass(
+            self.filter.model,
+            (&self.times, &self.frames, &self.filtered),
+            n,
+            |_, belief| out.push(belief),
+        );
         out.reverse();
         out
     }
+}
 
-    /// Forward–backward messages (samples as points).
-    fn messages(self) -> Vec<Belief> {
-        let model = self.filter.model;
-        let n = self.times.len();
-        let mut out: Vec<Belief> = Vec::with_capacity(n);
-        // β of the last frame is 1 everywhere.
-        let points = self.filtered.first().map_or(0, |f| f.points.len());
-        let ones = Belief {
-            no_contact: 1.0,
-            points: vec![1.0; points],
-            offsets: Vec::new(),
+/// The backward pass over stored frames (their times, likelihoods and
+/// filtered beliefs), from the last: hands the smoothed belief of each
+/// of the first `keep` frames to `out`, last first. The frames past
+/// `keep` only carry the later evidence back (where a stretch of a long
+/// recording ends, they stand in for the rest of it).
+pub(crate) fn backward_pass(
+    model: &TemporalModel,
+    stored: (&[f64], &[StoredFrame], &[StoredBelief]),
+    keep: usize,
+    out: impl FnMut(usize, Belief),
+) {
+    let tracked = model.tracks_offsets() && stored.1.iter().all(|f| !f.patch.is_empty());
+    if tracked {
+        two_filters(model, stored, keep, out);
+    } else {
+        messages(model, stored, keep, out);
+    }
+}
+
+/// The interval after frame `t`, s (0 after the last).
+fn dt(times: &[f64], t: usize) -> f64 {
+    match (times.get(t + 1), times.get(t)) {
+        (Some(a), Some(b)) => (a - b).max(0.0),
+        _ => 0.0,
+    }
+}
+
+/// Forward filter × a filter run backwards in time, over the prior.
+fn two_filters(
+    model: &TemporalModel,
+    (times, frames, filtered): (&[f64], &[StoredFrame], &[StoredBelief]),
+    keep: usize,
+    mut out: impl FnMut(usize, Belief),
+) {
+    let mut backward: Option<Belief> = None;
+    for t in (0..times.len()).rev() {
+        let (Some(forward), Some(frame)) = (filtered.get(t), frames.get(t)) else {
+            continue;
         };
-        let mut beta = ones.clone();
-        for t in (0..n).rev() {
-            let (Some(alpha), Some(frame)) = (self.filtered.get(t), self.frames.get(t)) else {
-                continue;
-            };
+        let predicted = match &backward {
+            Some(b) => model.predict(b, dt(times, t)),
+            None => model.initial(),
+        };
+        if t < keep {
+            out(t, model.combine(&forward.belief(), &predicted));
+        }
+        if t > 0 {
+            backward = Some(model.correct(&predicted, &frame.likelihood()));
+        }
+    }
+}
+
+/// Forward–backward messages (samples as points).
+fn messages(
+    model: &TemporalModel,
+    (times, frames, filtered): (&[f64], &[StoredFrame], &[StoredBelief]),
+    keep: usize,
+    mut out: impl FnMut(usize, Belief),
+) {
+    // β of the last frame is 1 everywhere.
+    let points = filtered.first().map_or(0, |f| f.points.len());
+    let ones = Belief {
+        no_contact: 1.0,
+        points: vec![1.0; points],
+        offsets: Vec::new(),
+    };
+    let mut beta = ones.clone();
+    for t in (0..times.len()).rev() {
+        let (Some(alpha), Some(frame)) = (filtered.get(t), frames.get(t)) else {
+            continue;
+        };
+        if t < keep {
             let mut smoothed = alpha.belief();
             smoothed.no_contact *= beta.no_contact;
             for (s, b) in smoothed.points.iter_mut().zip(&beta.points) {
@@ -291,22 +342,20 @@ impl<'a> Smoother<'a> {
             if !smoothed.normalize() {
                 smoothed = alpha.belief();
             }
-            out.push(smoothed);
-            if t > 0 {
-                // The message for frame t-1: this frame's likelihood times β.
-                let mut later = frame.scaled();
-                later.no_contact *= beta.no_contact;
-                for (l, b) in later.points.iter_mut().zip(&beta.points) {
-                    *l *= b;
-                }
-                let mut next = model.backward(&later, self.dt(t - 1));
-                if !next.normalize() {
-                    next = ones.clone();
-                }
-                beta = next;
-            }
+            out(t, smoothed);
         }
-        out.reverse();
-        out
+        if t > 0 {
+            // The message for frame t-1: this frame's likelihood times β.
+            let mut later = frame.scaled();
+            later.no_contact *= beta.no_contact;
+            for (l, b) in later.points.iter_mut().zip(&beta.points) {
+                *l *= b;
+            }
+            let mut next = model.backward(&later, dt(times, t - 1));
+            if !next.normalize() {
+                next = ones.clone();
+            }
+            beta = next;
+        }
     }
 }

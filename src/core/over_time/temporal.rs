@@ -43,9 +43,18 @@ use crate::core::over_time::graph::SurfaceGraph;
 use crate::core::over_time::offsets::{FrameLikelihood, GainsKernel, Offset, overlap};
 use crate::core::surface::sampling::Surface;
 
-/// Largest smoother store (the scaled likelihoods and filtered beliefs of
-/// every frame, 4 bytes per value): 2 GiB.
+/// How far below the best sample, in nats, [`TemporalModel::combine`]
+/// still adds the offsets' share of a sample's weight.
+const COMBINE_MARGIN: f64 = 100.0;
+
+/// Largest smoother store of a whole recording ([`crate::core::over_time::smoother::Smoother`]: the scaled
+/// likelihoods and filtered beliefs of every frame, 4 bytes per value):
+/// 2 GiB.
 pub const MAX_SMOOTHER_BYTES: usize = 1 << 31;
+
+/// The store of a recording smoothed in stretches when the caller has not
+/// said ([`TemporalModel::with_store_limit`]): 1 GiB.
+pub const DEFAULT_STORE_BYTES: usize = 1 << 30;
 
 /// Rates and length scale of the temporal model (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -240,6 +249,10 @@ pub struct TemporalModel {
     window_m: Vec<f64>,
     /// Each sample's hop rate per `ℓ²` (the sum of its graph weights).
     hop_rate: Vec<f64>,
+    /// `ln` of the prior (-∞ where it is 0).
+    ln_prior: Vec<f64>,
+    /// Most bytes a recording's smoother holds at once.
+    store_limit_bytes: usize,
 }
 
 /// Transition probabilities over `dt`.
@@ -280,10 +293,26 @@ impl TemporalModel {
         Ok(Self {
             settings,
             graph,
-            prior,
             window_m,
             hop_rate,
+            ln_prior: prior.iter().map(|&p| ln_or_minus_infinity(p)).collect(),
+            prior,
+            store_limit_bytes: DEFAULT_STORE_BYTES,
         })
+    }
+
+    /// The model with a recording's smoother holding at most `bytes` at
+    /// once (see [`crate::core::over_time::stretches`]).
+    #[must_use]
+    pub fn with_store_limit(mut self, bytes: usize) -> Self {
+        self.store_limit_bytes = bytes;
+        self
+    }
+
+    /// Most bytes a recording's smoother holds at once.
+    #[must_use]
+    pub fn store_limit_bytes(&self) -> usize {
+        self.store_limit_bytes
     }
 
     /// The settings.
@@ -469,44 +498,55 @@ impl TemporalModel {
     /// over the prior, offsets included.
     pub(crate) fn combine(&self, forward: &Belief, backward: &Belief) -> Belief {
         let contact = self.settings.stationary_contact().clamp(1e-300, 1.0 - 1e-16);
-        let ln = |x: f64| if x > 0.0 { x.ln() } else { f64::NEG_INFINITY };
-        let none = ln(forward.no_contact) + ln(backward.no_contact) - (1.0 - contact).ln();
+        let none =
+            ln_or_minus_infinity(forward.no_contact) + ln_or_minus_infinity(backward.no_contact) - (1.0 - contact).ln();
         let n = forward.points.len();
         let tracked = forward.offsets.len() == n && backward.offsets.len() == n && self.window_m.len() == n;
         let mut offsets = Vec::with_capacity(if tracked { n } else { 0 });
-        let logs: Vec<f64> = (0..n)
+        let ln_contact = contact.ln();
+        // Each sample's weight before the offsets' share, then that share
+        // where it can matter: within COMBINE_MARGIN of the best (beyond,
+        // the sample's weight is below e^-100 of the best's, which no
+        // summary reads; the offsets' share is a few nats).
+        let mut logs: Vec<f64> = (0..n)
             .map(|k| {
-                let (Some(&f), Some(&b), Some(&prior)) =
-                    (forward.points.get(k), backward.points.get(k), self.prior.get(k))
+                let (Some(&f), Some(&b), Some(&ln_prior)) =
+                    (forward.points.get(k), backward.points.get(k), self.ln_prior.get(k))
                 else {
                     return f64::NEG_INFINITY;
                 };
-                let mut l = ln(f) + ln(b) - ln(prior * contact);
-                if tracked
-                    && let (Some(fo), Some(bo), Some(&rho)) =
-                        (forward.offsets.get(k), backward.offsets.get(k), self.window_m.get(k))
-                {
-                    let window = Offset::window(rho);
-                    let both = Offset {
-                        precision: [
-                            fo.precision[0] + bo.precision[0] - window.precision[0],
-                            fo.precision[1] + bo.precision[1],
-                            fo.precision[2] + bo.precision[2] - window.precision[2],
-                        ],
-                        shift: [fo.shift[0] + bo.shift[0], fo.shift[1] + bo.shift[1]],
-                    };
-                    // Each half was charged for its own reach; the whole is
-                    // charged for the whole's.
-                    l += overlap(fo, bo, rho) + fo.confined(rho).0 + bo.confined(rho).0 - both.confined(rho).0;
-                    offsets.push(both);
-                }
-                l
+                ln_or_minus_infinity(f) + ln_or_minus_infinity(b) - ln_prior - ln_contact
             })
             .collect();
+        let floor = logs.iter().copied().filter(|l| !l.is_nan()).fold(none, f64::max) - COMBINE_MARGIN;
+        if tracked {
+            for (k, l) in logs.iter_mut().enumerate() {
+                let (Some(fo), Some(bo), Some(&rho)) =
+                    (forward.offsets.get(k), backward.offsets.get(k), self.window_m.get(k))
+                else {
+                    continue;
+                };
+                let window = Offset::window(rho);
+                let both = Offset {
+                    precision: [
+                        fo.precision[0] + bo.precision[0] - window.precision[0],
+                        fo.precision[1] + bo.precision[1],
+                        fo.precision[2] + bo.precision[2] - window.precision[2],
+                    ],
+                    shift: [fo.shift[0] + bo.shift[0], fo.shift[1] + bo.shift[1]],
+                };
+                // Each half was charged for its own reach; the whole is
+                // charged for the whole's.
+                if *l > floor {
+                    *l += overlap(fo, bo, rho) + fo.confined(rho).0 + bo.confined(rho).0 - both.confined(rho).0;
+                }
+                offsets.push(both);
+            }
+        }
         let top = logs.iter().copied().filter(|l| !l.is_nan()).fold(none, f64::max);
         let scale = |l: f64| {
             let d = l - top;
-            if d > -700.0 { d.exp() } else { 0.0 }
+            if d > -700.0 { fastmath::exp(d) } else { 0.0 }
         };
         let mut out = Belief {
             no_contact: scale(none),
@@ -531,6 +571,19 @@ impl TemporalModel {
                 expected: n,
             })
         }
+    }
+}
+
+/// `ln x` (by [`fastmath::ln`] where `x` is a normal number), -∞ for
+/// `x ≤ 0` or NaN.
+#[inline]
+pub(crate) fn ln_or_minus_infinity(x: f64) -> f64 {
+    if (f64::MIN_POSITIVE..f64::INFINITY).contains(&x) {
+        fastmath::ln(x)
+    } else if x > 0.0 {
+        x.ln()
+    } else {
+        f64::NEG_INFINITY
     }
 }
 

@@ -178,6 +178,10 @@ fn model(n: usize, settings: TemporalSettings) -> TemporalModel {
             .map(|k| (k + 1) as f64)
             .map(|w| w / (n * (n + 1) / 2) as f64)
             .collect(),
+        ln_prior: (0..n)
+            .map(|k| ((k + 1) as f64 / (n * (n + 1) / 2) as f64).ln())
+            .collect(),
+        store_limit_bytes: DEFAULT_STORE_BYTES,
     }
 }
 
@@ -573,4 +577,105 @@ fn recordings_are_told_from_sets_of_unrelated_frames() {
     assert!(!is_continuous_recording(&at(0.4), &d));
     assert!(!is_continuous_recording(&at(1.0), &d));
     assert!(!is_continuous_recording(&[0.0], &d));
+}
+
+/// A recording of `n` frames at 1 kHz over the four-sample chain: free,
+/// then presses on samples 1 and 2 (the one on 2 long), with noise.
+fn long_recording(n: usize, seed: u64) -> (Vec<f64>, Vec<FrameLikelihood>) {
+    use crate::core::numerics::rng::Rng;
+    let mut rng = Rng::new(seed);
+    let mut times = Vec::with_capacity(n);
+    let mut frames = Vec::with_capacity(n);
+    for i in 0..n {
+        times.push(i as f64 * 1e-3);
+        let pressed = match i % 1500 {
+            200..=500 => Some(1),
+            800..=1400 => Some(2),
+            _ => None,
+        };
+        let mut points: Vec<f64> = (0..4).map(|_| rng.uniform_in(-12.0, -6.0)).collect();
+        if let Some(k) = pressed {
+            points[k] = rng.uniform_in(-1.0, 0.0);
+        }
+        frames.push(FrameLikelihood {
+            no_contact: if pressed.is_some() {
+                -14.0
+            } else {
+                rng.uniform_in(-0.5, 0.0)
+            },
+            points,
+            patch: Vec::new(),
+        });
+    }
+    (times, frames)
+}
+
+/// Every stretch's beliefs, in order, and the stretches' first frames.
+fn smoothed_in_stretches(
+    m: &TemporalModel,
+    (times, frames): (&[f64], &[FrameLikelihood]),
+    limit_bytes: usize,
+) -> (Vec<Belief>, Vec<usize>) {
+    use crate::core::over_time::stretches::StretchSmoother;
+    let mut smoother = StretchSmoother::new(m, limit_bytes);
+    let mut out = Vec::new();
+    let mut firsts = Vec::new();
+    let mut take = |stretch: crate::core::over_time::stretches::Stretch, out: &mut Vec<Belief>| {
+        assert_eq!(stretch.first, out.len(), "stretches follow one another");
+        firsts.push(stretch.first);
+        out.extend((0..stretch.len()).map(|i| stretch.belief(i).unwrap()));
+    };
+    for (t, f) in times.iter().zip(frames) {
+        if let Some(piece) = smoother.push(*t, f).unwrap() {
+            take(piece.smooth(m), &mut out);
+        }
+        assert!(smoother.held_bytes() <= limit_bytes);
+    }
+    take(smoother.finish().smooth(m), &mut out);
+    (out, firsts)
+}
+
+/// Smoothing in stretches cut where the filter is sure of no contact
+/// gives the whole recording's smoother's beliefs (to the f32 store's
+/// precision); cuts forced by a small store inside long presses move the
+/// contact probability by little, and the store never passes its limit.
+#[test]
+fn stretches_match_the_whole_recordings_smoother() {
+    let m = model(4, TemporalSettings::default());
+    let (times, frames) = long_recording(6000, 5);
+    let mut whole = Smoother::new(&m);
+    for (t, f) in times.iter().zip(&frames) {
+        whole.push(*t, f).unwrap();
+    }
+    let whole = whole.finish();
+    let worst = |got: &[Belief]| {
+        assert_eq!(got.len(), whole.len());
+        got.iter()
+            .zip(&whole)
+            .map(|(g, w)| {
+                let d = (g.no_contact - w.no_contact).abs();
+                g.points
+                    .iter()
+                    .zip(&w.points)
+                    .map(|(a, b)| (a - b).abs())
+                    .fold(d, f64::max)
+            })
+            .fold(0.0, f64::max)
+    };
+    let (quiet, firsts) = smoothed_in_stretches(&m, (&times, &frames), 1 << 30);
+    assert!(firsts.len() >= 4, "cut at the quiet between presses: {firsts:?}");
+    for &first in &firsts[1..] {
+        assert!(whole[first - 1].no_contact > 0.99, "cut at {first} within a press");
+    }
+    assert!(worst(&quiet) < 1e-5, "quiet cuts: {}", worst(&quiet));
+    // About 150 frames in store: cuts inside the 600-frame presses.
+    let (forced, firsts) = smoothed_in_stretches(&m, (&times, &frames), 150 * 128);
+    assert!(firsts.len() > 40, "{}", firsts.len());
+    assert!(worst(&forced) < 1e-3, "forced cuts: {}", worst(&forced));
+    // A limit that cannot hold a few frames is refused.
+    let mut tiny = crate::core::over_time::stretches::StretchSmoother::new(&m, 100);
+    assert!(matches!(
+        tiny.push(0.0, &frames[0]),
+        Err(TemporalError::TooLarge { .. })
+    ));
 }

@@ -1,0 +1,435 @@
+//! A session's frames estimated in order with the per-frame work shared
+//! among threads: a frame's likelihoods and its summary do not depend on
+//! the temporal model's state, so blocks of frames compute them in
+//! parallel and only the recursion (the filter's step, the smoother's
+//! backward pass, the presses) runs in order. While the recursion takes
+//! one block, the next block's likelihoods are computed beside it.
+//!
+//! Results leave in frame order, as the frames are settled: frames alone
+//! and filtered frames block by block, smoothed frames stretch by stretch
+//! ([`crate::core::over_time::stretches`]).
+
+use std::collections::VecDeque;
+use std::ops::Range;
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use crate::core::estimate::estimator::{Estimator, PendingUpdate, Update, elapsed_ms, finite};
+use crate::core::estimate::settings::EstimateError;
+use crate::core::estimate::summary::Summary;
+use crate::core::over_time::frame::SequenceFrame;
+use crate::core::over_time::offsets::FrameLikelihood;
+use crate::core::over_time::presses::{FrictionGate, PressQueue};
+use crate::core::over_time::sequence::SequenceError;
+use crate::core::over_time::smoother::FilterState;
+use crate::core::over_time::stretches::{Piece, Stretch, StretchSmoother};
+use crate::core::over_time::temporal::{Belief, TemporalError, TemporalModel};
+use crate::core::robot::model::Robot;
+
+/// Frames per block: enough to keep every thread busy, few enough that a
+/// block's posteriors (about 0.2 MB each at 5,000 points) stay small.
+pub const BLOCK_FRAMES: usize = 64;
+
+/// A frame's number, what its work gave, and the milliseconds it took.
+type Done<T> = (usize, Result<T, EstimateError>, f64);
+
+/// What the caller is told, and asked, while a sequence runs: before
+/// each block whether to go on, each frame's update in order, and each
+/// frame whose estimate fails (true: leave it out and go on).
+pub(crate) struct Callbacks<K, E, F> {
+    pub keep_going: K,
+    pub each: E,
+    pub failed: F,
+}
+
+/// `work` of each frame of the block from `start`, in parallel, in order,
+/// with the milliseconds each took.
+fn in_parallel<T: Send>(
+    frames: &[SequenceFrame],
+    start: usize,
+    work: impl Fn(&SequenceFrame) -> T + Sync + Send,
+) -> Vec<(usize, T, f64)> {
+    let range = block(start, frames.len());
+    let first = range.start;
+    frames.get(range).map_or_else(Vec::new, |block| {
+        block
+            .par_iter()
+            .enumerate()
+            .map(|(j, f)| {
+                let t0 = Instant::now();
+                let value = work(f);
+                (first + j, value, elapsed_ms(t0))
+            })
+            .collect()
+    })
+}
+
+/// The block of frames from `start`.
+fn block(start: usize, frames: usize) -> Range<usize> {
+    start.min(frames)..start.saturating_add(BLOCK_FRAMES).min(frames)
+}
+
+/// The frames of a block whose estimate succeeded; a failed one is left
+/// out where `failed` says so, else it is the sequence's error.
+fn succeeded<T>(
+    done: Vec<(usize, Result<T, EstimateError>, f64)>,
+    failed: &mut impl FnMut(usize, &EstimateError) -> bool,
+) -> Result<Vec<(usize, T, f64)>, SequenceError> {
+    let mut out = Vec::with_capacity(done.len());
+    for (i, result, ms) in done {
+        match result {
+            Ok(value) => out.push((i, value, ms)),
+            Err(source) if failed(i, &source) => {}
+            Err(source) => return Err(SequenceError::Frame { frame: i, source }),
+        }
+    }
+    Ok(out)
+}
+
+/// Each frame alone. `Ok(false)` when `keep_going` said no.
+pub(crate) fn alone(
+    estimator: &Estimator,
+    robot: &Robot,
+    frames: &[SequenceFrame],
+    mut calls: Callbacks<
+        impl FnMut() -> bool,
+        impl FnMut(usize, Update, f64),
+        impl FnMut(usize, &EstimateError) -> bool,
+    >,
+) -> Result<bool, SequenceError> {
+    let mut start = 0;
+    while start < frames.len() {
+        if !(calls.keep_going)() {
+            return Ok(false);
+        }
+        let done = in_parallel(frames, start, |f| estimator.update(robot, f.joint_positions, f.tau));
+        for (i, update, ms) in succeeded(done, &mut calls.failed)? {
+            (calls.each)(i, update, ms);
+        }
+        start += BLOCK_FRAMES;
+    }
+    Ok(true)
+}
+
+/// Each frame's likelihoods (and pending posterior) for the block from `start`.
+fn likelihoods(
+    estimator: &Estimator,
+    robot: &Robot,
+    frames: &[SequenceFrame],
+    start: usize,
+) -> Vec<Done<(PendingUpdate, FrameLikelihood)>> {
+    in_parallel(frames, start, |f| {
+        estimator.update_for_sequence(robot, f.joint_positions, f.tau)
+    })
+}
+
+/// Each frame with the frames before it (as live). `Ok(false)` when
+/// `keep_going` said no.
+pub(crate) fn filter(
+    estimator: &Estimator,
+    robot: &Robot,
+    model: &TemporalModel,
+    frames: &[SequenceFrame],
+    mut calls: Callbacks<
+        impl FnMut() -> bool,
+        impl FnMut(usize, Update, f64),
+        impl FnMut(usize, &EstimateError) -> bool,
+    >,
+) -> Result<bool, SequenceError> {
+    let mut state = FilterState::default();
+    let mut gate = FrictionGate::default();
+    let slide = model.settings().slide_m_per_sqrt_s;
+    let mut start = 0;
+    let mut done = likelihoods(estimator, robot, frames, start);
+    while !done.is_empty() {
+        if !(calls.keep_going)() {
+            return Ok(false);
+        }
+        let ready = succeeded(done, &mut calls.failed)?;
+        start += BLOCK_FRAMES;
+        // The recursion in order, the next block's likelihoods beside it.
+        let (stepped, next) = rayon::join(
+            || -> Result<Vec<(usize, PendingUpdate, Belief, f64)>, TemporalError> {
+                ready
+                    .into_iter()
+                    .map(|(i, (pending, likelihood), ms)| {
+                        let t0 = Instant::now();
+                        let t_secs = frames.get(i).map_or(f64::NAN, |f| f.t_secs);
+                        let belief = state.step(model, t_secs, &likelihood)?.clone();
+                        Ok((i, pending, belief, ms + elapsed_ms(t0)))
+                    })
+                    .collect()
+            },
+            || likelihoods(estimator, robot, frames, start),
+        );
+        done = next;
+        let summarised: Vec<(usize, Update, f64)> = stepped?
+            .into_par_iter()
+            .filter_map(|(i, pending, belief, ms)| {
+                let t0 = Instant::now();
+                let f = frames.get(i)?;
+                let update = estimator.with_belief(robot, pending, f.tau, &belief);
+                Some((i, update, ms + elapsed_ms(t0)))
+            })
+            .collect();
+        for (i, mut update, ms) in summarised {
+            let Some(f) = frames.get(i) else {
+                continue;
+            };
+            let t0 = Instant::now();
+            estimator.gate_friction(robot, &mut update, (i, f.t_secs, f.tau), slide, &mut gate);
+            match finite(update) {
+                Ok(update) => (calls.each)(i, update, ms + elapsed_ms(t0)),
+                Err(source) if (calls.failed)(i, &source) => {}
+                Err(source) => return Err(SequenceError::Frame { frame: i, source }),
+            }
+        }
+    }
+    Ok(true)
+}
+
+/// Each frame with the whole sequence, in stretches of bounded memory.
+/// The forward filter runs in order on the calling thread; each piece it
+/// cuts is smoothed (its backward pass) as a task of its own, beside it;
+/// smoothed stretches are settled in order. `Ok(false)` when
+/// `keep_going` said no.
+pub(crate) fn smooth(
+    estimator: &Estimator,
+    robot: &Robot,
+    model: &TemporalModel,
+    frames: &[SequenceFrame],
+    mut calls: Callbacks<
+        impl FnMut() -> bool,
+        impl FnMut(usize, Update, f64),
+        impl FnMut(usize, &EstimateError) -> bool,
+    >,
+) -> Result<bool, SequenceError> {
+    // A smoothed frame whose estimate is not finite is left out and
+    // handed to `failed` once the presses are settled; the first it does
+    // not skip is the sequence's error.
+    let mut refused: Vec<(usize, EstimateError)> = Vec::new();
+    let mut each = |i: usize, update: Update, ms: f64| match finite(update) {
+        Ok(update) => (calls.each)(i, update, ms),
+        Err(source) => refused.push((i, source)),
+    };
+    let mut presses = PressQueue::new(estimator, robot, frames, model.settings().slide_m_per_sqrt_s);
+    let settled = rayon::in_place_scope(|scope| -> Result<bool, SequenceError> {
+        let (done_tx, done_rx) = std::sync::mpsc::channel::<(usize, Stretch, f64, usize)>();
+        let mut smoother = StretchSmoother::new(model, model.store_limit_bytes());
+        let mut pieces = Pieces::default();
+        // Smooths a piece beside the filter.
+        let spawn = |piece: Piece, pieces: &mut Pieces| {
+            let number = pieces.spawned;
+            pieces.spawned += 1;
+            if rayon::current_num_threads() <= 1 {
+                // Nothing runs beside this thread: smooth it now.
+                let t0 = Instant::now();
+                let bytes = piece.bytes();
+                let stretch = piece.smooth(model);
+                pieces.smoothed.insert(number, (stretch, elapsed_ms(t0), bytes));
+                pieces.bytes_in_flight += bytes;
+                return;
+            }
+            pieces.bytes_in_flight += piece.bytes();
+            let done_tx = done_tx.clone();
+            scope.spawn(move |_| {
+                let t0 = Instant::now();
+                let bytes = piece.bytes();
+                let stretch = piece.smooth(model);
+                // The receiver outlives every task (the scope ends first).
+                let _ = done_tx.send((number, stretch, elapsed_ms(t0), bytes));
+            });
+        };
+        // The frames pushed and not yet settled, with what each has cost.
+        let mut waiting: VecDeque<(usize, f64)> = VecDeque::new();
+        let mut start = 0;
+        let mut done = likelihoods(estimator, robot, frames, start);
+        let limit = model.store_limit_bytes();
+        while !done.is_empty() {
+            if !(calls.keep_going)() {
+                return Ok(false);
+            }
+            let ready = succeeded(done, &mut calls.failed)?;
+            start += BLOCK_FRAMES;
+            let (cut, next) = rayon::join(
+                || -> Result<Vec<Piece>, TemporalError> {
+                    let mut cut = Vec::new();
+                    for (i, (_, likelihood), ms) in ready {
+                        let t0 = Instant::now();
+                        let t_secs = frames.get(i).map_or(f64::NAN, |f| f.t_secs);
+                        cut.extend(smoother.push(t_secs, &likelihood)?);
+                        waiting.push_back((i, ms + elapsed_ms(t0)));
+                    }
+                    Ok(cut)
+                },
+                || likelihoods(estimator, robot, frames, start),
+            );
+            done = next;
+            for piece in cut? {
+                spawn(piece, &mut pieces);
+            }
+            // Settle what is smoothed; while the pieces in flight and the
+            // store hold more than the limit, help smooth them.
+            let room = |pieces: &Pieces| {
+                let in_flight = pieces.spawned - pieces.settled;
+                in_flight == 0
+                    || (smoother.held_bytes() + pieces.bytes_in_flight <= limit
+                        && in_flight <= rayon::current_num_threads())
+            };
+            if !pieces.settle_until(
+                &done_rx,
+                room,
+                (estimator, robot, frames),
+                (&mut waiting, &mut presses),
+                (&mut calls.keep_going, &mut each, &mut calls.failed),
+            )? {
+                return Ok(false);
+            }
+        }
+        spawn(smoother.finish(), &mut pieces);
+        pieces.settle_until(
+            &done_rx,
+            |pieces| pieces.settled == pieces.spawned,
+            (estimator, robot, frames),
+            (&mut waiting, &mut presses),
+            (&mut calls.keep_going, &mut each, &mut calls.failed),
+        )
+    })?;
+    if !settled {
+        return Ok(false);
+    }
+    presses.settle(&mut each);
+    if let Some((frame, source)) = refused.into_iter().find(|(i, e)| !(calls.failed)(*i, e)) {
+        return Err(SequenceError::Frame { frame, source });
+    }
+    Ok(true)
+}
+
+/// Runs a task of the pool on this thread if one waits, else yields.
+fn help_or_wait() {
+    if rayon::yield_now() != Some(rayon::Yield::Executed) {
+        std::thread::sleep(std::time::Duration::from_micros(200));
+    }
+}
+
+/// The pieces of a smoothed recording under way: spawned, smoothed and
+/// waiting for their turn, settled.
+#[derive(Default)]
+struct Pieces {
+    spawned: usize,
+    settled: usize,
+    bytes_in_flight: usize,
+    /// Smoothed and not yet settled, by number, with the backward pass's
+    /// ms and the bytes its piece held.
+    smoothed: std::collections::BTreeMap<usize, (Stretch, f64, usize)>,
+}
+
+impl Pieces {
+    /// Settles smoothed stretches as their turn comes, helping the tasks
+    /// (or waiting) until `enough`. `Ok(false)` when `keep_going` said no.
+    fn settle_until(
+        &mut self,
+        done: &std::sync::mpsc::Receiver<(usize, Stretch, f64, usize)>,
+        enough: impl Fn(&Self) -> bool,
+        sequence: (&Estimator, &Robot, &[SequenceFrame]),
+        (waiting, presses): (&mut VecDeque<(usize, f64)>, &mut PressQueue<'_>),
+        (keep_going, each, failed): (
+            &mut impl FnMut() -> bool,
+            &mut impl FnMut(usize, Update, f64),
+            &mut impl FnMut(usize, &EstimateError) -> bool,
+        ),
+    ) -> Result<bool, SequenceError> {
+        loop {
+            self.receive(done);
+            if !self.settle_ready(sequence, waiting, presses, (&mut *keep_going, &mut *each, &mut *failed))? {
+                return Ok(false);
+            }
+            if enough(self) {
+                return Ok(true);
+            }
+            help_or_wait();
+        }
+    }
+
+    /// Takes in what the tasks have smoothed.
+    fn receive(&mut self, done: &std::sync::mpsc::Receiver<(usize, Stretch, f64, usize)>) {
+        for (number, stretch, ms, bytes) in done.try_iter() {
+            self.smoothed.insert(number, (stretch, ms, bytes));
+        }
+    }
+
+    /// Settles the smoothed stretches whose turn it is, in order.
+    fn settle_ready(
+        &mut self,
+        sequence: (&Estimator, &Robot, &[SequenceFrame]),
+        waiting: &mut VecDeque<(usize, f64)>,
+        presses: &mut PressQueue<'_>,
+        calls: (
+            &mut impl FnMut() -> bool,
+            &mut impl FnMut(usize, Update, f64),
+            &mut impl FnMut(usize, &EstimateError) -> bool,
+        ),
+    ) -> Result<bool, SequenceError> {
+        let (keep_going, each, failed) = calls;
+        while let Some((stretch, backward_ms, bytes)) = self.smoothed.remove(&self.settled) {
+            self.settled += 1;
+            let cont = settle_stretch(
+                sequence,
+                (&stretch, backward_ms),
+                waiting,
+                presses,
+                (keep_going, each, failed),
+            )?;
+            self.bytes_in_flight = self.bytes_in_flight.saturating_sub(bytes);
+            if !cont {
+                return Ok(false);
+            }
+        }
+        Ok(true)
+    }
+}
+
+/// A smoothed stretch's frames (the first `stretch.len()` of `waiting`):
+/// each frame's estimate again (its likelihoods were dropped) seen
+/// through its smoothed belief, in parallel, then offered to the presses
+/// in order. `Ok(false)` when `keep_going` said no.
+fn settle_stretch(
+    (estimator, robot, frames): (&Estimator, &Robot, &[SequenceFrame]),
+    (stretch, backward_ms): (&Stretch, f64),
+    waiting: &mut VecDeque<(usize, f64)>,
+    presses: &mut PressQueue<'_>,
+    (keep_going, each, failed): (
+        &mut impl FnMut() -> bool,
+        &mut impl FnMut(usize, Update, f64),
+        &mut impl FnMut(usize, &EstimateError) -> bool,
+    ),
+) -> Result<bool, SequenceError> {
+    let share_ms = backward_ms / stretch.len().max(1) as f64;
+    let entries: Vec<(usize, f64)> = waiting.drain(..stretch.len().min(waiting.len())).collect();
+    for (c, chunk) in entries.chunks(BLOCK_FRAMES).enumerate() {
+        if !keep_going() {
+            return Ok(false);
+        }
+        let done: Vec<Done<(Update, Option<Summary>)>> = chunk
+            .par_iter()
+            .enumerate()
+            .filter_map(|(j, &(i, ms))| {
+                let t0 = Instant::now();
+                let f = frames.get(i)?;
+                let belief = stretch.belief(c * BLOCK_FRAMES + j)?;
+                // It succeeded in the first pass; the same inputs again.
+                let result = estimator.pending_update(robot, f.joint_positions, f.tau).map(|update| {
+                    let alone = estimator.summary_alone(robot, &update, f.tau, &belief);
+                    let update = estimator.with_belief_as(robot, update, f.tau, &belief, !estimator.fits_presses());
+                    (update, alone)
+                });
+                Some((i, result, ms + share_ms + elapsed_ms(t0)))
+            })
+            .collect();
+        for (i, settled, ms) in succeeded(done, failed)? {
+            presses.offer(i, settled, ms, each);
+        }
+    }
+    Ok(true)
+}
