@@ -51,12 +51,18 @@ impl LivePart {
                 egui::Color32::from_rgb(220, 40, 40),
                 egui::RichText::new("LIVE").strong(),
             );
+            let dropped = live.source.dropped_frames();
             ui.label(format!(
-                "{}: {} frames{}",
+                "{}: {} frames{}{}",
                 live.source.address,
                 live.received,
                 if live.skipped > 0 {
                     format!(", {} lines skipped", live.skipped)
+                } else {
+                    String::new()
+                },
+                if dropped > 0 {
+                    format!(", {dropped} dropped (the app fell behind the stream)")
                 } else {
                     String::new()
                 }

@@ -175,6 +175,18 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
     let mut live: Option<Live> = None;
     let mut done = 0usize;
     let wanted = args.live_frames.unwrap_or(usize::MAX);
+    // Drops are said at most once a second, and in all at the end.
+    let mut said_drops = (0u64, Instant::now());
+    let mut say_drops = |now: bool| {
+        let dropped = source.dropped_frames();
+        if dropped > said_drops.0 && (now || said_drops.1.elapsed().as_secs_f64() >= 1.0) {
+            log::warn!(
+                "{dropped} frames dropped so far: the estimator falls behind the stream (it holds {} events at most; fewer --points, or --temporal none, keep up)",
+                proprioscope::io::live::QUEUE_EVENTS
+            );
+            said_drops = (dropped, Instant::now());
+        }
+    };
     while done < wanted {
         let Ok(event) = source.events.recv() else {
             break;
@@ -214,9 +226,11 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
                     }
                     Err(e) => log::warn!("frame at t = {}: {e:#}", frame.t),
                 }
+                say_drops(false);
             }
         }
     }
+    say_drops(true);
     Ok(())
 }
 

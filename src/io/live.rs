@@ -14,8 +14,8 @@
 use std::io::{ErrorKind, Read as _};
 use std::net::{TcpListener, TcpStream, UdpSocket};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{Receiver, Sender, channel};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::time::{Duration, Instant};
 
 use super::session::{Frame, LiveLine, LiveReader, MAX_LIVE_LINE_BYTES};
@@ -72,6 +72,13 @@ pub enum LiveEvent {
 /// reported as a gap.
 pub const GAP_SECS: f64 = 1.0;
 
+/// Events a live source holds for its reader at most: when the reader
+/// falls behind by this many, new frames are dropped (and counted,
+/// [`LiveSource::dropped_frames`]) rather than queued, so that neither
+/// the lag nor the memory grows without bound (a quarter of a second at
+/// 1 kHz).
+pub const QUEUE_EVENTS: usize = 256;
+
 /// A listening live source; events arrive on [`LiveSource::events`].
 pub struct LiveSource {
     /// The address listened on (with the port the system chose for port 0).
@@ -80,6 +87,34 @@ pub struct LiveSource {
     pub events: Receiver<LiveEvent>,
     /// Set when the source is dropped: its thread ends.
     stop: Arc<AtomicBool>,
+    /// Frames dropped because the queue was full.
+    dropped: Arc<AtomicU64>,
+}
+
+/// The reading thread's end of the queue: frames are dropped when it is
+/// full, every other event waits for room.
+struct Outbox {
+    tx: SyncSender<LiveEvent>,
+    dropped: Arc<AtomicU64>,
+}
+
+/// The reader is gone.
+struct Gone;
+
+impl Outbox {
+    fn send(&self, event: LiveEvent) -> Result<(), Gone> {
+        if !matches!(event, LiveEvent::Frame(_)) {
+            return self.tx.send(event).map_err(|_| Gone);
+        }
+        match self.tx.try_send(event) {
+            Ok(()) => Ok(()),
+            Err(TrySendError::Full(_)) => {
+                self.dropped.fetch_add(1, Ordering::Relaxed);
+                Ok(())
+            }
+            Err(TrySendError::Disconnected(_)) => Err(Gone),
+        }
+    }
 }
 
 /// The transport and socket address of `address`.
@@ -100,7 +135,12 @@ impl LiveSource {
             address: address.to_owned(),
             cause,
         };
-        let (tx, events) = channel();
+        let (tx, events) = sync_channel(QUEUE_EVENTS);
+        let dropped = Arc::new(AtomicU64::new(0));
+        let tx = Outbox {
+            tx,
+            dropped: Arc::clone(&dropped),
+        };
         let stop = Arc::new(AtomicBool::new(false));
         let flag = Arc::clone(&stop);
         let bound = if udp {
@@ -118,7 +158,15 @@ impl LiveSource {
             address: bound,
             events,
             stop,
+            dropped,
         })
+    }
+
+    /// Frames dropped so far because the reader fell behind by
+    /// [`QUEUE_EVENTS`].
+    #[must_use]
+    pub fn dropped_frames(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
     }
 }
 
@@ -131,13 +179,7 @@ impl Drop for LiveSource {
 
 /// Sends what a line gives (a gap first when the frame comes after one);
 /// `false` when nobody listens any more.
-fn send_line(
-    tx: &Sender<LiveEvent>,
-    reader: &mut LiveReader,
-    last_t: &mut Option<f64>,
-    line: &str,
-    from: &str,
-) -> bool {
+fn send_line(tx: &Outbox, reader: &mut LiveReader, last_t: &mut Option<f64>, line: &str, from: &str) -> bool {
     let event = event(reader, line, from);
     if let LiveEvent::Frame(frame) = &event {
         if let Some(t) = *last_t
@@ -179,7 +221,7 @@ fn timed_out(e: &std::io::Error) -> bool {
     )
 }
 
-fn accept_tcp(listener: &TcpListener, tx: &Sender<LiveEvent>, wake: &dyn Fn(), stop: &AtomicBool) {
+fn accept_tcp(listener: &TcpListener, tx: &Outbox, wake: &dyn Fn(), stop: &AtomicBool) {
     // Polled, so that a dropped source frees its port.
     if let Err(e) = listener.set_nonblocking(true) {
         let _ = tx.send(LiveEvent::Closed(e.to_string()));
@@ -218,7 +260,7 @@ fn read_connection(
     connection: &TcpStream,
     from: &str,
     reader: &mut LiveReader,
-    tx: &Sender<LiveEvent>,
+    tx: &Outbox,
     wake: &dyn Fn(),
     stop: &AtomicBool,
 ) -> Option<String> {
@@ -266,7 +308,7 @@ fn read_connection(
     }
 }
 
-fn receive_udp(socket: &UdpSocket, tx: &Sender<LiveEvent>, wake: &dyn Fn(), stop: &AtomicBool) {
+fn receive_udp(socket: &UdpSocket, tx: &Outbox, wake: &dyn Fn(), stop: &AtomicBool) {
     if let Err(e) = socket.set_read_timeout(Some(POLL)) {
         let _ = tx.send(LiveEvent::Closed(e.to_string()));
         return;
@@ -400,6 +442,43 @@ mod tests {
 
     const LINES: &str = "{\"format\": \"contact-session\", \"version\": 1, \"robot\": \"lwr4plus\"}\n\
 {\"t\": 0.0, \"q\": [0, 0], \"tau\": [0.5, 0]}\nnot json\n{\"t\": 0.1, \"q\": [0, 1], \"tau\": [0, 0]}\n";
+
+    /// A reader that falls behind gets at most the queue's worth of
+    /// events; the other frames are dropped and counted, none lost
+    /// unaccounted.
+    #[test]
+    fn frames_beyond_the_queue_are_dropped_and_counted() {
+        let source = LiveSource::listen("127.0.0.1:0", || {}).unwrap();
+        let mut c = std::net::TcpStream::connect(&source.address).unwrap();
+        let sent = 3000;
+        let mut text = String::from("{\"format\": \"contact-session\", \"version\": 1}\n");
+        for i in 0..sent {
+            text.push_str(&format!(
+                "{{\"t\": {}, \"q\": [0, 0], \"tau\": [0, 0]}}\n",
+                f64::from(i) * 1e-3
+            ));
+        }
+        c.write_all(text.as_bytes()).unwrap();
+        drop(c);
+        // Nothing is read until the sender has closed.
+        let mut events = Vec::new();
+        loop {
+            let event = source.events.recv_timeout(Duration::from_secs(10)).unwrap();
+            let closed = matches!(event, LiveEvent::Closed(_));
+            events.push(event);
+            if closed {
+                break;
+            }
+            if events.len() == 1 {
+                std::thread::sleep(Duration::from_millis(500));
+            }
+        }
+        let frames = events.iter().filter(|e| matches!(e, LiveEvent::Frame(_))).count();
+        let dropped = source.dropped_frames();
+        assert!(frames <= QUEUE_EVENTS + 2, "{frames} frames queued");
+        assert!(dropped > 0);
+        assert_eq!(frames as u64 + dropped, sent as u64);
+    }
 
     #[test]
     fn a_pause_between_frames_is_reported_as_a_gap() {

@@ -242,7 +242,7 @@ pub(crate) fn smooth(
             });
         };
         // The frames pushed and not yet settled, with what each has cost.
-        let mut waiting: VecDeque<(usize, f64)> = VecDeque::new();
+        let mut waiting = Waiting::default();
         let mut start = 0;
         let mut done = likelihoods(estimator, robot, frames, start);
         let limit = model.store_limit_bytes();
@@ -255,11 +255,11 @@ pub(crate) fn smooth(
             let (cut, next) = rayon::join(
                 || -> Result<Vec<Piece>, TemporalError> {
                     let mut cut = Vec::new();
-                    for (i, (_, likelihood), ms) in ready {
+                    for (i, (pending, likelihood), ms) in ready {
                         let t0 = Instant::now();
                         let t_secs = frames.get(i).map_or(f64::NAN, |f| f.t_secs);
                         cut.extend(smoother.push(t_secs, &likelihood)?);
-                        waiting.push_back((i, ms + elapsed_ms(t0)));
+                        waiting.push(i, ms + elapsed_ms(t0), pending);
                     }
                     Ok(cut)
                 },
@@ -271,10 +271,10 @@ pub(crate) fn smooth(
             }
             // Settle what is smoothed; while the pieces in flight and the
             // store hold more than the limit, help smooth them.
-            let room = |pieces: &Pieces| {
+            let room = |pieces: &Pieces, waiting: &Waiting| {
                 let in_flight = pieces.spawned - pieces.settled;
                 in_flight == 0
-                    || (smoother.held_bytes() + pieces.bytes_in_flight <= limit
+                    || (smoother.held_bytes() + pieces.bytes_in_flight + waiting.bytes <= limit
                         && in_flight <= rayon::current_num_threads())
             };
             if !pieces.settle_until(
@@ -290,7 +290,7 @@ pub(crate) fn smooth(
         spawn(smoother.finish(), &mut pieces);
         pieces.settle_until(
             &done_rx,
-            |pieces| pieces.settled == pieces.spawned,
+            |pieces, _| pieces.settled == pieces.spawned,
             (estimator, robot, frames),
             (&mut waiting, &mut presses),
             (&mut calls.keep_going, &mut each, &mut calls.failed),
@@ -304,6 +304,41 @@ pub(crate) fn smooth(
         return Err(SequenceError::Frame { frame, source });
     }
     Ok(true)
+}
+
+/// The frames filtered and not yet settled, in order: number, what each
+/// has cost so far, its own posterior (kept rather than computed again:
+/// it is a third of a frame's work, and a smaller store than the
+/// smoother's).
+#[derive(Default)]
+struct Waiting {
+    frames: VecDeque<(usize, f64, PendingUpdate)>,
+    /// Bytes their posteriors hold.
+    bytes: usize,
+}
+
+impl Waiting {
+    fn push(&mut self, i: usize, ms: f64, pending: PendingUpdate) {
+        self.bytes += pending_bytes(&pending);
+        self.frames.push_back((i, ms, pending));
+    }
+
+    /// The first `n`, in order.
+    fn take(&mut self, n: usize) -> Vec<(usize, f64, PendingUpdate)> {
+        let taken: Vec<_> = self.frames.drain(..n.min(self.frames.len())).collect();
+        let freed: usize = taken.iter().map(|(_, _, p)| pending_bytes(p)).sum();
+        self.bytes = self.bytes.saturating_sub(freed);
+        taken
+    }
+}
+
+/// Bytes a pending update's posterior holds.
+fn pending_bytes(pending: &PendingUpdate) -> usize {
+    let p = &pending.posterior;
+    size_of::<PendingUpdate>()
+        + (p.probability.len() + p.display.len() + p.log_likelihood.len() + p.force_newtons.len()) * size_of::<f64>()
+        + p.phase_flags.len()
+        + p.support.len() * size_of::<usize>()
 }
 
 /// Runs a task of the pool on this thread if one waits, else yields.
@@ -331,9 +366,9 @@ impl Pieces {
     fn settle_until(
         &mut self,
         done: &std::sync::mpsc::Receiver<(usize, Stretch, f64, usize)>,
-        enough: impl Fn(&Self) -> bool,
+        enough: impl Fn(&Self, &Waiting) -> bool,
         sequence: (&Estimator, &Robot, &[SequenceFrame]),
-        (waiting, presses): (&mut VecDeque<(usize, f64)>, &mut PressQueue<'_>),
+        (waiting, presses): (&mut Waiting, &mut PressQueue<'_>),
         (keep_going, each, failed): (
             &mut impl FnMut() -> bool,
             &mut impl FnMut(usize, Update, f64),
@@ -345,7 +380,7 @@ impl Pieces {
             if !self.settle_ready(sequence, waiting, presses, (&mut *keep_going, &mut *each, &mut *failed))? {
                 return Ok(false);
             }
-            if enough(self) {
+            if enough(self, waiting) {
                 return Ok(true);
             }
             help_or_wait();
@@ -363,7 +398,7 @@ impl Pieces {
     fn settle_ready(
         &mut self,
         sequence: (&Estimator, &Robot, &[SequenceFrame]),
-        waiting: &mut VecDeque<(usize, f64)>,
+        waiting: &mut Waiting,
         presses: &mut PressQueue<'_>,
         calls: (
             &mut impl FnMut() -> bool,
@@ -391,13 +426,13 @@ impl Pieces {
 }
 
 /// A smoothed stretch's frames (the first `stretch.len()` of `waiting`):
-/// each frame's estimate again (its likelihoods were dropped) seen
-/// through its smoothed belief, in parallel, then offered to the presses
-/// in order. `Ok(false)` when `keep_going` said no.
+/// each frame's own posterior seen through its smoothed belief, in
+/// parallel, then offered to the presses in order. `Ok(false)` when
+/// `keep_going` said no.
 fn settle_stretch(
     (estimator, robot, frames): (&Estimator, &Robot, &[SequenceFrame]),
     (stretch, backward_ms): (&Stretch, f64),
-    waiting: &mut VecDeque<(usize, f64)>,
+    waiting: &mut Waiting,
     presses: &mut PressQueue<'_>,
     (keep_going, each, failed): (
         &mut impl FnMut() -> bool,
@@ -406,27 +441,27 @@ fn settle_stretch(
     ),
 ) -> Result<bool, SequenceError> {
     let share_ms = backward_ms / stretch.len().max(1) as f64;
-    let entries: Vec<(usize, f64)> = waiting.drain(..stretch.len().min(waiting.len())).collect();
-    for (c, chunk) in entries.chunks(BLOCK_FRAMES).enumerate() {
+    let mut entries = waiting.take(stretch.len());
+    let mut c = 0;
+    while !entries.is_empty() {
         if !keep_going() {
             return Ok(false);
         }
+        let rest = entries.split_off(BLOCK_FRAMES.min(entries.len()));
+        let chunk = std::mem::replace(&mut entries, rest);
         let done: Vec<Done<(Update, Option<Summary>)>> = chunk
-            .par_iter()
+            .into_par_iter()
             .enumerate()
-            .filter_map(|(j, &(i, ms))| {
+            .filter_map(|(j, (i, ms, pending))| {
                 let t0 = Instant::now();
                 let f = frames.get(i)?;
                 let belief = stretch.belief(c * BLOCK_FRAMES + j)?;
-                // It succeeded in the first pass; the same inputs again.
-                let result = estimator.pending_update(robot, f.joint_positions, f.tau).map(|update| {
-                    let alone = estimator.summary_alone(robot, &update, f.tau, &belief);
-                    let update = estimator.with_belief_as(robot, update, f.tau, &belief, !estimator.fits_presses());
-                    (update, alone)
-                });
-                Some((i, result, ms + share_ms + elapsed_ms(t0)))
+                let alone = estimator.summary_alone(robot, &pending, f.tau, &belief);
+                let update = estimator.with_belief_as(robot, pending, f.tau, &belief, !estimator.fits_presses());
+                Some((i, Ok((update, alone)), ms + share_ms + elapsed_ms(t0)))
             })
             .collect();
+        c += 1;
         for (i, settled, ms) in succeeded(done, failed)? {
             presses.offer(i, settled, ms, each);
         }

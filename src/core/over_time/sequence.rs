@@ -39,18 +39,6 @@ impl Estimator {
         Ok((PendingUpdate { pose, posterior }, likelihood))
     }
 
-    /// The posterior of an update, not yet summarised (a sequence's second
-    /// pass: its likelihoods are in the smoother already).
-    pub(crate) fn pending_update(
-        &self,
-        robot: &Robot,
-        joint_positions: &[f64],
-        tau: &[f64],
-    ) -> Result<PendingUpdate, EstimateError> {
-        let (pose, _, posterior) = self.posterior_at(robot, joint_positions, tau, None)?;
-        Ok(PendingUpdate { pose, posterior })
-    }
-
     /// [`Estimator::conclude_alone`] of a pending update where the
     /// recording (`belief`) calls its frame a contact and contacts are
     /// placed on the continuous surface: what its press is checked
