@@ -448,15 +448,18 @@ mod tests {
     /// unaccounted.
     #[test]
     fn frames_beyond_the_queue_are_dropped_and_counted() {
+        use std::fmt::Write as _;
         let source = LiveSource::listen("127.0.0.1:0", || {}).unwrap();
         let mut c = std::net::TcpStream::connect(&source.address).unwrap();
         let sent = 3000;
         let mut text = String::from("{\"format\": \"contact-session\", \"version\": 1}\n");
         for i in 0..sent {
-            text.push_str(&format!(
-                "{{\"t\": {}, \"q\": [0, 0], \"tau\": [0, 0]}}\n",
+            writeln!(
+                text,
+                "{{\"t\": {}, \"q\": [0, 0], \"tau\": [0, 0]}}",
                 f64::from(i) * 1e-3
-            ));
+            )
+            .unwrap();
         }
         c.write_all(text.as_bytes()).unwrap();
         drop(c);
