@@ -42,6 +42,8 @@ pub struct SessionPart {
     pub external_calibration: Option<Arc<super::calibration::ExternalCalibration>>,
     /// A calibration being learned from a free-motion recording.
     pub(crate) calibrating_from: Option<super::worker::Background<super::calibration::ExternalCalibration>>,
+    /// When the estimation under way began (for the time it has left).
+    pub(crate) started: Option<std::time::Instant>,
 }
 
 impl SessionPart {
@@ -62,7 +64,18 @@ impl SessionPart {
             calibration: None,
             external_calibration: None,
             calibrating_from: None,
+            started: None,
         }
+    }
+}
+
+/// `secs` as "12 s", "3 min 5 s" or "2 h 4 min".
+fn duration_text(secs: f64) -> String {
+    let whole = secs.max(0.0).round() as u64;
+    match whole {
+        0..60 => format!("{whole} s"),
+        60..3600 => format!("{} min {} s", whole / 60, whole % 60),
+        _ => format!("{} h {} min", whole / 3600, whole % 3600 / 60),
     }
 }
 
@@ -239,6 +252,7 @@ impl ProprioscopeApp {
                 over_time: replay.over_time,
                 bias: self.session_correction(),
             });
+            self.session.started = Some(std::time::Instant::now());
             self.session.key = Some(key);
         }
         let done: Vec<crate::batch::Estimated> = self.session.worker.drain().collect();
@@ -489,9 +503,20 @@ impl ProprioscopeApp {
         }
         let done = self.session_estimated();
         if done < frames.len() && self.live.view.is_none() {
+            // The time left at the pace so far (a smoothed session's
+            // frames come a stretch at a time: an average of stretches).
+            let elapsed_secs = self.session.started.map_or(0.0, |t| t.elapsed().as_secs_f64());
+            let left = if done > 0 && elapsed_secs >= 1.0 {
+                let secs = elapsed_secs * (frames.len() - done) as f64 / done as f64;
+                format!(", about {} left", duration_text(secs))
+            } else {
+                String::new()
+            };
             ui.add(
-                egui::ProgressBar::new(done as f32 / frames.len().max(1) as f32)
-                    .text(format!("estimating the session: {done} of {} frames", frames.len())),
+                egui::ProgressBar::new(done as f32 / frames.len().max(1) as f32).text(format!(
+                    "estimating the session: {done} of {} frames{left}",
+                    frames.len()
+                )),
             );
         }
         if let Some(t) = self.session_plots_ui(ui, replay) {

@@ -116,7 +116,7 @@ pub enum TemporalError {
     },
     /// The smoother would hold too much.
     #[error(
-        "smoothing {frames} frames of {points} points needs more than {limit_bytes} bytes: use the filter, fewer points or a shorter recording"
+        "smoothing holds {frames} frames of {points} points at once, more than {limit_bytes} bytes: allow more memory, or use fewer points or the filter"
     )]
     TooLarge {
         /// Frames so far.
