@@ -275,7 +275,14 @@ fn run_config(robot: &Robot, config: &Config, contacts: &[Contact], seed: u64) -
 /// Runs the command.
 pub fn run(args: &BenchArgs) -> Result<()> {
     if let Some(seconds) = args.recording {
-        return super::bench_recording::run(args, seconds);
+        return super::bench_recording::run(&super::bench_recording::RecordingBench {
+            seconds,
+            rate_hz: args.rate,
+            noise: args.noise,
+            seed: args.seed,
+            threads: args.threads.clone(),
+            memory_mib: args.memory,
+        });
     }
     // The document's table and plot are committed: quick figures (fewer
     // contacts and configurations) must not replace them.

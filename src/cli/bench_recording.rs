@@ -13,10 +13,24 @@ use proprioscope::core::eval::synth::{SynthSettings, as_sequence, joint_position
 use proprioscope::core::over_time::sequence::{Temporal, estimate_sequence};
 use proprioscope::core::robot::builtin;
 
-use super::bench::BenchArgs;
-
 /// The links a recording is pressed on: the forearm and wrist (links 4–7).
 const PRESSED_LINKS: [&str; 4] = ["lwr_4_link", "lwr_5_link", "lwr_6_link", "lwr_7_link"];
+
+/// What `bench --recording` draws and runs.
+pub struct RecordingBench {
+    /// Length, s.
+    pub seconds: f64,
+    /// Frames per second.
+    pub rate_hz: f64,
+    /// Sensor noise (and σ), N·m.
+    pub noise: f64,
+    /// Seed of the recording.
+    pub seed: u64,
+    /// Thread counts (empty: 1, 2 and every core).
+    pub threads: Vec<usize>,
+    /// Memory the smoothing may take, MiB.
+    pub memory_mib: usize,
+}
 
 /// One thread count's run.
 struct Run {
@@ -30,7 +44,8 @@ struct Run {
 }
 
 /// Runs the recording bench and prints its table.
-pub fn run(args: &BenchArgs, seconds: f64) -> Result<()> {
+pub fn run(args: &RecordingBench) -> Result<()> {
+    let seconds = args.seconds;
     let robot = builtin::lwr4plus_generated().context("the built-in LWR")?;
     let pressed = PRESSED_LINKS
         .iter()
@@ -38,7 +53,7 @@ pub fn run(args: &BenchArgs, seconds: f64) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     let settings = SynthSettings {
         duration_secs: seconds,
-        rate_hz: args.rate,
+        rate_hz: args.rate_hz,
         noise_newton_metres: args.noise,
         ..SynthSettings::default()
     };
@@ -49,13 +64,13 @@ pub fn run(args: &BenchArgs, seconds: f64) -> Result<()> {
     log::info!(
         "{} frames ({seconds} s at {} Hz, seed {}) drawn in {:.1} s",
         frames.len(),
-        args.rate,
+        args.rate_hz,
         args.seed,
         t0.elapsed().as_secs_f64()
     );
     // σ is the noise drawn (no calibration: the estimator alone is timed).
     let config = EstimatorConfig {
-        memory_mib: args.memory,
+        memory_mib: args.memory_mib,
         ..EstimatorConfig::default()
     };
     let links = robot.default_candidate_links();
@@ -108,7 +123,7 @@ pub fn run(args: &BenchArgs, seconds: f64) -> Result<()> {
         });
         log::info!("{threads} threads: {wall_secs:.1} s");
     }
-    let recorded_secs = frames.last().map_or(0.0, |f| f.t_secs) + 1.0 / args.rate;
+    let recorded_secs = frames.last().map_or(0.0, |f| f.t_secs) + 1.0 / args.rate_hz;
     outln!("{}", table(&runs, frames.len(), recorded_secs)?);
     Ok(())
 }

@@ -71,6 +71,20 @@ pub fn ln(y: f64) -> f64 {
     e * LN_2 + 2.0 * z * s
 }
 
+/// `ln x` (by [`ln`] where `x` is a normal number), -∞ for
+/// `x ≤ 0` or NaN.
+#[inline]
+#[must_use]
+pub fn ln_or_minus_infinity(x: f64) -> f64 {
+    if (f64::MIN_POSITIVE..f64::INFINITY).contains(&x) {
+        ln(x)
+    } else if x > 0.0 {
+        x.ln()
+    } else {
+        f64::NEG_INFINITY
+    }
+}
+
 /// Scale of the variable `t = K/(K + x)` of [`ln_erfcx`]'s fit.
 const ERFCX_K: f64 = 3.0;
 
@@ -215,6 +229,24 @@ impl ErfTable {
 
 #[cfg(test)]
 mod tests {
+    /// `ln` where it is defined (the fast one on normal numbers, within
+    /// its bound; the library's on subnormal ones), -∞ elsewhere.
+    #[test]
+    fn ln_or_minus_infinity_covers_every_input() {
+        for x in [1e-300, 0.3, 1.0, 2.5, 1e300] {
+            let (got, want) = (ln_or_minus_infinity(x), x.ln());
+            assert!(
+                (got - want).abs() <= 1e-15 * want.abs().max(1.0),
+                "{x}: {got} vs {want}"
+            );
+        }
+        assert_eq!(ln_or_minus_infinity(1e-310).to_bits(), 1e-310_f64.ln().to_bits());
+        assert_eq!(ln_or_minus_infinity(f64::INFINITY).to_bits(), f64::INFINITY.to_bits());
+        for x in [0.0, -0.0, -1.0, f64::NAN, f64::NEG_INFINITY] {
+            assert_eq!(ln_or_minus_infinity(x).to_bits(), f64::NEG_INFINITY.to_bits(), "{x}");
+        }
+    }
+
     use super::*;
     use crate::core::numerics::special;
 

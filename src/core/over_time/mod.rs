@@ -1,7 +1,6 @@
-//! A session: the temporal model of contacts (filter, smoother, stretches
-//! of bounded memory), the sequence of frames run in parallel blocks, the
-//! presses fitted as a whole, the torque bias and the calibration of a
-//! real arm's model error.
+//! A session: the temporal model (filter, smoother in bounded stretches),
+//! the frames run in parallel blocks, presses fitted as a whole, the torque
+//! bias and the calibration of a real arm's model error.
 //! Imports the rooms below it, `estimate` included.
 
 pub mod bias;

@@ -519,7 +519,7 @@ pub(crate) fn overlap(forward: &Offset, backward: &Offset, rho_m: f64) -> f64 {
         return 0.0;
     }
     0.5 * (both.explained() - forward.explained() - backward.explained())
-        + 0.5 * crate::core::over_time::temporal::ln_or_minus_infinity(df * db / (d * d0))
+        + 0.5 * crate::core::numerics::fastmath::ln_or_minus_infinity(df * db / (d * d0))
 }
 
 impl FrameLikelihood {

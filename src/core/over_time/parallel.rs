@@ -21,11 +21,26 @@ use crate::core::estimate::summary::Summary;
 use crate::core::over_time::frame::SequenceFrame;
 use crate::core::over_time::offsets::FrameLikelihood;
 use crate::core::over_time::presses::{FrictionGate, PressQueue};
-use crate::core::over_time::sequence::SequenceError;
 use crate::core::over_time::smoother::FilterState;
 use crate::core::over_time::stretches::{Piece, Stretch, StretchSmoother};
 use crate::core::over_time::temporal::{Belief, TemporalError, TemporalModel};
 use crate::core::robot::model::Robot;
+
+/// Why a sequence could not be estimated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SequenceError {
+    /// A frame's estimate failed.
+    #[error("frame {frame}: {source}")]
+    Frame {
+        /// Frame number in the sequence (0-based).
+        frame: usize,
+        /// Why.
+        source: EstimateError,
+    },
+    /// The temporal model refused a frame.
+    #[error(transparent)]
+    Temporal(#[from] TemporalError),
+}
 
 /// Frames per block: enough to keep every thread busy, few enough that a
 /// block's posteriors (about 0.2 MB each at 5,000 points) stay small.

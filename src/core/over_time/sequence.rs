@@ -13,9 +13,7 @@ use crate::core::over_time::offsets::{FrameLikelihood, PatchInformation};
 use crate::core::over_time::parallel::{self, Callbacks};
 use crate::core::over_time::presses::FrictionGate;
 use crate::core::over_time::smoother::FilterState;
-use crate::core::over_time::temporal::{
-    Belief, TemporalError, TemporalModel, TemporalSettings, is_continuous_recording,
-};
+use crate::core::over_time::temporal::{Belief, TemporalModel, TemporalSettings, is_continuous_recording};
 use crate::core::robot::model::Robot;
 use crate::core::robot::torque::TorqueModel;
 
@@ -200,21 +198,7 @@ pub fn automatic_temporal(times_secs: &[f64], settings: &TemporalSettings) -> (T
     }
 }
 
-/// Why a sequence could not be estimated.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum SequenceError {
-    /// A frame's estimate failed.
-    #[error("frame {frame}: {source}")]
-    Frame {
-        /// Frame number in the sequence (0-based).
-        frame: usize,
-        /// Why.
-        source: EstimateError,
-    },
-    /// The temporal model refused a frame.
-    #[error(transparent)]
-    Temporal(#[from] TemporalError),
-}
+pub use crate::core::over_time::parallel::SequenceError;
 
 /// A stream filtered as it arrives ([`Temporal::Filter`]: each frame
 /// with the frames before it) by a caller that keeps the temporal model

@@ -295,7 +295,7 @@ impl TemporalModel {
             graph,
             window_m,
             hop_rate,
-            ln_prior: prior.iter().map(|&p| ln_or_minus_infinity(p)).collect(),
+            ln_prior: prior.iter().map(|&p| fastmath::ln_or_minus_infinity(p)).collect(),
             prior,
             store_limit_bytes: DEFAULT_STORE_BYTES,
         })
@@ -498,8 +498,9 @@ impl TemporalModel {
     /// over the prior, offsets included.
     pub(crate) fn combine(&self, forward: &Belief, backward: &Belief) -> Belief {
         let contact = self.settings.stationary_contact().clamp(1e-300, 1.0 - 1e-16);
-        let none =
-            ln_or_minus_infinity(forward.no_contact) + ln_or_minus_infinity(backward.no_contact) - (1.0 - contact).ln();
+        let none = fastmath::ln_or_minus_infinity(forward.no_contact)
+            + fastmath::ln_or_minus_infinity(backward.no_contact)
+            - (1.0 - contact).ln();
         let n = forward.points.len();
         let tracked = forward.offsets.len() == n && backward.offsets.len() == n && self.window_m.len() == n;
         let mut offsets = Vec::with_capacity(if tracked { n } else { 0 });
@@ -515,7 +516,7 @@ impl TemporalModel {
                 else {
                     return f64::NEG_INFINITY;
                 };
-                ln_or_minus_infinity(f) + ln_or_minus_infinity(b) - ln_prior - ln_contact
+                fastmath::ln_or_minus_infinity(f) + fastmath::ln_or_minus_infinity(b) - ln_prior - ln_contact
             })
             .collect();
         let floor = logs.iter().copied().filter(|l| !l.is_nan()).fold(none, f64::max) - COMBINE_MARGIN;
@@ -571,19 +572,6 @@ impl TemporalModel {
                 expected: n,
             })
         }
-    }
-}
-
-/// `ln x` (by [`fastmath::ln`] where `x` is a normal number), -∞ for
-/// `x ≤ 0` or NaN.
-#[inline]
-pub(crate) fn ln_or_minus_infinity(x: f64) -> f64 {
-    if (f64::MIN_POSITIVE..f64::INFINITY).contains(&x) {
-        fastmath::ln(x)
-    } else if x > 0.0 {
-        x.ln()
-    } else {
-        f64::NEG_INFINITY
     }
 }
 
