@@ -92,6 +92,21 @@ pub(crate) struct StoredFrame {
     patch: Vec<[f32; 6]>,
 }
 
+/// An offset's precision and shift in f32, as the stores hold it.
+pub(crate) fn packed_offset(offset: &Offset) -> [f32; 5] {
+    let [l11, l12, l22] = offset.precision;
+    let [n1, n2] = offset.shift;
+    [l11 as f32, l12 as f32, l22 as f32, n1 as f32, n2 as f32]
+}
+
+/// [`packed_offset`] undone (to f32's precision).
+pub(crate) fn unpacked_offset(&[l11, l12, l22, n1, n2]: &[f32; 5]) -> Offset {
+    Offset {
+        precision: [l11, l12, l22].map(f64::from),
+        shift: [n1, n2].map(f64::from),
+    }
+}
+
 /// A belief in f32.
 #[derive(Debug, Clone)]
 pub(crate) struct StoredBelief {
@@ -163,15 +178,7 @@ impl StoredBelief {
         Self {
             no_contact: belief.no_contact as f32,
             points: belief.points.iter().map(|&p| p as f32).collect(),
-            offsets: belief
-                .offsets
-                .iter()
-                .map(|o| {
-                    let [l11, l12, l22] = o.precision;
-                    let [n1, n2] = o.shift;
-                    [l11 as f32, l12 as f32, l22 as f32, n1 as f32, n2 as f32]
-                })
-                .collect(),
+            offsets: belief.offsets.iter().map(packed_offset).collect(),
         }
     }
 
@@ -189,14 +196,7 @@ impl StoredBelief {
         Belief {
             no_contact: f64::from(self.no_contact),
             points: self.points.iter().map(|&p| f64::from(p)).collect(),
-            offsets: self
-                .offsets
-                .iter()
-                .map(|&[l11, l12, l22, n1, n2]| Offset {
-                    precision: [l11, l12, l22].map(f64::from),
-                    shift: [n1, n2].map(f64::from),
-                })
-                .collect(),
+            offsets: self.offsets.iter().map(unpacked_offset).collect(),
         }
     }
 }

@@ -17,8 +17,10 @@
 //! store the stretch's filtered beliefs held: the peak memory is the
 //! store's limit, whatever the length of the recording.
 
-use crate::core::over_time::offsets::{FrameLikelihood, Offset};
-use crate::core::over_time::smoother::{FilterState, StoredBelief, StoredFrame, backward_pass};
+use crate::core::over_time::offsets::FrameLikelihood;
+use crate::core::over_time::smoother::{
+    FilterState, StoredBelief, StoredFrame, backward_pass, packed_offset, unpacked_offset,
+};
 use crate::core::over_time::temporal::{Belief, TemporalError, TemporalModel};
 
 /// How long the filter must have been sure of "no contact" for a stretch
@@ -58,15 +60,7 @@ impl SmoothedBelief {
         Self {
             contact: contact.clamp(0.0, 1.0),
             given_contact: belief.points.iter().map(|&p| (p * scale) as f32).collect(),
-            offsets: belief
-                .offsets
-                .iter()
-                .map(|o| {
-                    let [l11, l12, l22] = o.precision;
-                    let [n1, n2] = o.shift;
-                    [l11 as f32, l12 as f32, l22 as f32, n1 as f32, n2 as f32]
-                })
-                .collect(),
+            offsets: belief.offsets.iter().map(packed_offset).collect(),
         }
     }
 
@@ -78,14 +72,7 @@ impl SmoothedBelief {
                 .iter()
                 .map(|&p| f64::from(p) * self.contact)
                 .collect(),
-            offsets: self
-                .offsets
-                .iter()
-                .map(|&[l11, l12, l22, n1, n2]| Offset {
-                    precision: [l11, l12, l22].map(f64::from),
-                    shift: [n1, n2].map(f64::from),
-                })
-                .collect(),
+            offsets: self.offsets.iter().map(unpacked_offset).collect(),
         }
     }
 }
