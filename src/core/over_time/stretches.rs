@@ -52,14 +52,16 @@ struct SmoothedBelief {
 impl SmoothedBelief {
     fn of(belief: &Belief) -> Self {
         let contact = belief.points.iter().sum::<f64>();
-        let scale = if contact > 0.0 && contact.is_finite() {
-            1.0 / contact
-        } else {
-            0.0
-        };
+        // A division per sample, not a product with 1/contact: a contact
+        // of a subnormal size has an infinite reciprocal (0 · ∞ = NaN).
+        let usable = contact > 0.0 && contact.is_finite();
         Self {
-            contact: contact.clamp(0.0, 1.0),
-            given_contact: belief.points.iter().map(|&p| (p * scale) as f32).collect(),
+            contact: if usable { contact.min(1.0) } else { 0.0 },
+            given_contact: belief
+                .points
+                .iter()
+                .map(|&p| if usable { (p / contact) as f32 } else { 0.0 })
+                .collect(),
             offsets: belief.offsets.iter().map(packed_offset).collect(),
         }
     }
@@ -290,6 +292,32 @@ impl Piece {
         Stretch {
             first: self.first,
             beliefs,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Fuzz finding: a contact probability of a subnormal size (its
+    /// reciprocal is infinite) gave NaN where the contact would be.
+    #[test]
+    fn a_subnormal_contact_stays_a_probability() {
+        for contact in [5e-324, 1e-310, f64::MIN_POSITIVE, 0.0, f64::NAN, f64::INFINITY] {
+            let belief = Belief {
+                no_contact: 1.0,
+                points: vec![contact, 0.0, 0.0],
+                offsets: Vec::new(),
+            };
+            let back = SmoothedBelief::of(&belief).belief();
+            let p = back.contact_probability();
+            assert!((0.0..=1.0).contains(&p), "{contact}: {p}");
+            assert!((0.0..=1.0).contains(&back.no_contact), "{contact}: {back:?}");
+            assert!(
+                back.points.iter().all(|q| (0.0..=1.0).contains(q)),
+                "{contact}: {back:?}"
+            );
         }
     }
 }
