@@ -4,25 +4,16 @@
 // Test helpers may unwrap: a panic is a failed test with its message.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn run(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_proprioscope"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+use common::{THESIS_SESSION, run_out, temp_file};
 
 #[test]
 fn torques_json_has_exactly_the_documented_shape() {
-    let (ok, out, err) = run(&["torques", "scenes/lwr-collision-3.json", "--json"]);
+    let (ok, out, err) = run_out(&["torques", "scenes/lwr-collision-3.json", "--json"]);
     assert!(ok, "{err}");
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     let obj = v.as_object().unwrap();
@@ -44,7 +35,7 @@ fn torques_json_has_exactly_the_documented_shape() {
 
 #[test]
 fn torques_from_arguments_in_ncm_names_the_silent_joints() {
-    let (ok, out, err) = run(&[
+    let (ok, out, err) = run_out(&[
         "torques",
         "--robot",
         "lwr4plus",
@@ -71,7 +62,7 @@ fn torques_from_arguments_in_ncm_names_the_silent_joints() {
 
 #[test]
 fn bad_arguments_fail_with_a_message() {
-    let (ok, _, err) = run(&[
+    let (ok, _, err) = run_out(&[
         "torques",
         "--robot",
         "lwr4plus",
@@ -85,7 +76,7 @@ fn bad_arguments_fail_with_a_message() {
         "1,0,0",
     ]);
     assert!(!ok && err.contains("expected 7") && err.contains("got 2"), "{err}");
-    let (ok, _, err) = run(&[
+    let (ok, _, err) = run_out(&[
         "torques",
         "--robot",
         "lwr4plus",
@@ -97,7 +88,7 @@ fn bad_arguments_fail_with_a_message() {
         "1,0,0",
     ]);
     assert!(!ok && err.contains("lwr_9_link"), "{err}");
-    let (ok, _, err) = run(&[
+    let (ok, _, err) = run_out(&[
         "torques",
         "--robot",
         "lwr4plus",
@@ -109,7 +100,7 @@ fn bad_arguments_fail_with_a_message() {
         "1,0,0",
     ]);
     assert!(!ok && err.contains("zero"), "{err}");
-    let (ok, _, err) = run(&["torques", "scenes/no-such-scene.json"]);
+    let (ok, _, err) = run_out(&["torques", "scenes/no-such-scene.json"]);
     assert!(!ok && err.contains("no-such-scene.json"), "{err}");
 }
 
@@ -129,7 +120,7 @@ fn torques_on_a_urdf_from_the_command_line_match_the_oracle() {
             .collect::<Vec<_>>()
             .join(",")
     };
-    let (ok, out, err) = run(&[
+    let (ok, out, err) = run_out(&[
         "torques",
         "--robot",
         "../shared/robots/panda/urdf/panda.urdf",
@@ -159,27 +150,11 @@ fn torques_on_a_urdf_from_the_command_line_match_the_oracle() {
     }
 }
 
-fn temp(name: &str, text: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("proprioscope-estimate-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
-    path
-}
-
-/// Thesis Table 3.4 row 3 (N·m) on the built-in LWR, then a frame without contact.
-const SESSION: &str = r#"{"format": "contact-session", "version": 1, "robot": "lwr4plus",
-  "frames": [
-    {"t": 0.0, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.09516, -0.53783, 0.09516, 0.01017, 0, 0, 0],
-     "truth": {"link": "lwr_4_link", "point": [0.046, 0.098, 0.692], "force": [-1.37, -0.85, 0.33]}},
-    {"t": 0.1, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.001, -0.002, 0, 0.001, 0, 0, 0], "truth": null}
-  ]}"#;
-
 #[test]
 fn estimate_writes_one_json_line_per_frame_and_a_summary() {
-    let session = temp("thesis.session.json", SESSION);
+    let session = temp_file("thesis.session.json", THESIS_SESSION);
     let out = session.with_extension("jsonl");
-    let (ok, stdout, stderr) = run(&[
+    let (ok, stdout, stderr) = run_out(&[
         "estimate",
         session.to_str().unwrap(),
         "--out",
@@ -243,10 +218,10 @@ fn estimate_writes_one_json_line_per_frame_and_a_summary() {
 /// by name.
 #[test]
 fn estimate_over_time_adds_the_contact_probability() {
-    let session = temp("thesis-temporal.session.json", SESSION);
+    let session = temp_file("thesis-temporal.session.json", THESIS_SESSION);
     for temporal in ["filter", "smooth"] {
         let out = session.with_extension(format!("{temporal}.jsonl"));
-        let (ok, stdout, stderr) = run(&[
+        let (ok, stdout, stderr) = run_out(&[
             "estimate",
             session.to_str().unwrap(),
             "--out",
@@ -280,7 +255,7 @@ fn estimate_over_time_adds_the_contact_probability() {
         assert_eq!(lines[1]["verdict"], "no_contact", "{temporal}: {}", lines[1]);
         assert!(lines[1]["contact_probability"].as_f64().unwrap() < 0.5, "{}", lines[1]);
     }
-    let (ok, _, err) = run(&[
+    let (ok, _, err) = run_out(&[
         "estimate",
         session.to_str().unwrap(),
         "--temporal",
@@ -300,7 +275,7 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
     let dir = std::env::temp_dir().join(format!("proprioscope-synth-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let session = dir.join("synth.session.json");
-    let (ok, _, err) = run(&[
+    let (ok, _, err) = run_out(&[
         "synth",
         session.to_str().unwrap(),
         "--seconds",
@@ -315,7 +290,7 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
         "lwr_5_link,lwr_6_link",
     ]);
     assert!(ok, "{err}");
-    let (ok, out, err) = run(&[
+    let (ok, out, err) = run_out(&[
         "estimate",
         session.to_str().unwrap(),
         "--bias",
@@ -330,7 +305,7 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
     );
     assert!(out.contains("median pos. error"), "{out}");
     // Windows shorter than the session: a drifting offset, first → last.
-    let (ok, out, err) = run(&[
+    let (ok, out, err) = run_out(&[
         "estimate",
         session.to_str().unwrap(),
         "--bias",
@@ -342,7 +317,7 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
     ]);
     assert!(ok, "{err}");
     assert!(out.contains(" → "), "{out}");
-    let (ok, _, err) = run(&[
+    let (ok, _, err) = run_out(&[
         "estimate",
         session.to_str().unwrap(),
         "--bias",
@@ -350,10 +325,10 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
         "--bias-window=-1",
     ]);
     assert!(!ok && err.contains("bias window"), "{err}");
-    let (ok, _, err) = run(&["synth", session.to_str().unwrap(), "--links", "no_such_link"]);
+    let (ok, _, err) = run_out(&["synth", session.to_str().unwrap(), "--links", "no_such_link"]);
     assert!(!ok && err.contains("no_such_link"), "{err}");
     // Friction: the summary table as before, a bad μ refused by name.
-    let (ok, out, err) = run(&[
+    let (ok, out, err) = run_out(&[
         "estimate",
         session.to_str().unwrap(),
         "--friction",
@@ -362,7 +337,7 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
         "1000",
     ]);
     assert!(ok && out.contains("median force error"), "{err}");
-    let (ok, _, err) = run(&[
+    let (ok, _, err) = run_out(&[
         "estimate",
         session.to_str().unwrap(),
         "--friction=-1",
@@ -372,7 +347,7 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
     assert!(!ok && err.contains("friction"), "{err}");
     // The default, `auto`: said on stderr where it takes friction (over
     // time); a word that is neither a number nor `auto` is refused.
-    let (ok, _, err) = run(&[
+    let (ok, _, err) = run_out(&[
         "estimate",
         session.to_str().unwrap(),
         "--temporal",
@@ -383,134 +358,15 @@ fn a_synthetic_session_round_trips_through_estimate_with_its_bias() {
         "1000",
     ]);
     assert!(ok && err.contains("--friction auto: μ = 0.2"), "{err}");
-    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--friction", "lots"]);
+    let (ok, _, err) = run_out(&["estimate", session.to_str().unwrap(), "--friction", "lots"]);
     assert!(!ok && err.contains("auto"), "{err}");
-}
-
-/// A free local TCP address (bound and let go: another program could take
-/// it in between, which a test run does not).
-fn free_address() -> String {
-    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-    listener.local_addr().unwrap().to_string()
-}
-
-/// Sends `lines` to `address` once something listens there.
-fn send_lines(address: &str, lines: &[&str]) {
-    use std::io::Write as _;
-    let mut connection = (0..200)
-        .find_map(|_| {
-            std::net::TcpStream::connect(address).ok().or_else(|| {
-                std::thread::sleep(std::time::Duration::from_millis(25));
-                None
-            })
-        })
-        .unwrap();
-    for line in lines {
-        writeln!(connection, "{line}").unwrap();
-    }
-}
-
-/// `estimate --live`: frames over TCP are estimated as they come (with
-/// the frames before them); a line that is not a frame, a frame with
-/// missing values and a time going back are reported and skipped; a
-/// second connection goes on.
-#[test]
-fn live_frames_are_estimated_and_bad_lines_skipped() {
-    let address = free_address();
-    let out = temp("live.jsonl", "");
-    let child = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args([
-            "estimate",
-            "--live",
-            &address,
-            "--live-frames",
-            "3",
-            "--points",
-            "2000",
-            "--sigma",
-            "0.01",
-        ])
-        .args(["--fmin", "0.5", "--fmax", "3", "--out"])
-        .arg(&out)
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let contact = r#"{"t": 0.0, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.09516, -0.53783, 0.09516, 0.01017, 0, 0, 0], "truth": {"link": "lwr_4_link", "point": [0.046, 0.098, 0.692], "force": [-1.37, -0.85, 0.33]}}"#;
-    let later = contact.replace(r#""t": 0.0"#, r#""t": 0.01"#);
-    send_lines(
-        &address,
-        &[
-            r#"{"format": "contact-session", "version": 1, "robot": "lwr4plus"}"#,
-            contact,
-            "not json at all",
-            r#"{"t": 0.005, "q": [0, 0, 0], "tau": [0, 0, 0, 0, 0, 0, 0]}"#,
-            &later,
-        ],
-    );
-    send_lines(&address, &[contact]);
-    let output = child.wait_with_output().unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(output.status.success(), "{stderr}");
-    assert!(
-        stderr.contains("skipped line 2") && stderr.contains("skipped line 3"),
-        "{stderr}"
-    );
-    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&out)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
-    assert_eq!(lines.len(), 3, "{stderr}");
-    for line in &lines {
-        assert_eq!(line["verdict"], "contact", "{line}");
-        assert!(line["contact_probability"].as_f64().unwrap() > 0.5, "{line}");
-        assert!(line["truth"]["position_error_m"].as_f64().unwrap() < 0.05, "{line}");
-    }
-    assert_eq!(lines[2]["frame"], 2);
-}
-
-/// `stream` replays a session to a live estimate, frame for frame.
-#[test]
-fn a_streamed_session_is_estimated_live() {
-    let address = free_address();
-    let session = temp("streamed.session.json", SESSION);
-    let out = temp("streamed.jsonl", "");
-    let child = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args([
-            "estimate",
-            "--live",
-            &address,
-            "--live-frames",
-            "2",
-            "--points",
-            "2000",
-            "--sigma",
-            "0.01",
-        ])
-        .args(["--fmin", "0.5", "--fmax", "3", "--temporal", "none", "--out"])
-        .arg(&out)
-        .spawn()
-        .unwrap();
-    let (ok, _, err) = run(&["stream", session.to_str().unwrap(), "--to", &address, "--rate", "0"]);
-    assert!(ok, "{err}");
-    assert!(child.wait_with_output().unwrap().status.success());
-    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&out)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
-    assert_eq!(lines.len(), 2);
-    assert_eq!(lines[0]["verdict"], "contact");
-    assert_eq!(lines[1]["verdict"], "no_contact");
 }
 
 #[test]
 fn a_session_going_back_in_time_is_refused_naming_the_frame() {
-    let text = SESSION.replace(r#""t": 0.1"#, r#""t": -0.1"#);
-    let session = temp("backwards.session.json", &text);
-    let (ok, _, stderr) = run(&["estimate", session.to_str().unwrap()]);
+    let text = THESIS_SESSION.replace(r#""t": 0.1"#, r#""t": -0.1"#);
+    let session = temp_file("backwards.session.json", &text);
+    let (ok, _, stderr) = run_out(&["estimate", session.to_str().unwrap()]);
     assert!(
         !ok && stderr.contains("frame 1") && stderr.contains("backwards"),
         "{stderr}"
@@ -520,16 +376,16 @@ fn a_session_going_back_in_time_is_refused_naming_the_frame() {
 #[test]
 fn skip_bad_frames_estimates_the_rest_with_their_file_numbers() {
     // Frame 1 goes back in time; a third frame repeats frame 0 later.
-    let text = SESSION.replace(r#""t": 0.1"#, r#""t": -0.1"#).replace(
+    let text = THESIS_SESSION.replace(r#""t": 0.1"#, r#""t": -0.1"#).replace(
         r#""truth": null}
   ]"#,
         r#""truth": null},
     {"t": 0.2, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.09516, -0.53783, 0.09516, 0.01017, 0, 0, 0]}
   ]"#,
     );
-    let session = temp("skip.session.json", &text);
+    let session = temp_file("skip.session.json", &text);
     let out = session.with_extension("jsonl");
-    let (ok, _, stderr) = run(&[
+    let (ok, _, stderr) = run_out(&[
         "estimate",
         session.to_str().unwrap(),
         "--skip-bad-frames",
@@ -560,14 +416,14 @@ fn json_and_csv_sessions_give_the_same_estimates() {
     let dir = std::env::temp_dir().join(format!("proprioscope-estimate-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let (json_out, csv_out) = (dir.join("json.jsonl"), dir.join("csv.jsonl"));
-    let (ok, _, stderr) = run(&[
+    let (ok, _, stderr) = run_out(&[
         "estimate",
         "../shared/sessions/lwr4plus_static_example.session.json",
         "--out",
         json_out.to_str().unwrap(),
     ]);
     assert!(ok, "{stderr}");
-    let (ok, _, stderr) = run(&[
+    let (ok, _, stderr) = run_out(&[
         "estimate",
         "../shared/sessions/lwr4plus_static_example.csv",
         "--robot",
@@ -598,7 +454,7 @@ fn json_and_csv_sessions_give_the_same_estimates() {
 fn a_screenshot_of_a_session_that_cannot_be_read_fails_naming_it() {
     let missing = std::env::temp_dir().join("proprioscope-no-such-session.csv");
     let out = std::env::temp_dir().join("proprioscope-no-such-session.png");
-    let (ok, _, stderr) = run(&["screenshot", missing.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let (ok, _, stderr) = run_out(&["screenshot", missing.to_str().unwrap(), "--out", out.to_str().unwrap()]);
     assert!(!ok && stderr.contains("proprioscope-no-such-session.csv"), "{stderr}");
     assert!(!out.exists());
 }
@@ -607,9 +463,9 @@ fn a_screenshot_of_a_session_that_cannot_be_read_fails_naming_it() {
 /// errors naming the value (they printed NaN torques, `inf` and `null`).
 #[test]
 fn non_finite_and_out_of_range_inputs_are_named_errors() {
-    let (ok, _, err) = run(&["torques", "--robot", "lwr4plus", "--q", "inf,0,0,0,0,0,0"]);
+    let (ok, _, err) = run_out(&["torques", "--robot", "lwr4plus", "--q", "inf,0,0,0,0,0,0"]);
     assert!(!ok && err.contains("'inf' is not a finite number"), "{err}");
-    let (ok, _, err) = run(&[
+    let (ok, _, err) = run_out(&[
         "torques",
         "--robot",
         "lwr4plus",
@@ -621,7 +477,7 @@ fn non_finite_and_out_of_range_inputs_are_named_errors() {
         "NaN,0,0",
     ]);
     assert!(!ok && err.contains("not a finite number"), "{err}");
-    let (ok, _, err) = run(&["estimate", "scenes/lwr-collision-1.json", "--sigma", "NaN"]);
+    let (ok, _, err) = run_out(&["estimate", "scenes/lwr-collision-1.json", "--sigma", "NaN"]);
     assert!(!ok && err.contains("not a finite number"), "{err}");
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-limits");
     std::fs::create_dir_all(&dir).unwrap();
@@ -631,15 +487,15 @@ fn non_finite_and_out_of_range_inputs_are_named_errors() {
         r#"{"format":"contact-session","version":1,"robot":"lwr4plus","frames":[{"t":0,"q":[0,0,0,0,0,0,0],"tau":[1e5,0,0,0,0,0,0]}]}"#,
     )
     .unwrap();
-    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--particles", "1000000000"]);
+    let (ok, _, err) = run_out(&["estimate", session.to_str().unwrap(), "--particles", "1000000000"]);
     assert!(
         !ok && err.contains("--particles") && err.contains("1000000000") && err.contains("1 to 10000000"),
         "{err}"
     );
-    let (ok, _, err) = run(&["estimate", session.to_str().unwrap(), "--points", "2000000"]);
+    let (ok, _, err) = run_out(&["estimate", session.to_str().unwrap(), "--points", "2000000"]);
     assert!(!ok && err.contains("--points") && err.contains("1 to 1000000"), "{err}");
     // Each within its range, together beyond what a frame may hold: 1e5 N·m at σ 1e-4.
-    let (ok, _, err) = run(&[
+    let (ok, _, err) = run_out(&[
         "estimate",
         session.to_str().unwrap(),
         "--points",
@@ -708,7 +564,7 @@ fn package_uris_resolve_for_a_urdf_named_from_its_own_folder() {
 fn recordings_estimate_as_their_sessions_do() {
     let urdf = "../shared/robots/lwr4plus/lwr4plus.urdf";
     let estimate = |file: &str, out: &Path| {
-        let (ok, _, err) = run(&[
+        let (ok, _, err) = run_out(&[
             "estimate",
             file,
             "--robot",
@@ -750,7 +606,7 @@ fn recordings_estimate_as_their_sessions_do() {
             }
         }
     }
-    let (ok, out, err) = run(&["topics", "../shared/recordings/lwr4plus_dyn_example_link4_kuka.mcap"]);
+    let (ok, out, err) = run_out(&["topics", "../shared/recordings/lwr4plus_dyn_example_link4_kuka.mcap"]);
     assert!(ok, "{err}");
     assert!(
         out.contains("/lbr/state") && out.contains("lbr_fri_idl/LBRState"),
@@ -761,7 +617,7 @@ fn recordings_estimate_as_their_sessions_do() {
         "{out}"
     );
     // A field that is not there is refused, naming the fields that are.
-    let (ok, _, err) = run(&[
+    let (ok, _, err) = run_out(&[
         "estimate",
         "../shared/recordings/lwr4plus_dyn_example_link4_kuka.mcap",
         "--robot",
@@ -783,7 +639,7 @@ fn estimates_out_as_mcap_read_back_as_they_were_written() {
     std::fs::create_dir_all(&dir).unwrap();
     let session = dir.join("synth.session.json");
     let path = |name: &str| dir.join(name).to_str().unwrap().to_owned();
-    let (ok, _, err) = run(&[
+    let (ok, _, err) = run_out(&[
         "synth",
         &path("synth.session.json"),
         "--seconds",
@@ -795,17 +651,21 @@ fn estimates_out_as_mcap_read_back_as_they_were_written() {
     ]);
     assert!(ok, "{err}");
     let common = ["--points", "1000", "--temporal", "filter"];
-    let (ok, _, err) = run(&[
-        &["estimate", &path("synth.session.json"), "--out", &path("est.jsonl")],
-        &common[..],
-    ]
-    .concat());
+    let (ok, _, err) = run_out(
+        &[
+            &["estimate", &path("synth.session.json"), "--out", &path("est.jsonl")],
+            &common[..],
+        ]
+        .concat(),
+    );
     assert!(ok, "{err}");
-    let (ok, _, err) = run(&[
-        &["estimate", &path("synth.session.json"), "--out", &path("est.mcap")],
-        &common[..],
-    ]
-    .concat());
+    let (ok, _, err) = run_out(
+        &[
+            &["estimate", &path("synth.session.json"), "--out", &path("est.mcap")],
+            &common[..],
+        ]
+        .concat(),
+    );
     assert!(ok, "{err}");
     let lines: Vec<serde_json::Value> = std::fs::read_to_string(dir.join("est.jsonl"))
         .unwrap()
@@ -842,285 +702,6 @@ fn estimates_out_as_mcap_read_back_as_they_were_written() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// The same over UDP: `stream --to udp://…` sends a datagram a line to
-/// `estimate --live udp://…`.
-#[test]
-fn a_session_streamed_over_udp_is_estimated_live() {
-    use std::io::BufRead as _;
-    let session = temp("udp.session.json", SESSION);
-    let out = temp("udp.jsonl", "");
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args([
-            "estimate",
-            "--live",
-            "udp://127.0.0.1:0",
-            "--live-frames",
-            "2",
-            "--points",
-            "2000",
-        ])
-        .args([
-            "--sigma",
-            "0.01",
-            "--fmin",
-            "0.5",
-            "--fmax",
-            "3",
-            "--temporal",
-            "none",
-            "--out",
-        ])
-        .arg(&out)
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    // The port the system chose, from "listening on udp://127.0.0.1:PORT".
-    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    stderr.read_line(&mut line).unwrap();
-    let address = line.trim().strip_prefix("listening on ").unwrap().to_owned();
-    assert!(address.starts_with("udp://127.0.0.1:"), "{line}");
-    let (ok, _, err) = run(&["stream", session.to_str().unwrap(), "--to", &address, "--rate", "0"]);
-    assert!(ok, "{err}");
-    assert!(child.wait().unwrap().success());
-    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&out)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
-    assert_eq!(lines.len(), 2);
-    assert_eq!(lines[0]["verdict"], "contact");
-    assert_eq!(lines[1]["verdict"], "no_contact");
-}
-
-/// `bench --session`: each estimator's per-frame times also split by the
-/// truth (frames without contact, frames with one), beside the errors.
-#[test]
-fn bench_on_a_session_splits_its_times_by_the_truth() {
-    let session = temp("thesis-bench.session.json", SESSION);
-    let (ok, stdout, stderr) = run(&[
-        "bench",
-        "--sessions-only",
-        "--seeds",
-        "0",
-        "--session",
-        session.to_str().unwrap(),
-    ]);
-    assert!(ok, "{stderr}");
-    assert!(
-        stdout.contains("| without contact p50 / p99 [µs] | with a contact p50 / p99 [µs] |"),
-        "{stdout}"
-    );
-    let refined = stdout
-        .lines()
-        .find(|l| l.starts_with("| refined (patches) |"))
-        .unwrap_or_else(|| panic!("{stdout}"));
-    // One frame of each kind: each split is its one time, p50 = p99.
-    let cells: Vec<&str> = refined.split('|').map(str::trim).collect();
-    for cell in [cells[6], cells[7]] {
-        let parts: Vec<u64> = cell.split(" / ").map(|v| v.parse().unwrap()).collect();
-        assert!(parts.len() == 2 && parts[0] > 0 && parts[0] == parts[1], "{refined}");
-    }
-}
-
-/// `bench --repeat K` times each frame by the fastest of K runs in a row
-/// and says so; the estimates are counted once, so every column but the
-/// times is what one run gives.
-#[test]
-fn bench_repeats_count_the_estimates_once() {
-    let session = temp("thesis-bench-repeat.session.json", SESSION);
-    let table = |repeat: &str| {
-        let (ok, stdout, stderr) = run(&[
-            "bench",
-            "--sessions-only",
-            "--seeds",
-            "0",
-            "--repeat",
-            repeat,
-            "--session",
-            session.to_str().unwrap(),
-        ]);
-        assert!(ok, "{stderr}");
-        stdout
-    };
-    let (once, thrice) = (table("1"), table("3"));
-    assert!(!once.contains("fastest of"), "{once}");
-    // Below the estimates, where the time of a frame alone goes: a row
-    // per estimator of frames alone (not over time), each part timed.
-    let split = |text: &str| -> (String, String) {
-        let (estimates, stages) = text
-            .split_once("Where the time of a frame alone goes")
-            .unwrap_or((text, ""));
-        (estimates.to_owned(), stages.to_owned())
-    };
-    let ((once, once_stages), (thrice, thrice_stages)) = (split(&once), split(&thrice));
-    for stages in [&once_stages, &thrice_stages] {
-        let rows: Vec<&str> = stages
-            .lines()
-            .filter(|l| l.starts_with("| ") && !l.starts_with("| estimator"))
-            .collect();
-        let labels: Vec<&str> = rows.iter().filter_map(|l| l.split('|').nth(1)).map(str::trim).collect();
-        assert_eq!(
-            labels,
-            ["refined (patches)", "grid of points", "grid of points"],
-            "{stages}"
-        );
-        for row in rows {
-            // Three parts, each "p50 / p99" in µs, p50 ≤ p99.
-            let parts: Vec<Vec<f64>> = row
-                .split('|')
-                .skip(3)
-                .take(3)
-                .map(|cell| cell.split('/').map(|x| x.trim().parse::<f64>().unwrap()).collect())
-                .collect();
-            assert_eq!(parts.len(), 3, "{row}");
-            assert!(
-                parts.iter().all(|p| p.len() == 2 && p[0] >= 0.0 && p[0] <= p[1]),
-                "{row}"
-            );
-        }
-    }
-    assert!(
-        thrice_stages.contains("each part timed by its fastest run"),
-        "{thrice_stages}"
-    );
-    assert!(
-        thrice.contains("surface seeds [0], each frame timed by the fastest of 3 runs in a row."),
-        "{thrice}"
-    );
-    // Columns 8 on: median error per seed (one each), spread, poorly
-    // explained, detection, false alarms, credible sets.
-    let estimates = |text: &str| -> Vec<String> {
-        text.lines()
-            .filter(|l| l.starts_with("| refined (patches) |") || l.starts_with("| grid of points |"))
-            .map(|l| l.split('|').skip(8).collect::<Vec<_>>().join("|"))
-            .collect()
-    };
-    let counted = estimates(&thrice);
-    assert_eq!(counted.len(), 3, "{thrice}");
-    assert_eq!(counted, estimates(&once));
-    for row in &counted {
-        let per_seed = row.split('|').next().unwrap_or_default();
-        assert_eq!(per_seed.split(',').count(), 1, "{row}");
-    }
-}
-
-/// `bench --session-points` adds a refined row per surface resolution,
-/// in both tables, without changing the others; each row estimates as
-/// `estimate --n` does (its median error is that of `estimate`'s frames).
-#[test]
-fn bench_session_points_add_a_refined_row_per_resolution() {
-    let session = temp("thesis-bench-points.session.json", SESSION);
-    let bench = |extra: &[&str]| {
-        let mut args = vec![
-            "bench",
-            "--sessions-only",
-            "--seeds",
-            "0",
-            "--session",
-            session.to_str().unwrap(),
-        ];
-        args.extend_from_slice(extra);
-        let (ok, stdout, stderr) = run(&args);
-        assert!(ok, "{stderr}");
-        stdout
-    };
-    let (plain, coarser) = (bench(&[]), bench(&["--session-points", "300,1000"]));
-    // (estimator, points, the columns from the median error on) per row.
-    let rows = |text: &str| -> Vec<(String, String, String)> {
-        let estimates = text.split("Where the time").next().unwrap_or_default();
-        estimates
-            .lines()
-            .filter(|l| l.starts_with("| refined (patches) |") || l.starts_with("| grid of points |"))
-            .map(|l| {
-                let cells: Vec<&str> = l.split('|').map(str::trim).collect();
-                (cells[1].to_owned(), cells[2].to_owned(), cells[8..].join("|"))
-            })
-            .collect()
-    };
-    let (plain_rows, coarser_rows) = (rows(&plain), rows(&coarser));
-    assert_eq!(plain_rows.len(), 3, "{plain}");
-    assert_eq!(coarser_rows[..3], plain_rows[..], "{coarser}");
-    let added: Vec<(&str, &str)> = coarser_rows[3..]
-        .iter()
-        .map(|(label, points, _)| (label.as_str(), points.as_str()))
-        .collect();
-    assert_eq!(added, [("refined (patches)", "300"), ("refined (patches)", "1000")]);
-    let stage_rows: Vec<&str> = coarser
-        .split("Where the time")
-        .nth(1)
-        .unwrap_or_default()
-        .lines()
-        .filter(|l| l.starts_with("| refined (patches) |"))
-        .collect();
-    assert_eq!(stage_rows.len(), 3, "{coarser}");
-    // The one contact frame's error as `estimate --points 1000` reports it.
-    let out = session.with_extension("points.jsonl");
-    let (ok, _, stderr) = run(&[
-        "estimate",
-        session.to_str().unwrap(),
-        "--points",
-        "1000",
-        "--seed",
-        "0",
-        "--temporal",
-        "none",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(ok, "{stderr}");
-    let first: serde_json::Value =
-        serde_json::from_str(std::fs::read_to_string(&out).unwrap().lines().next().unwrap()).unwrap();
-    let error_mm = first["truth"]["position_error_m"].as_f64().unwrap() * 1e3;
-    let bench_mm: f64 = coarser_rows[4].2.split('|').next().unwrap().trim().parse().unwrap();
-    assert_eq!(format!("{error_mm:.1}"), format!("{bench_mm:.1}"), "{coarser}");
-}
-
-/// Frames estimated alone tell where each update's time went: the
-/// posterior, the refinement and the summary, within the update's time.
-#[test]
-fn frames_alone_report_the_parts_of_their_update_time() {
-    let session = temp("thesis-parts.session.json", SESSION);
-    let out = session.with_extension("jsonl");
-    let (ok, _, stderr) = run(&[
-        "estimate",
-        session.to_str().unwrap(),
-        "--temporal",
-        "none",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(ok, "{stderr}");
-    let text = std::fs::read_to_string(&out).unwrap();
-    for line in text.lines() {
-        let v: serde_json::Value = serde_json::from_str(line).unwrap();
-        let parts: Vec<f64> = ["posterior", "refinement", "summary"]
-            .iter()
-            .map(|k| v["update_parts_ms"][k].as_f64().unwrap())
-            .collect();
-        assert!(parts.iter().all(|p| *p >= 0.0), "{v}");
-        let sum: f64 = parts.iter().sum();
-        assert!(sum > 0.0 && sum <= v["update_ms"].as_f64().unwrap(), "{v}");
-        // Only a refined contact spends time refining.
-        assert_eq!(parts[1] > 0.0, v["refined"] == true, "{v}");
-    }
-}
-
-/// The README's bench table and plot are committed: a quick run refuses
-/// to replace them, and leaves both files as they were.
-#[test]
-fn a_quick_bench_never_writes_the_readme_or_its_plot() {
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("bench-quick");
-    std::fs::create_dir_all(&dir).unwrap();
-    let readme = dir.join("README.md");
-    let text = "# x\n<!-- bench:begin -->\nold\n<!-- bench:end -->\n";
-    std::fs::write(&readme, text).unwrap();
-    let (ok, _, err) = run(&["bench", "--quick", "--readme", readme.to_str().unwrap()]);
-    assert!(!ok && err.contains("--quick"), "{err}");
-    assert_eq!(std::fs::read_to_string(&readme).unwrap(), text);
-}
-
 /// A bad input is reported by its message, also where the user keeps
 /// `RUST_BACKTRACE` set: no stack trace of the program under it.
 #[test]
@@ -1153,7 +734,7 @@ fn a_csv_session_without_a_robot_is_refused_with_the_reason() {
     )
     .unwrap();
     let out = dir.join("s.png");
-    let (ok, _, err) = run(&["screenshot", csv.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let (ok, _, err) = run_out(&["screenshot", csv.to_str().unwrap(), "--out", out.to_str().unwrap()]);
     assert!(
         !ok && err.contains("names no robot") && err.contains("--robot"),
         "{err}"

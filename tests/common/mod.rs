@@ -38,6 +38,29 @@ pub fn run(args: &[&str]) -> Ran {
     run_with_env(args, &[])
 }
 
+/// [`run`] as a tuple: success, stdout, stderr.
+pub fn run_out(args: &[&str]) -> (bool, String, String) {
+    let ran = run(args);
+    (ran.ok, ran.out, ran.err)
+}
+
+/// `text` written to `name` in this run's folder of small inputs.
+pub fn temp_file(name: &str, text: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("proprioscope-estimate-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// Thesis Table 3.4 row 3 (N·m) on the built-in LWR, then a frame without contact.
+pub const THESIS_SESSION: &str = r#"{"format": "contact-session", "version": 1, "robot": "lwr4plus",
+  "frames": [
+    {"t": 0.0, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.09516, -0.53783, 0.09516, 0.01017, 0, 0, 0],
+     "truth": {"link": "lwr_4_link", "point": [0.046, 0.098, 0.692], "force": [-1.37, -0.85, 0.33]}},
+    {"t": 0.1, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.001, -0.002, 0, 0.001, 0, 0, 0], "truth": null}
+  ]}"#;
+
 /// A fresh folder under the system's temporary folder.
 pub fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("proprioscope-{}-{name}", std::process::id()));

@@ -1,0 +1,651 @@
+//! The desktop app driven headless (`egui_kittest`, wgpu on Mesa's software
+//! Vulkan): sessions, recordings and live
+//! streams on the timeline.
+
+// Test helpers may unwrap: a panic is a failed test with its message.
+#![allow(clippy::unwrap_used)]
+
+#[path = "common/app.rs"]
+mod app_common;
+
+use std::path::Path;
+
+use app_common::{app_harness, settle};
+use eframe::egui;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable as _;
+use proprioscope::app::{ProprioscopeApp, open_target};
+
+/// A recorded session (the hidden `record-demo` command: the built-in LWR
+/// waving, pushed on link 5), `seconds` long at 20 frames a second.
+fn demo_session(name: &str, seconds: f64) -> std::path::PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .args([
+            "record-demo",
+            "--rate",
+            "20",
+            "--seconds",
+            &seconds.to_string(),
+            "--out",
+        ])
+        .arg(&path)
+        .stdout(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    path
+}
+
+fn session_harness(path: &Path) -> Harness<'static, ProprioscopeApp> {
+    let mut harness =
+        proprioscope::app::headless_harness(open_target(Some(path.to_str().unwrap())).unwrap(), [1400.0, 900.0]);
+    settle(&mut harness);
+    assert!(harness.state().model.replay.is_some(), "{:?}", harness.state().error);
+    harness
+}
+
+#[test]
+fn pressing_play_advances_the_frame() {
+    let path = demo_session("play.session.json", 1.0);
+    let mut harness = session_harness(&path);
+    assert_eq!(harness.state().model.replay.as_ref().unwrap().frame, 0);
+    harness.get_by_label("Play").click();
+    // A few frames of the harness (each up to 0.1 s of playback).
+    harness.run_steps(3);
+    let replay = harness.state().model.replay.clone().unwrap();
+    assert!(replay.playing);
+    assert!(replay.frame > 0, "still at frame 0");
+    // The arm follows the frame.
+    assert_eq!(harness.state().model.q, replay.session.frames[replay.frame].q);
+    // Space pauses, the right arrow steps one frame.
+    harness.key_press(egui::Key::Space);
+    harness.run_steps(2);
+    let paused = harness.state().model.replay.clone().unwrap();
+    assert!(!paused.playing);
+    harness.key_press(egui::Key::ArrowRight);
+    harness.run_steps(2);
+    assert_eq!(harness.state().model.replay.as_ref().unwrap().frame, paused.frame + 1);
+}
+
+#[test]
+fn dragging_the_timeline_changes_q() {
+    let path = demo_session("drag.session.json", 1.0);
+    let mut harness = session_harness(&path);
+    let q0 = harness.state().model.q.clone();
+    let rect = harness
+        .get_by_role_and_label(egui::accesskit::Role::Slider, "frame")
+        .rect();
+    let from = egui::pos2(rect.left() + 2.0, rect.center().y);
+    let to = egui::pos2(rect.left() + 0.6 * rect.width(), rect.center().y);
+    harness.hover_at(from);
+    harness.drag_at(from);
+    harness.run_steps(1);
+    harness.hover_at(to);
+    harness.run_steps(1);
+    harness.drop_at(to);
+    harness.run_steps(2);
+    let app = harness.state();
+    let replay = app.model.replay.as_ref().unwrap();
+    assert!(replay.frame > 5, "frame {}", replay.frame);
+    assert_eq!(app.model.q, replay.session.frames[replay.frame].q);
+    assert_ne!(app.model.q, q0);
+    // The torques the estimator is given are the frame's.
+    let pose = proprioscope::core::robot::kinematics::RobotPose::new(&app.model.robot, &app.model.joint_positions());
+    assert_eq!(
+        app.model.measured_torques(&pose),
+        replay.session.frames[replay.frame].tau
+    );
+}
+
+#[test]
+fn a_session_with_three_bad_frames_lists_them_and_plays_the_rest() {
+    let path = demo_session("bad.session.json", 0.5);
+    // Frame lines follow the header line: break frames 2, 4 and 7.
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    // Frame 2: its first torque becomes null (a missing value).
+    let at = lines[3].find("\"tau\":[").unwrap() + "\"tau\":[".len();
+    let comma = at + lines[3][at..].find(',').unwrap();
+    lines[3] = format!("{}null{}", &lines[3][..at], &lines[3][comma..]);
+    // Frame 4: one torque too many; frame 7: time goes backwards.
+    lines[5] = lines[5].replacen("\"tau\":[", "\"tau\":[0.5,", 1);
+    lines[8] = lines[8].replacen("\"t\":", "\"t\":-1.0,\"was\":", 1);
+    let bad = path.with_file_name("three-bad.session.json");
+    std::fs::write(&bad, lines.join("\n")).unwrap();
+    let mut harness = session_harness(&bad);
+    let replay = harness.state().model.replay.clone().unwrap();
+    let problems: Vec<(usize, String)> = replay
+        .session
+        .problems
+        .iter()
+        .map(|p| (p.frame, p.field.clone()))
+        .collect();
+    assert_eq!(
+        problems,
+        [(2, "tau[0]".to_owned()), (4, "tau".to_owned()), (7, "t".to_owned())]
+    );
+    assert_eq!(replay.session.frames.len(), 8);
+    // Listed in the session panel, by frame and field.
+    for p in &replay.session.problems {
+        harness.get_by_label_contains(&format!("frame {} (t = ", p.frame));
+    }
+    harness.get_by_label("Play").click();
+    harness.run_steps(30);
+    assert!(harness.state().model.replay.as_ref().unwrap().frame > 0);
+}
+
+#[test]
+fn the_app_records_a_session_that_reads_back_bit_for_bit() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("recorded-in-app.session.json");
+    let mut harness = app_harness();
+    settle(&mut harness);
+    harness.state_mut().start_recording(&path);
+    let script = [0.1, 0.2, 0.3, -0.4, 0.5];
+    for &q0 in &script {
+        harness.state_mut().apply(proprioscope::app::Command::SetJoint(0, q0));
+        harness.run_steps(2);
+    }
+    let written = harness.state_mut().stop_recording().unwrap();
+    assert!(written >= script.len(), "{written}");
+    let session = proprioscope::io::session::Session::read(&path).unwrap();
+    assert_eq!(session.frames.len(), written);
+    // Every scripted pose is there, in order, with the torques the app
+    // measured for it, bit for bit.
+    let mut at = 0;
+    for &q0 in &script {
+        at += session.frames[at..]
+            .iter()
+            .position(|f| f.q[0].to_bits() == q0.to_bits())
+            .unwrap();
+        let frame = &session.frames[at];
+        let mut model = harness.state().model.clone();
+        model.apply(proprioscope::app::Command::SetJoint(0, q0));
+        let pose = proprioscope::core::robot::kinematics::RobotPose::new(&model.robot, &model.joint_positions());
+        assert_eq!(frame.tau, model.measured_torques(&pose));
+        assert!(matches!(frame.truth, proprioscope::io::session::Truth::Contact { .. }));
+    }
+}
+
+#[test]
+fn the_timeline_estimates_equal_the_estimate_command() {
+    let path = demo_session("same.session.json", 0.5);
+    let out = path.with_file_name("same.jsonl");
+    // The defaults the app and the command line share (one configuration).
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .arg("estimate")
+        .arg(&path)
+        .args(["--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let cli: Vec<serde_json::Value> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let harness = session_harness(&path);
+    let app = harness.state();
+    assert_eq!(app.session.estimates.len(), cli.len());
+    for (i, (e, c)) in app.session.estimates.iter().zip(&cli).enumerate() {
+        let e = e.unwrap();
+        assert_eq!(c["link"], app.model.robot.links[e.link].name.as_str(), "frame {i}");
+        for (field, ours) in [("point", e.point_world), ("force", e.force_world)] {
+            let theirs = c[field].as_array().unwrap();
+            for (k, (x, y)) in ours.to_array().iter().zip(theirs).enumerate() {
+                assert!((x - y.as_f64().unwrap()).abs() < 1e-12, "frame {i} {field}[{k}]");
+            }
+        }
+    }
+}
+
+/// A replayed session (the demo recording: deterministic frames) against
+/// its snapshot: timeline, plots and session panel.
+#[test]
+fn session_replay_matches_its_snapshot() {
+    let options = egui_kittest::SnapshotOptions::new()
+        .threshold(2.0)
+        .max_failed_pixels(4000);
+    let path = demo_session("snapshot.session.json", 1.0);
+    let mut harness = session_harness(&path);
+    harness.state_mut().apply(proprioscope::app::Command::SetFrame(10));
+    settle(&mut harness);
+    harness.snapshot_options("session", &options);
+}
+
+/// A recording opens smoothed (as `estimate --temporal auto`), every
+/// frame with its contact probability; choosing "each frame alone" in the
+/// timeline re-estimates the frames alone, without one.
+#[test]
+fn a_recording_is_smoothed_and_can_be_estimated_frame_by_frame() {
+    use proprioscope::core::over_time::sequence::Temporal;
+    let path = demo_session("over-time.session.json", 0.5);
+    let mut harness = session_harness(&path);
+    {
+        let app = harness.state();
+        assert_eq!(app.model.replay.as_ref().unwrap().over_time, Temporal::Smooth);
+        assert!(
+            app.session
+                .estimates
+                .iter()
+                .all(|e| e.is_some_and(|e| e.contact_probability.is_some_and(|p| (0.0..=1.0).contains(&p)))),
+            "{:?}",
+            app.session.estimates
+        );
+    }
+    harness.get_by_label("over time").click();
+    harness.run();
+    harness.get_by_label("each frame alone").click();
+    settle(&mut harness);
+    let app = harness.state();
+    assert_eq!(app.model.replay.as_ref().unwrap().over_time, Temporal::None);
+    assert!(
+        app.session
+            .estimates
+            .iter()
+            .all(|e| e.is_some_and(|e| e.contact_probability.is_none())),
+        "{:?}",
+        app.session.estimates
+    );
+}
+
+/// Filtered or smoothed, the timeline offers the slide length (as
+/// `estimate --slide`); setting it estimates the session again with it
+/// (the smoothed places move), out of range it is refused with its range
+/// named (the slide stays), and frames estimated alone offer none.
+#[test]
+fn the_slide_length_is_set_in_the_timeline() {
+    use proprioscope::app::Command;
+    use proprioscope::core::over_time::sequence::Temporal;
+    let path = demo_session("slide.session.json", 1.0);
+    let mut harness = session_harness(&path);
+    assert!(harness.query_all_by_label("slide").next().is_some());
+    let places = |harness: &Harness<'_, ProprioscopeApp>| -> Vec<glam::DVec3> {
+        harness
+            .state()
+            .session
+            .estimates
+            .iter()
+            .map(|e| e.unwrap().point_world)
+            .collect()
+    };
+    let before = places(&harness);
+    harness.state_mut().apply(Command::SetSlide(0.05));
+    settle(&mut harness);
+    let slide = harness.state().model.config.temporal.slide_m_per_sqrt_s;
+    assert!((slide - 0.05).abs() < 1e-15);
+    let after = places(&harness);
+    assert!(
+        before.iter().zip(&after).any(|(b, a)| b.distance(*a) > 1e-6),
+        "{before:?}\n{after:?}"
+    );
+    harness.state_mut().apply(Command::SetSlide(5.0));
+    let refused = harness.state().model.refused.clone().unwrap_or_default();
+    assert!(
+        refused.contains("slide") && refused.contains("[0.001, 0.1] m/√s"),
+        "{refused}"
+    );
+    harness.state_mut().apply(Command::SetSlide(f64::NAN));
+    let slide = harness.state().model.config.temporal.slide_m_per_sqrt_s;
+    assert!((slide - 0.05).abs() < 1e-15, "{slide}");
+    harness.state_mut().apply(Command::SetOverTime(Temporal::None));
+    settle(&mut harness);
+    assert!(harness.query_all_by_label("slide").next().is_none());
+}
+
+#[test]
+fn session_metrics_export_as_json() {
+    let path = demo_session("metrics.session.json", 0.5);
+    let mut harness = session_harness(&path);
+    let out = path.with_file_name("metrics.json");
+    harness.state_mut().export_metrics(&out);
+    assert_eq!(harness.state().error, None);
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(json["all"]["frames"], 11);
+    assert_eq!(json["by_sensing_joints"][0]["sensing_joints"], 5);
+    let median = json["all"]["position_error_median_m"].as_f64().unwrap();
+    assert!(median.is_finite() && median >= 0.0, "{json}");
+    // How often the 90 % set held the push: every contact frame tells.
+    let held = json["all"]["credible90_held"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&held), "{json}");
+}
+
+#[test]
+fn changing_sigma_re_estimates_the_session_in_the_background() {
+    let path = demo_session("resigma.session.json", 0.5);
+    let mut harness = session_harness(&path);
+    // From σ 0.1 N·m (twice the recording's noise: every frame a contact).
+    harness.state_mut().apply(proprioscope::app::Command::SetSigma(0.1));
+    settle(&mut harness);
+    let map_probabilities =
+        |app: &ProprioscopeApp| -> Vec<f64> { app.session.estimates.iter().map(|e| e.unwrap().probability).collect() };
+    let before = map_probabilities(harness.state());
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Slider, "σ [N·m]")
+        .set_value_accesskit(0.5);
+    harness.run_steps(2);
+    settle(&mut harness);
+    let after = map_probabilities(harness.state());
+    assert_eq!(after.len(), before.len());
+    // A broader likelihood spreads every frame's posterior.
+    for (i, (b, a)) in before.iter().zip(&after).enumerate() {
+        assert!(a < b, "frame {i}: MAP probability {b} -> {a}");
+    }
+}
+
+#[test]
+fn sessions_with_no_good_frame_or_the_wrong_robot_do_not_break_the_app() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
+    std::fs::create_dir_all(&dir).unwrap();
+    // Every frame bad: it opens, lists them, and the timeline is empty.
+    let all_bad = dir.join("all-bad.session.json");
+    std::fs::write(
+        &all_bad,
+        r#"{"format": "contact-session", "version": 1, "robot": "lwr4plus", "frames": [
+            {"t": 0.0, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0, 0, 0, 0, 0, 0, null]},
+            {"t": 0.1, "q": [0, 0, 0], "tau": [0, 0, 0, 0, 0, 0, 0]}]}"#,
+    )
+    .unwrap();
+    let mut harness = session_harness(&all_bad);
+    let replay = harness.state().model.replay.clone().unwrap();
+    assert!(replay.session.frames.is_empty());
+    assert_eq!(replay.session.problems.len(), 2);
+    harness.key_press(egui::Key::Space);
+    harness.key_press(egui::Key::ArrowRight);
+    harness.run_steps(3);
+    // Three joints of a seven-joint robot: refused, the session stays.
+    let wrong = dir.join("three-joints.csv");
+    std::fs::write(&wrong, "t,q1,q2,q3,tau1,tau2,tau3\n0.0,0,0,0,0.1,0.2,0.3\n").unwrap();
+    harness.state_mut().open_session(&wrong, Some("lwr4plus".to_owned()));
+    settle(&mut harness);
+    let error = harness.state().error.clone().unwrap();
+    assert!(
+        error.contains("three-joints.csv") && error.contains("3 joint values"),
+        "{error}"
+    );
+    assert!(
+        harness
+            .state()
+            .model
+            .replay
+            .as_ref()
+            .unwrap()
+            .session
+            .path
+            .ends_with("all-bad.session.json")
+    );
+}
+
+#[test]
+fn stepping_back_to_a_visited_frame_shows_its_estimate_at_once() {
+    let path = demo_session("visited.session.json", 0.5);
+    let mut harness = session_harness(&path);
+    let first = harness.state().outcome.clone().unwrap();
+    harness.key_press(egui::Key::ArrowRight);
+    harness.run_steps(2);
+    settle(&mut harness);
+    assert_eq!(harness.state().visited_hits, 0);
+    harness.key_press(egui::Key::ArrowLeft);
+    harness.run_steps(1);
+    let app = harness.state();
+    assert_eq!(app.visited_hits, 1);
+    assert!(app.is_up_to_date());
+    let shown = app.outcome.as_ref().unwrap().update.as_ref().unwrap();
+    assert_eq!(shown.posterior, first.update.as_ref().unwrap().posterior);
+    // A new σ is a new estimate, not a kept one.
+    harness
+        .get_by_role_and_label(egui::accesskit::Role::Slider, "σ [N·m]")
+        .set_value_accesskit(0.3);
+    harness.run_steps(2);
+    settle(&mut harness);
+    assert_eq!(harness.state().visited_hits, 1);
+}
+
+/// A frame whose estimate fails (torques beyond what can be computed at
+/// the σ chosen: 1e5 N·m at 1e-4 N·m) is counted and listed: the timeline
+/// settles instead of waiting for it forever, and the other frames are
+/// estimated.
+#[test]
+fn a_session_frame_that_cannot_be_estimated_is_counted_and_the_timeline_settles() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("one-absurd-frame.session.json");
+    std::fs::write(
+        &path,
+        r#"{"format": "contact-session", "version": 1, "robot": "lwr4plus", "frames": [
+            {"t": 0.0, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.1, 0, 0, 0, 0, 0, 0]},
+            {"t": 0.1, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [1e5, 0, 0, 0, 0, 0, 0]},
+            {"t": 0.2, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0, 0.2, 0, 0, 0, 0, 0]}]}"#,
+    )
+    .unwrap();
+    let mut harness = session_harness(&path);
+    harness.state_mut().apply(proprioscope::app::Command::SetSigma(1e-4));
+    settle(&mut harness);
+    let app = harness.state();
+    assert_eq!(app.session_estimated(), 2);
+    let failures = app.session_failures();
+    assert_eq!(failures.keys().copied().collect::<Vec<_>>(), vec![1]);
+    assert!(failures[&1].contains("beyond what can be computed"), "{failures:?}");
+}
+
+/// A recording with two arms' joint states leaves the choice to the user:
+/// the app asks, opens the recording with the topics chosen, and asks no
+/// more when the same file is opened again.
+#[test]
+fn an_ambiguous_recording_asks_for_its_topics_once() {
+    use proprioscope::io::mcap_out::EstimateWriter;
+    use proprioscope::io::recording::TopicChoice;
+    let json = demo_session("two-arms.session.json", 0.5);
+    let session = proprioscope::io::session::Session::read(&json).unwrap();
+    let joints = session.joints.clone().unwrap();
+    let path = json.with_file_name("two-arms.mcap");
+    let mut out = EstimateWriter::create(&path, "lwr_base_link").unwrap();
+    let other: Vec<_> = session
+        .frames
+        .iter()
+        .map(|f| proprioscope::io::session::Frame {
+            tau: vec![0.0; f.tau.len()],
+            ..f.clone()
+        })
+        .collect();
+    out.write_joint_states("/left/joint_states", &joints, &other, 0)
+        .unwrap();
+    out.write_joint_states("/right/joint_states", &joints, &session.frames, 0)
+        .unwrap();
+    out.finish().unwrap();
+
+    // A recording names no robot: it opens on the robot the user chose.
+    let mut harness = proprioscope::app::headless_harness(open_target(Some("lwr4plus")).unwrap(), [1200.0, 800.0]);
+    harness.state_mut().open(path.to_str().unwrap());
+    for _ in 0..500 {
+        harness.step();
+        if harness.state().topics.prompt.is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    let prompt = harness
+        .state()
+        .topics
+        .prompt
+        .clone()
+        .expect("the app asks for the topics");
+    assert!(prompt.message.contains("several"), "{}", prompt.message);
+    assert_eq!(prompt.position_topics, ["/left/joint_states", "/right/joint_states"]);
+    assert!(harness.state().model.replay.is_none());
+    harness.state_mut().topics.prompt.as_mut().unwrap().choice = TopicChoice {
+        q_topic: Some("/right/joint_states".into()),
+        tau_topic: Some("/right/joint_states".into()),
+        tau_field: Some("effort".into()),
+    };
+    harness.run();
+    harness.get_by_label("Open").click();
+    settle(&mut harness);
+    {
+        let app = harness.state();
+        assert!(app.topics.prompt.is_none());
+        let replay = app.model.replay.as_ref().expect("the recording opened");
+        assert_eq!(replay.session.frames.len(), session.frames.len());
+        // The right arm's torques, not the left's zeros.
+        assert_eq!(replay.session.frames[3].tau, session.frames[3].tau);
+    }
+    harness.state_mut().close_session();
+    harness.state_mut().open(path.to_str().unwrap());
+    settle(&mut harness);
+    assert!(harness.state().topics.prompt.is_none());
+    assert!(harness.state().model.replay.is_some(), "{:?}", harness.state().error);
+}
+
+/// A live session: frames sent over TCP fill the timeline and the view
+/// follows the newest; after the user steps back it stays there while
+/// frames keep coming, until *Follow newest*.
+#[test]
+fn a_live_session_fills_the_timeline_and_follows_the_newest_frame() {
+    use proprioscope::app::Command;
+    use std::io::Write as _;
+    let json = demo_session("live.session.json", 1.0);
+    let session = proprioscope::io::session::Session::read(&json).unwrap();
+    let mut harness = app_harness();
+    harness.state_mut().start_live("127.0.0.1:0");
+    let address = harness.state().live_address().unwrap().to_owned();
+    let mut sender = std::net::TcpStream::connect(&address).unwrap();
+    let header = serde_json::json!({"format": "contact-session", "version": 1, "joints": session.joints});
+    let send = |sender: &mut std::net::TcpStream, frames: &[proprioscope::io::session::Frame]| {
+        for f in frames {
+            writeln!(sender, "{}", f.to_json()).unwrap();
+        }
+        sender.flush().unwrap();
+    };
+    writeln!(sender, "{header}").unwrap();
+    send(&mut sender, &session.frames[..5]);
+    let wait_for = |harness: &mut Harness<'_, ProprioscopeApp>, frames: usize| {
+        for _ in 0..1000 {
+            harness.step();
+            if harness
+                .state()
+                .model
+                .replay
+                .as_ref()
+                .is_some_and(|r| r.session.frames.len() == frames)
+            {
+                return;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        panic!("{frames} frames did not arrive");
+    };
+    wait_for(&mut harness, 5);
+    assert_eq!(harness.state().model.replay.as_ref().unwrap().frame, 4);
+    assert_eq!(harness.state().model.q, session.frames[4].q);
+    send(&mut sender, &session.frames[5..8]);
+    wait_for(&mut harness, 8);
+    assert_eq!(harness.state().model.replay.as_ref().unwrap().frame, 7);
+    // Back to frame 2: it stays while frames arrive.
+    harness.state_mut().apply(Command::SetFrame(2));
+    send(&mut sender, &session.frames[8..12]);
+    wait_for(&mut harness, 12);
+    assert_eq!(harness.state().model.replay.as_ref().unwrap().frame, 2);
+    harness.get_by_label("Follow newest").click();
+    harness.run_steps(2);
+    assert_eq!(harness.state().model.replay.as_ref().unwrap().frame, 11);
+    // Stopped, the frames stay as a session and are estimated as a whole.
+    harness.get_by_label("Stop live").click();
+    settle(&mut harness);
+    let app = harness.state();
+    assert!(app.live_address().is_none());
+    assert_eq!(app.model.replay.as_ref().unwrap().session.frames.len(), 12);
+}
+
+/// The same estimate frame by frame (place, force, contact probability,
+/// verdict, credible radius), the times aside: bit for bit, hence exact
+/// comparisons.
+#[allow(clippy::float_cmp)]
+fn assert_same_estimates(a: &[proprioscope::batch::FrameEstimate], b: &[proprioscope::batch::FrameEstimate]) {
+    assert_eq!(a.len(), b.len());
+    for (i, (a, b)) in a.iter().zip(b).enumerate() {
+        assert_eq!(a.point_world, b.point_world, "frame {i}");
+        assert_eq!(a.force_world, b.force_world, "frame {i}");
+        assert_eq!(a.contact_probability, b.contact_probability, "frame {i}");
+        assert_eq!(a.verdict, b.verdict, "frame {i}");
+        assert_eq!(a.credible90_radius_m, b.credible90_radius_m, "frame {i}");
+    }
+}
+
+/// Live, every frame is filtered as it arrives, with the frames before it
+/// (as `estimate --live`): the timeline shows where the frames so far
+/// place the contact, and each frame's estimate is
+/// the one the whole session gets, filtered, once the stream stops.
+#[test]
+fn a_live_session_is_filtered_as_its_frames_arrive() {
+    use std::io::Write as _;
+    let json = demo_session("live-filtered.session.json", 2.0);
+    let session = proprioscope::io::session::Session::read(&json).unwrap();
+    let frames = session.frames.len();
+    let mut harness = app_harness();
+    harness.state_mut().start_live("127.0.0.1:0");
+    let address = harness.state().live_address().unwrap().to_owned();
+    let mut sender = std::net::TcpStream::connect(&address).unwrap();
+    let header = serde_json::json!({"format": "contact-session", "version": 1, "joints": session.joints});
+    writeln!(sender, "{header}").unwrap();
+    for (i, f) in session.frames.iter().enumerate() {
+        writeln!(sender, "{}", f.to_json()).unwrap();
+        if i % 10 == 9 {
+            // In pieces, so that frames arrive while others are filtered.
+            sender.flush().unwrap();
+            for _ in 0..3 {
+                harness.step();
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+        }
+    }
+    sender.flush().unwrap();
+    let wait_filtered = |harness: &mut Harness<'_, ProprioscopeApp>| {
+        for _ in 0..6000 {
+            harness.step();
+            let app = harness.state();
+            if app
+                .model
+                .replay
+                .as_ref()
+                .is_some_and(|r| r.session.frames.len() == frames)
+                && app.session.estimates.len() == frames
+                && app.session.estimates.iter().all(Option::is_some)
+            {
+                return app.session.estimates.iter().flatten().copied().collect::<Vec<_>>();
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        panic!("the live frames were not all filtered: {:?}", harness.state().error);
+    };
+    let filtered = wait_filtered(&mut harness);
+    assert_eq!(
+        harness.state().model.replay.as_ref().unwrap().over_time,
+        proprioscope::core::over_time::sequence::Temporal::Filter
+    );
+    harness.run_steps(2);
+    // The row above the timeline reads the filtered contact of the frame shown.
+    assert!(harness.query_by_label_contains("over time: ").is_some());
+    let contacts = filtered.iter().filter(|e| e.contact_probability > Some(0.5)).count();
+    assert!(contacts >= frames / 2, "{contacts} of {frames} frames with a contact");
+    // Each frame alone: nothing filtered stays; filtered again: the same.
+    harness.get_by_label("over time").click();
+    harness.run_steps(2);
+    harness.get_by_label("each frame alone").click();
+    harness.run_steps(3);
+    assert!(harness.state().session.estimates.is_empty());
+    assert!(harness.query_by_label_contains("over time: ").is_none());
+    harness.get_by_label("over time").click();
+    harness.run_steps(2);
+    harness.get_by_label("filtered (frames before)").click();
+    assert_same_estimates(&wait_filtered(&mut harness), &filtered);
+    harness.get_by_label("Stop live").click();
+    settle(&mut harness);
+    let whole: Vec<_> = harness.state().session.estimates.iter().flatten().copied().collect();
+    assert_eq!(whole.len(), frames);
+    assert_same_estimates(&filtered, &whole);
+}

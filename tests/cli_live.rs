@@ -1,0 +1,179 @@
+//! The `proprioscope` binary live: `estimate --live` on frames over TCP and UDP, from `stream`.
+
+// Test helpers may unwrap: a panic is a failed test with its message.
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use common::{THESIS_SESSION, run_out, temp_file};
+
+/// A free local TCP address (bound and let go: another program could take
+/// it in between, which a test run does not).
+fn free_address() -> String {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    listener.local_addr().unwrap().to_string()
+}
+
+/// Sends `lines` to `address` once something listens there.
+fn send_lines(address: &str, lines: &[&str]) {
+    use std::io::Write as _;
+    let mut connection = (0..200)
+        .find_map(|_| {
+            std::net::TcpStream::connect(address).ok().or_else(|| {
+                std::thread::sleep(std::time::Duration::from_millis(25));
+                None
+            })
+        })
+        .unwrap();
+    for line in lines {
+        writeln!(connection, "{line}").unwrap();
+    }
+}
+
+/// `estimate --live`: frames over TCP are estimated as they come (with
+/// the frames before them); a line that is not a frame, a frame with
+/// missing values and a time going back are reported and skipped; a
+/// second connection goes on.
+#[test]
+fn live_frames_are_estimated_and_bad_lines_skipped() {
+    let address = free_address();
+    let out = temp_file("live.jsonl", "");
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "estimate",
+            "--live",
+            &address,
+            "--live-frames",
+            "3",
+            "--points",
+            "2000",
+            "--sigma",
+            "0.01",
+        ])
+        .args(["--fmin", "0.5", "--fmax", "3", "--out"])
+        .arg(&out)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let contact = r#"{"t": 0.0, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.09516, -0.53783, 0.09516, 0.01017, 0, 0, 0], "truth": {"link": "lwr_4_link", "point": [0.046, 0.098, 0.692], "force": [-1.37, -0.85, 0.33]}}"#;
+    let later = contact.replace(r#""t": 0.0"#, r#""t": 0.01"#);
+    send_lines(
+        &address,
+        &[
+            r#"{"format": "contact-session", "version": 1, "robot": "lwr4plus"}"#,
+            contact,
+            "not json at all",
+            r#"{"t": 0.005, "q": [0, 0, 0], "tau": [0, 0, 0, 0, 0, 0, 0]}"#,
+            &later,
+        ],
+    );
+    send_lines(&address, &[contact]);
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("skipped line 2") && stderr.contains("skipped line 3"),
+        "{stderr}"
+    );
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 3, "{stderr}");
+    for line in &lines {
+        assert_eq!(line["verdict"], "contact", "{line}");
+        assert!(line["contact_probability"].as_f64().unwrap() > 0.5, "{line}");
+        assert!(line["truth"]["position_error_m"].as_f64().unwrap() < 0.05, "{line}");
+    }
+    assert_eq!(lines[2]["frame"], 2);
+}
+
+/// `stream` replays a session to a live estimate, frame for frame.
+#[test]
+fn a_streamed_session_is_estimated_live() {
+    let address = free_address();
+    let session = temp_file("streamed.session.json", THESIS_SESSION);
+    let out = temp_file("streamed.jsonl", "");
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "estimate",
+            "--live",
+            &address,
+            "--live-frames",
+            "2",
+            "--points",
+            "2000",
+            "--sigma",
+            "0.01",
+        ])
+        .args(["--fmin", "0.5", "--fmax", "3", "--temporal", "none", "--out"])
+        .arg(&out)
+        .spawn()
+        .unwrap();
+    let (ok, _, err) = run_out(&["stream", session.to_str().unwrap(), "--to", &address, "--rate", "0"]);
+    assert!(ok, "{err}");
+    assert!(child.wait_with_output().unwrap().status.success());
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2);
+    assert_eq!(lines[0]["verdict"], "contact");
+    assert_eq!(lines[1]["verdict"], "no_contact");
+}
+
+/// The same over UDP: `stream --to udp://…` sends a datagram a line to
+/// `estimate --live udp://…`.
+#[test]
+fn a_session_streamed_over_udp_is_estimated_live() {
+    use std::io::BufRead as _;
+    let session = temp_file("udp.session.json", THESIS_SESSION);
+    let out = temp_file("udp.jsonl", "");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "estimate",
+            "--live",
+            "udp://127.0.0.1:0",
+            "--live-frames",
+            "2",
+            "--points",
+            "2000",
+        ])
+        .args([
+            "--sigma",
+            "0.01",
+            "--fmin",
+            "0.5",
+            "--fmax",
+            "3",
+            "--temporal",
+            "none",
+            "--out",
+        ])
+        .arg(&out)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The port the system chose, from "listening on udp://127.0.0.1:PORT".
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    stderr.read_line(&mut line).unwrap();
+    let address = line.trim().strip_prefix("listening on ").unwrap().to_owned();
+    assert!(address.starts_with("udp://127.0.0.1:"), "{line}");
+    let (ok, _, err) = run_out(&["stream", session.to_str().unwrap(), "--to", &address, "--rate", "0"]);
+    assert!(ok, "{err}");
+    assert!(child.wait().unwrap().success());
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2);
+    assert_eq!(lines[0]["verdict"], "contact");
+    assert_eq!(lines[1]["verdict"], "no_contact");
+}
