@@ -649,3 +649,64 @@ fn a_live_session_is_filtered_as_its_frames_arrive() {
     assert_eq!(whole.len(), frames);
     assert_same_estimates(&filtered, &whole);
 }
+
+/// A long recording opened as a short one: how long the app takes to show
+/// the file, the first frame's estimate, and each of ten frames scrubbed
+/// to while the whole session is still being smoothed behind. A
+/// measurement (printed), not a check of speed: run with the file to open,
+/// e.g. `proprioscope synth /tmp/r600.json --seconds 600 --rate 1000 --seed 1`,
+/// then `PROPRIOSCOPE_LONG_SESSION=/tmp/r600.json cargo test --release
+/// --test app_sessions measure_ -- --ignored --nocapture`.
+#[test]
+#[ignore = "a measurement: needs PROPRIOSCOPE_LONG_SESSION"]
+fn measure_a_long_recording_opened_and_scrubbed() {
+    let Some(path) = std::env::var_os("PROPRIOSCOPE_LONG_SESSION") else {
+        println!("PROPRIOSCOPE_LONG_SESSION not set: nothing measured");
+        return;
+    };
+    let path = std::path::PathBuf::from(path);
+    let mut harness = app_harness();
+    settle(&mut harness);
+    let t0 = std::time::Instant::now();
+    harness.state_mut().open(path.to_str().unwrap());
+    let wait = |harness: &mut Harness<'_, ProprioscopeApp>, done: &dyn Fn(&ProprioscopeApp) -> bool| {
+        let t = std::time::Instant::now();
+        while !done(harness.state()) {
+            harness.step();
+            std::thread::sleep(std::time::Duration::from_millis(1));
+            assert!(t.elapsed().as_secs() < 600, "gave up after 600 s");
+        }
+        t.elapsed().as_secs_f64()
+    };
+    wait(&mut harness, &|app| app.model.replay.is_some() || app.error.is_some());
+    assert!(harness.state().error.is_none(), "{:?}", harness.state().error);
+    let shown_after = t0.elapsed().as_secs_f64();
+    wait(&mut harness, &|app| app.is_up_to_date() && app.outcome.is_some());
+    let estimated_after = t0.elapsed().as_secs_f64();
+    let frames = harness.state().model.replay.as_ref().unwrap().session.frames.len();
+    let mut scrubs = Vec::new();
+    for k in 1..=10 {
+        let frame = frames * k / 11;
+        harness.state_mut().apply(proprioscope::app::Command::SetFrame(frame));
+        let t = std::time::Instant::now();
+        harness.step();
+        let step = t.elapsed().as_secs_f64();
+        wait(&mut harness, &|app| app.is_up_to_date() && app.outcome.is_some());
+        scrubs.push((
+            step * 1e3,
+            t.elapsed().as_secs_f64() * 1e3,
+            harness.state().session_estimated(),
+        ));
+    }
+    wait(&mut harness, &|app| app.session_estimated() >= frames);
+    let smoothed_after = t0.elapsed().as_secs_f64();
+    println!(
+        "{frames} frames: the file shown after {shown_after:.2} s, its first frame estimated after \
+         {estimated_after:.2} s, the whole session after {smoothed_after:.1} s"
+    );
+    for (step, shown, estimated) in scrubs {
+        println!(
+            "scrub: the app's step {step:.1} ms, the frame's estimate shown after {shown:.0} ms ({estimated} frames smoothed by then)"
+        );
+    }
+}

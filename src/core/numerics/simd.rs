@@ -27,6 +27,19 @@ pub trait Kernel {
     fn run(self) -> Self::Output;
 }
 
+/// `[f64; L]` from a function of the lane: written out as a loop, not
+/// `array::from_fn` (a closure is not inlined into the wide copy).
+macro_rules! lanes_of {
+    ($l:ident, $L:expr, $e:expr) => {{
+        let mut out = [0.0; $L];
+        for $l in 0..$L {
+            out[$l] = $e;
+        }
+        out
+    }};
+}
+pub(crate) use lanes_of as lanes;
+
 /// Runs `kernel` in code compiled for the widest vector instructions this
 /// CPU has.
 pub fn widest<K: Kernel>(kernel: K) -> K::Output {

@@ -5,6 +5,7 @@
 
 pub mod bias;
 pub mod calibration;
+mod combine;
 pub mod frame;
 pub mod graph;
 pub mod observer;

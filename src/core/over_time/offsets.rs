@@ -5,7 +5,7 @@
 use crate::core::estimate::contact::PatchForms;
 use crate::core::estimate::posterior::Posterior;
 use crate::core::numerics::fastmath;
-use crate::core::numerics::simd::{Kernel, widest};
+use crate::core::numerics::simd::{Kernel, lanes, widest};
 use crate::core::surface::sampling::Surface;
 
 /// How far from its sample (in patch widths ρ) a contact's offset may be
@@ -135,18 +135,6 @@ impl Kernel for GainsKernel<'_> {
         }
         (gains, after)
     }
-}
-
-/// `[f64; L]` from a function of the lane: written out as a loop, not
-/// `array::from_fn` (a closure is not inlined into the wide copy).
-macro_rules! lanes {
-    ($l:ident, $L:expr, $e:expr) => {{
-        let mut out = [0.0; $L];
-        for $l in 0..$L {
-            out[$l] = $e;
-        }
-        out
-    }};
 }
 
 /// [`GainsKernel`] for the `L` samples from `k`: [`Offset::absorb_within`]
@@ -359,6 +347,7 @@ impl Offset {
     }
 
     /// `nᵀ Λ⁻¹ n` (0 when Λ is singular).
+    #[cfg(test)]
     fn explained(&self) -> f64 {
         let [l11, l12, l22] = self.precision;
         let [n1, n2] = self.shift;
@@ -500,7 +489,10 @@ impl Offset {
 }
 
 /// `ln ∫ N(s; f) N(s; b) / N(s; window) ds` for a forward and a backward
-/// belief's offsets of the same sample (0 when not defined).
+/// belief's offsets of the same sample (0 when not defined). The smoother
+/// runs it lane by lane (`combine`); this is the reference it is tested
+/// against.
+#[cfg(test)]
 pub(crate) fn overlap(forward: &Offset, backward: &Offset, rho_m: f64) -> f64 {
     let window = Offset::window(rho_m);
     let both = Offset {

@@ -39,8 +39,9 @@
 use crate::core::numerics::fastmath;
 use crate::core::numerics::lanes;
 use crate::core::numerics::simd::{Kernel, widest};
+use crate::core::over_time::combine::CombineKernel;
 use crate::core::over_time::graph::SurfaceGraph;
-use crate::core::over_time::offsets::{FrameLikelihood, GainsKernel, Offset, overlap};
+use crate::core::over_time::offsets::{FrameLikelihood, GainsKernel, Offset};
 use crate::core::surface::sampling::Surface;
 
 /// How far below the best sample, in nats, [`TemporalModel::combine`]
@@ -501,49 +502,21 @@ impl TemporalModel {
         let none = fastmath::ln_or_minus_infinity(forward.no_contact)
             + fastmath::ln_or_minus_infinity(backward.no_contact)
             - (1.0 - contact).ln();
-        let n = forward.points.len();
-        let tracked = forward.offsets.len() == n && backward.offsets.len() == n && self.window_m.len() == n;
-        let mut offsets = Vec::with_capacity(if tracked { n } else { 0 });
-        let ln_contact = contact.ln();
         // Each sample's weight before the offsets' share, then that share
         // where it can matter: within COMBINE_MARGIN of the best (beyond,
         // the sample's weight is below e^-100 of the best's, which no
         // summary reads; the offsets' share is a few nats).
-        let mut logs: Vec<f64> = (0..n)
-            .map(|k| {
-                let (Some(&f), Some(&b), Some(&ln_prior)) =
-                    (forward.points.get(k), backward.points.get(k), self.ln_prior.get(k))
-                else {
-                    return f64::NEG_INFINITY;
-                };
-                fastmath::ln_or_minus_infinity(f) + fastmath::ln_or_minus_infinity(b) - ln_prior - ln_contact
-            })
-            .collect();
-        let floor = logs.iter().copied().filter(|l| !l.is_nan()).fold(none, f64::max) - COMBINE_MARGIN;
-        if tracked {
-            for (k, l) in logs.iter_mut().enumerate() {
-                let (Some(fo), Some(bo), Some(&rho)) =
-                    (forward.offsets.get(k), backward.offsets.get(k), self.window_m.get(k))
-                else {
-                    continue;
-                };
-                let window = Offset::window(rho);
-                let both = Offset {
-                    precision: [
-                        fo.precision[0] + bo.precision[0] - window.precision[0],
-                        fo.precision[1] + bo.precision[1],
-                        fo.precision[2] + bo.precision[2] - window.precision[2],
-                    ],
-                    shift: [fo.shift[0] + bo.shift[0], fo.shift[1] + bo.shift[1]],
-                };
-                // Each half was charged for its own reach; the whole is
-                // charged for the whole's.
-                if *l > floor {
-                    *l += overlap(fo, bo, rho) + fo.confined(rho).0 + bo.confined(rho).0 - both.confined(rho).0;
-                }
-                offsets.push(both);
-            }
-        }
+        let (logs, offsets) = widest(CombineKernel {
+            forward_points: &forward.points,
+            backward_points: &backward.points,
+            ln_prior: &self.ln_prior,
+            ln_contact: contact.ln(),
+            none,
+            margin: COMBINE_MARGIN,
+            forward_offsets: &forward.offsets,
+            backward_offsets: &backward.offsets,
+            window_m: &self.window_m,
+        });
         let top = logs.iter().copied().filter(|l| !l.is_nan()).fold(none, f64::max);
         let scale = |l: f64| {
             let d = l - top;
