@@ -653,7 +653,8 @@ fn a_live_session_is_filtered_as_its_frames_arrive() {
 /// A long recording opened as a short one: how long the app takes to show
 /// the file, the first frame's estimate, and each of ten frames scrubbed
 /// to while the whole session is still being smoothed behind. A
-/// measurement (printed), not a check of speed: run with the file to open,
+/// measurement (printed), not a check of speed (it leaves before the
+/// session is settled): run with the file to open,
 /// e.g. `proprioscope synth /tmp/r600.json --seconds 600 --rate 1000 --seed 1`,
 /// then `PROPRIOSCOPE_LONG_SESSION=/tmp/r600.json cargo test --release
 /// --test app_sessions measure_ -- --ignored --nocapture`.
@@ -674,14 +675,14 @@ fn measure_a_long_recording_opened_and_scrubbed() {
         while !done(harness.state()) {
             harness.step();
             std::thread::sleep(std::time::Duration::from_millis(1));
-            assert!(t.elapsed().as_secs() < 600, "gave up after 600 s");
+            assert!(t.elapsed().as_secs() < 300, "gave up after 300 s");
         }
         t.elapsed().as_secs_f64()
     };
     wait(&mut harness, &|app| app.model.replay.is_some() || app.error.is_some());
     assert!(harness.state().error.is_none(), "{:?}", harness.state().error);
     let shown_after = t0.elapsed().as_secs_f64();
-    wait(&mut harness, &|app| app.is_up_to_date() && app.outcome.is_some());
+    wait(&mut harness, &|app| app.is_frame_estimated());
     let estimated_after = t0.elapsed().as_secs_f64();
     let frames = harness.state().model.replay.as_ref().unwrap().session.frames.len();
     let mut scrubs = Vec::new();
@@ -691,18 +692,18 @@ fn measure_a_long_recording_opened_and_scrubbed() {
         let t = std::time::Instant::now();
         harness.step();
         let step = t.elapsed().as_secs_f64();
-        wait(&mut harness, &|app| app.is_up_to_date() && app.outcome.is_some());
+        wait(&mut harness, &|app| app.is_frame_estimated());
         scrubs.push((
             step * 1e3,
             t.elapsed().as_secs_f64() * 1e3,
             harness.state().session_estimated(),
         ));
     }
-    wait(&mut harness, &|app| app.session_estimated() >= frames);
-    let smoothed_after = t0.elapsed().as_secs_f64();
+    // The session goes on being smoothed behind; its rate so far.
+    let (elapsed, smoothed) = (t0.elapsed().as_secs_f64(), harness.state().session_estimated());
     println!(
         "{frames} frames: the file shown after {shown_after:.2} s, its first frame estimated after \
-         {estimated_after:.2} s, the whole session after {smoothed_after:.1} s"
+         {estimated_after:.2} s; {smoothed} frames smoothed after {elapsed:.1} s"
     );
     for (step, shown, estimated) in scrubs {
         println!(

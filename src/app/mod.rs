@@ -355,12 +355,18 @@ impl ProprioscopeApp {
         self.view.ui(&shown, ui, frame)
     }
 
-    /// The newest estimate for the current model has arrived.
+    /// The estimate of the frame on screen has arrived (a session may
+    /// still be estimated behind it).
+    #[must_use]
+    pub fn is_frame_estimated(&self) -> bool {
+        self.opening.is_none() && self.current_outcome().is_some_and(|o| o.generation == self.generation)
+    }
+
+    /// True when nothing is being opened or estimated: the frame on
+    /// screen and, with a session, every frame of it.
     #[must_use]
     pub fn is_up_to_date(&self) -> bool {
-        self.opening.is_none()
-            && self.current_outcome().is_some_and(|o| o.generation == self.generation)
-            && self.session_settled()
+        self.is_frame_estimated() && self.session_settled()
     }
 
     /// The torques the estimator is given: the measured ones, less the
