@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use rayon::prelude::*;
 use serde::{Deserialize, Deserializer};
 
 use crate::core::config::limits;
@@ -271,9 +272,11 @@ impl Session {
             path: path.to_owned(),
             robot: Some(file.robot),
             joints: file.joints,
+            // Each frame's text is read on its own, so the frames are
+            // read in parallel (in order).
             frames: file
                 .frames
-                .into_iter()
+                .into_par_iter()
                 .map(|raw| {
                     // A frame that is not even a frame (a string, a wrong
                     // truth) keeps its place as a frame with no values, so
