@@ -29,7 +29,7 @@ pub trait Kernel {
 
 /// `[f64; L]` from a function of the lane: written out as a loop, not
 /// `array::from_fn` (a closure is not inlined into the wide copy).
-macro_rules! lanes_of {
+macro_rules! lanes {
     ($l:ident, $L:expr, $e:expr) => {{
         let mut out = [0.0; $L];
         for $l in 0..$L {
@@ -38,7 +38,7 @@ macro_rules! lanes_of {
         out
     }};
 }
-pub(crate) use lanes_of as lanes;
+pub(crate) use lanes;
 
 /// Runs `kernel` in code compiled for the widest vector instructions this
 /// CPU has.

@@ -147,25 +147,6 @@ fn combine_at<const L: usize>(kernel: &CombineKernel, k: usize, floor: f64, logs
     ) else {
         return;
     };
-    // Most blocks lie far below the best: their weights need no share.
-    let mut any_above = false;
-    for l in logs.iter() {
-        any_above |= *l > floor;
-    }
-    if !any_above {
-        for i in 0..L {
-            let q = 1.0 / (rho[i] * rho[i]);
-            both[i] = Offset {
-                precision: [
-                    fo[i].precision[0] + bo[i].precision[0] - q,
-                    fo[i].precision[1] + bo[i].precision[1],
-                    fo[i].precision[2] + bo[i].precision[2] - q,
-                ],
-                shift: [fo[i].shift[0] + bo[i].shift[0], fo[i].shift[1] + bo[i].shift[1]],
-            };
-        }
-        return;
-    }
     let q = lanes!(i, L, 1.0 / (rho[i] * rho[i]));
     let f11 = lanes!(i, L, fo[i].precision[0]);
     let f12 = lanes!(i, L, fo[i].precision[1]);
@@ -182,6 +163,20 @@ fn combine_at<const L: usize>(kernel: &CombineKernel, k: usize, floor: f64, logs
     let c22 = lanes!(i, L, f22[i] + b22[i] - q[i]);
     let cn1 = lanes!(i, L, fn1[i] + bn1[i]);
     let cn2 = lanes!(i, L, fn2[i] + bn2[i]);
+    for i in 0..L {
+        both[i] = Offset {
+            precision: [c11[i], c12[i], c22[i]],
+            shift: [cn1[i], cn2[i]],
+        };
+    }
+    // Most blocks lie far below the best: their weights need no share.
+    let mut any_above = false;
+    for l in logs.iter() {
+        any_above |= *l > floor;
+    }
+    if !any_above {
+        return;
+    }
     // The overlap of the two Gaussians over the window's.
     let df = lanes!(i, L, f11[i] * f22[i] - f12[i] * f12[i]);
     let db = lanes!(i, L, b11[i] * b22[i] - b12[i] * b12[i]);
@@ -234,10 +229,6 @@ fn combine_at<const L: usize>(kernel: &CombineKernel, k: usize, floor: f64, logs
         if logs[i] > floor {
             logs[i] += share[i];
         }
-        both[i] = Offset {
-            precision: [c11[i], c12[i], c22[i]],
-            shift: [cn1[i], cn2[i]],
-        };
     }
 }
 
