@@ -9,6 +9,7 @@ pub mod evidence;
 pub mod friction;
 pub mod measurement;
 pub mod observability;
+pub mod pair;
 pub mod phases;
 pub mod posterior;
 pub mod press;

@@ -406,6 +406,29 @@ fn refine_from(
     ))
 }
 
+/// The best contact on `link`'s continuous surface found by descending
+/// from `location` (no slide, no region search), reported as if started
+/// from sample `start`: how the two-contact search moves one contact
+/// while the other holds. `None` if the link has no continuous surface.
+pub(crate) fn refine_at(
+    model: &TorqueModel,
+    surface: &Surface,
+    measurement: &Measurement,
+    (link, location): (LinkId, MeshPoint),
+    start: usize,
+) -> Option<RefinedContact> {
+    let search = Search {
+        model,
+        shape: surface.shape(link)?,
+        link,
+        measurement,
+        trust: surface.window_m.get(start).copied().unwrap_or(0.01).max(1e-4),
+    };
+    let mut state = search.state(location)?;
+    let steps = search.descend(&mut state);
+    Some(state.contact(link, measurement, search.trust, start, steps))
+}
+
 /// ln of the posterior mass of a Gaussian patch of width `window_m`
 /// centred on a contact with unit torques `u` (derivatives `d₁`, `d₂`
 /// per metre along the tangents), objective (residual, or with friction

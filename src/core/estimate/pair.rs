@@ -1,0 +1,697 @@
+//! Two contacts in one frame: whether the torques need a second push, and
+//! where each push is given the other.
+//!
+//! The torques of two contacts add: `τ = f_A u_A + f_B u_B + noise`. With
+//! one contact fixed, the other's likelihood over the surface is the
+//! one-contact model of the torques left over, so each contact's
+//! posterior *given the other* comes from the frame's own estimator
+//! ([`estimate`]) run on the remainder, patches, magnitude range and all.
+//! The search alternates: the second contact given the single contact's
+//! place, the first given that, the second again ([`PAIR_ROUNDS`]).
+//!
+//! The number of contacts is chosen by the evidence, not by a χ²
+//! threshold. With `Z₁(τ)` the one-contact marginal likelihood (the
+//! frame's posterior normaliser over the surface prior), the two-contact
+//! marginal likelihood is taken in product form,
+//!
+//! `Z₂ ≈ 2 · Z₁(τ − t_B̂) · Z₁(τ − t_Â) / L(Â, B̂)`,
+//!
+//! exact when the log-likelihood has no cross term between the two
+//! contacts' parameters (each `Z₁` of a remainder integrates one contact's
+//! place and magnitude with the other at its mode; dividing by the peak
+//! likelihood keeps the peak once; the 2 counts the two labellings). So
+//! each contact pays its own Occam factor: the share of its prior place
+//! and magnitude that the torques left to it allow. The posterior
+//! probability of two contacts (given one at least) is then
+//! `π₂ Z₂ / (π₂ Z₂ + (1 − π₂) Z₁)` with the prior `π₂`
+//! ([`PairSettings::prior_two`]).
+//!
+//! Two contacts have six unknowns (two surface coordinates and a
+//! magnitude each). Where fewer than six sensed joints feel either of
+//! them, or their torques per newton point the same way, the pair is
+//! [`PairEstimate::identifiable`] `false`: the report says so rather than
+//! call it a confident pair.
+
+use glam::DVec3;
+
+use crate::core::estimate::contact::{PosedSurface, UnitTorqueSource};
+use crate::core::estimate::measurement::Measurement;
+use crate::core::estimate::phases::PhaseHierarchy;
+use crate::core::estimate::posterior::{Posterior, estimate};
+use crate::core::estimate::refine::{RefinedContact, refine, refine_at};
+use crate::core::estimate::settings::{EstimateError, EstimatorSettings};
+use crate::core::estimate::summary::{CredibleSet, credible_set};
+use crate::core::geometry::shell::MeshPoint;
+use crate::core::robot::kinematics::RobotPose;
+use crate::core::robot::model::LinkId;
+
+/// Conditional searches after the single contact's: the second contact
+/// given the first, the first given the second, the second again. More
+/// rounds moved no place of the shared two-contact example.
+pub const PAIR_ROUNDS: usize = 7;
+
+/// Rounds of the continuous polish of both places at most.
+pub const POLISH_ROUNDS: usize = 20;
+
+/// The polish ends when a round lowers the pair's χ² by less than this.
+pub const POLISH_CHI2: f64 = 1e-2;
+
+/// Prior probability that a frame with contact has two, when nobody says.
+/// A person with both hands on the arm, or an arm leaning on a table while
+/// pushed, is ordinary use; one in ten contact frames is a prior that a
+/// pair must earn by its evidence.
+pub const DEFAULT_PRIOR_TWO: f64 = 0.1;
+
+/// Two contacts on the same link are told apart only this far apart, m:
+/// nearer, a "second" contact is the first one's push split in two.
+pub const DEFAULT_SEPARATION_M: f64 = 0.05;
+
+/// Two torques per newton whose cosine (in the noise's metric) is above
+/// this trade their magnitudes: the pair is not identifiable.
+pub const COLLINEAR_COSINE: f64 = 0.98;
+
+/// How two contacts are looked for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PairSettings {
+    /// Prior probability that a frame with contact has two (0 < π₂ < 1).
+    pub prior_two: f64,
+    /// Closest two contacts on one link may be, m.
+    pub separation_m: f64,
+}
+
+impl Default for PairSettings {
+    fn default() -> Self {
+        Self {
+            prior_two: DEFAULT_PRIOR_TWO,
+            separation_m: DEFAULT_SEPARATION_M,
+        }
+    }
+}
+
+/// One of two contacts, given the other.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairContact {
+    /// Where it is (refined on the continuous surface given the other
+    /// contact) and its push.
+    pub placed: Placed,
+    /// The same place, world frame, m.
+    pub point_world: DVec3,
+    /// Its 90 % credible set given the other contact.
+    pub credible90: CredibleSet,
+}
+
+/// What a frame says about two contacts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairEstimate {
+    /// The two contacts, the one nearer the single contact's place first.
+    pub contacts: [PairContact; 2],
+    /// ln of the one-contact marginal likelihood (relative to the bare
+    /// noise model's normaliser, as the posterior's log-likelihoods).
+    pub log_evidence_one: f64,
+    /// ln of the two-contact marginal likelihood, on the same scale.
+    pub log_evidence_two: f64,
+    /// Probability of two contacts given at least one, with the prior.
+    pub probability_two: f64,
+    /// `Σ (τ − t_A − t_B)² / σ²` at the pair's places and magnitudes.
+    pub residual_chi2: f64,
+    /// Sensed joints that feel either contact.
+    pub sensing_joints: usize,
+    /// Whether the torques can tell the pair's six unknowns apart (see
+    /// the module docs).
+    pub identifiable: bool,
+}
+
+impl PairEstimate {
+    /// ln of the evidence ratio `Z₂ / Z₁` (without the prior).
+    #[must_use]
+    pub fn log_evidence_ratio(&self) -> f64 {
+        self.log_evidence_two - self.log_evidence_one
+    }
+
+    /// Whether two contacts are the better account: more probable than
+    /// one, and identifiable.
+    #[must_use]
+    pub fn has_two(&self) -> bool {
+        self.identifiable && self.probability_two > 0.5
+    }
+}
+
+/// Why a pair settings value is refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PairSettingsError {
+    /// The prior is not strictly between 0 and 1.
+    #[error("the prior probability of two contacts must be strictly between 0 and 1, got {value}")]
+    Prior {
+        /// The value given.
+        value: f64,
+    },
+    /// The separation is negative or not finite.
+    #[error("the separation of two contacts must be a finite length ≥ 0 m, got {value}")]
+    Separation {
+        /// The value given.
+        value: f64,
+    },
+}
+
+impl PairSettings {
+    /// Checks the values.
+    ///
+    /// # Errors
+    /// [`PairSettingsError`] naming the bad value.
+    pub fn validate(&self) -> Result<(), PairSettingsError> {
+        if !(self.prior_two > 0.0 && self.prior_two < 1.0) {
+            return Err(PairSettingsError::Prior { value: self.prior_two });
+        }
+        if !(self.separation_m.is_finite() && self.separation_m >= 0.0) {
+            return Err(PairSettingsError::Separation {
+                value: self.separation_m,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A contact's place and push, as the search holds it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Placed {
+    /// The sample it stands on or started from.
+    pub point: usize,
+    /// Its link.
+    pub link: LinkId,
+    /// Where on the link's continuous surface (`None`: the sample's place,
+    /// on a link without one).
+    pub location: Option<MeshPoint>,
+    /// Contact point, link frame, m.
+    pub point_in_link: DVec3,
+    /// Push magnitude along the inward normal, N.
+    pub force_newtons: f64,
+    /// Its torques (sensed order), N·m.
+    pub torques: Vec<f64>,
+}
+
+/// Where the search for two contacts starts.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum PairStart {
+    /// Nothing known: the best pair of a coarse grid.
+    #[default]
+    Unknown,
+    /// One contact believed held at a sample with a magnitude (e.g. where
+    /// it pressed alone before the other came).
+    One {
+        /// The sample.
+        point: usize,
+        /// Its magnitude, N.
+        force_newtons: f64,
+    },
+    /// Both contacts as an earlier frame left them.
+    Both(Box<[Placed; 2]>),
+}
+
+/// One contact with the other held: where, and ln of the one-contact
+/// evidence of the torques left to it, with its posterior.
+struct Conditional {
+    placed: Placed,
+    log_evidence: f64,
+    posterior: Posterior,
+}
+
+/// What the search of one frame reads.
+struct Search<'a> {
+    posed: &'a PosedSurface<'a>,
+    tau: &'a [f64],
+    settings: &'a EstimatorSettings,
+    hierarchy: Option<&'a PhaseHierarchy>,
+    pair: &'a PairSettings,
+    weights: Vec<f64>,
+    ln_prior_norm: f64,
+}
+
+/// `x − y`, element by element.
+fn minus(x: &[f64], y: &[f64]) -> Vec<f64> {
+    x.iter().zip(y).map(|(a, b)| a - b).collect()
+}
+
+impl Search<'_> {
+    fn force_range(&self) -> (f64, f64) {
+        (self.settings.force_min_newtons, self.settings.force_max_newtons)
+    }
+
+    fn chi2(&self, left: &[f64]) -> f64 {
+        left.iter().zip(&self.weights).map(|(r, w)| w * r * r).sum()
+    }
+
+    /// The pair's residual χ².
+    fn residual(&self, a: &Placed, b: &Placed) -> f64 {
+        self.chi2(&minus(&minus(self.tau, &a.torques), &b.torques))
+    }
+
+    fn too_near(&self, link: LinkId, point_in_link: DVec3, other: &Placed) -> bool {
+        link == other.link && point_in_link.distance(other.point_in_link) < self.pair.separation_m
+    }
+
+    fn measurement<'m>(&'m self, left: &'m [f64]) -> Measurement<'m> {
+        Measurement {
+            tau: left,
+            weights: &self.weights,
+            force_range_newtons: self.force_range(),
+            friction: 0.0,
+        }
+    }
+
+    /// Sample `k` pushed with `f` newtons.
+    fn at_sample(&self, k: usize, f: f64) -> Placed {
+        let surface = self.posed.surface;
+        let link = surface.link.get(k).copied().unwrap_or_default();
+        let point_in_link = surface.point_in_link.get(k).copied().unwrap_or_default();
+        let normal = surface.inward_normal_in_link.get(k).copied().unwrap_or_default();
+        Placed {
+            point: k,
+            link,
+            location: surface.location.get(k).copied(),
+            point_in_link,
+            force_newtons: f,
+            torques: scaled(&unit_torques_at(self.posed, link, point_in_link, normal), f),
+        }
+    }
+
+    /// A refined contact from sample `start`.
+    fn refined(&self, r: &RefinedContact) -> Placed {
+        Placed {
+            point: r.start,
+            link: r.link,
+            location: Some(r.location),
+            point_in_link: r.point_in_link,
+            force_newtons: r.force_newtons,
+            torques: scaled(
+                &unit_torques_at(self.posed, r.link, r.point_in_link, r.inward_normal_in_link),
+                r.force_newtons,
+            ),
+        }
+    }
+
+    /// One contact given `other`: the one-contact posterior of the torques
+    /// left, its contact refined on the continuous surface where that stays
+    /// away from `other` (else its best sample away from it).
+    fn conditional(&self, other: &Placed) -> Result<Option<Conditional>, EstimateError> {
+        let surface = self.posed.surface;
+        let left = minus(self.tau, &other.torques);
+        let posterior = estimate(self.posed, &left, self.settings, self.hierarchy)?;
+        let away = |k: usize| match (surface.link.get(k), surface.point_in_link.get(k)) {
+            (Some(&link), Some(&p)) => !self.too_near(link, p, other),
+            _ => false,
+        };
+        let support: Vec<usize> = posterior.support.iter().copied().filter(|&k| away(k)).collect();
+        let by_likelihood = |x: &(usize, f64), y: &(usize, f64)| x.1.total_cmp(&y.1).then(y.0.cmp(&x.0));
+        let likely = |k: usize| {
+            posterior
+                .log_likelihood
+                .get(k)
+                .map(|&l| (k, l))
+                .filter(|(_, l)| l.is_finite())
+        };
+        // Outside the support every point is below e^-60 of the best:
+        // when all of it lies near the other contact, look among the rest.
+        let best = support
+            .iter()
+            .filter_map(|&k| likely(k))
+            .max_by(by_likelihood)
+            .or_else(|| {
+                (0..surface.len())
+                    .filter(|&k| away(k))
+                    .filter_map(likely)
+                    .max_by(by_likelihood)
+            });
+        let Some((point, top)) = best else {
+            return Ok(None);
+        };
+        let sum: f64 = support
+            .iter()
+            .filter_map(|&k| posterior.log_likelihood.get(k))
+            .map(|&l| (l - top).exp())
+            .sum();
+        let log_evidence = top + sum.max(1.0).ln() - self.ln_prior_norm;
+        let refined = self
+            .settings
+            .patches
+            .then(|| refine(self.posed.torque_model, surface, &posterior, &self.measurement(&left)))
+            .flatten()
+            .filter(|r| !self.too_near(r.link, r.point_in_link, other));
+        let placed = match refined {
+            Some(r) => self.refined(&r),
+            None => self.at_sample(point, posterior.force_newtons.get(point).copied().unwrap_or(0.0)),
+        };
+        Ok(Some(Conditional {
+            placed,
+            log_evidence,
+            posterior,
+        }))
+    }
+
+    /// `one` refined from where it is with `other`'s torques taken away;
+    /// kept (true) when that lowers the pair's residual below `residual`.
+    fn step(&self, one: &mut Placed, other: &Placed, residual: &mut f64) -> bool {
+        let left = minus(self.tau, &other.torques);
+        let Some(location) = one.location else {
+            return false;
+        };
+        let Some(r) = refine_at(
+            self.posed.torque_model,
+            self.posed.surface,
+            &self.measurement(&left),
+            (one.link, location),
+            one.point,
+        ) else {
+            return false;
+        };
+        let moved = self.refined(&r);
+        let after = self.chi2(&minus(&left, &moved.torques));
+        if after < *residual && !self.too_near(moved.link, moved.point_in_link, other) {
+            *residual = after;
+            *one = moved;
+            return true;
+        }
+        false
+    }
+
+    /// Coordinate descent on the continuous surface: each contact refined
+    /// in turn with the other held, until the pair's residual stops
+    /// falling.
+    fn polish(&self, a: &mut Placed, b: &mut Placed) {
+        if !self.settings.patches {
+            return;
+        }
+        let mut residual = self.residual(a, b);
+        for _ in 0..POLISH_ROUNDS {
+            let before = residual;
+            self.step(a, b, &mut residual);
+            self.step(b, a, &mut residual);
+            if before - residual < POLISH_CHI2 {
+                break;
+            }
+        }
+    }
+
+    /// From one contact's place: the other given it, it given the other,
+    /// and so on ([`PAIR_ROUNDS`] searches); `None` where a search finds
+    /// no place away from the other contact.
+    fn alternate(&self, start: Placed) -> Result<Option<[Placed; 2]>, EstimateError> {
+        let mut a = start;
+        let mut b: Option<Placed> = None;
+        for round in 0..PAIR_ROUNDS {
+            if round % 2 == 0 {
+                let Some(found) = self.conditional(&a)? else {
+                    return Ok(None);
+                };
+                b = Some(found.placed);
+            } else if let Some(other) = &b {
+                let Some(found) = self.conditional(other)? else {
+                    return Ok(None);
+                };
+                a = found.placed;
+            }
+        }
+        Ok(b.map(|b| [a, b]))
+    }
+
+    /// Both places polished, then each contact's posterior and evidence
+    /// given the other, and `Z₂` (see the module docs):
+    /// `2 Z₁(τ − t_B̂) Z₁(τ − t_Â) / L(Â, B̂)`.
+    fn evaluate(&self, [mut a, mut b]: [Placed; 2]) -> Result<Option<(f64, f64, [Conditional; 2])>, EstimateError> {
+        self.polish(&mut a, &mut b);
+        let (Some(a_given_b), Some(b_given_a)) = (self.conditional(&b)?, self.conditional(&a)?) else {
+            return Ok(None);
+        };
+        // The polished places are the pair's: the searches above are for
+        // the evidence and each contact's posterior given the other.
+        let residual = self.residual(&a, &b);
+        let log_evidence_two =
+            std::f64::consts::LN_2 + a_given_b.log_evidence + b_given_a.log_evidence + 0.5 * residual;
+        Ok(Some((
+            log_evidence_two,
+            residual,
+            [
+                Conditional { placed: a, ..a_given_b },
+                Conditional { placed: b, ..b_given_a },
+            ],
+        )))
+    }
+}
+
+/// `f · u`.
+fn scaled(u: &[f64], f: f64) -> Vec<f64> {
+    u.iter().map(|x| f * x).collect()
+}
+
+/// Torques per newton of a push along `inward_normal_in_link` at
+/// `point_in_link` of `link` (sensed order).
+fn unit_torques_at(
+    posed: &PosedSurface<'_>,
+    link: LinkId,
+    point_in_link: DVec3,
+    inward_normal_in_link: DVec3,
+) -> Vec<f64> {
+    let mut u = vec![0.0; posed.joints()];
+    let moment = point_in_link.cross(inward_normal_in_link);
+    for twist in posed.torque_model.twists(link) {
+        if let Some(slot) = u.get_mut(twist.sensed_index) {
+            *slot = twist.w.dot(moment) + twist.v.dot(inward_normal_in_link);
+        }
+    }
+    u
+}
+
+/// The frame's two-contact account, from its one-contact posterior
+/// `single` of the torques `tau`, the search started from `start`
+/// (`None` when the surface has no sample away from the first contact).
+///
+/// # Errors
+/// As [`estimate`], for a remainder's posterior.
+#[allow(clippy::too_many_arguments)]
+pub fn estimate_pair(
+    posed: &PosedSurface<'_>,
+    pose: &RobotPose,
+    tau: &[f64],
+    settings: &EstimatorSettings,
+    hierarchy: Option<&PhaseHierarchy>,
+    single: &Posterior,
+    pair: &PairSettings,
+    start: &PairStart,
+) -> Result<Option<PairEstimate>, EstimateError> {
+    let surface = posed.surface;
+    let ln_prior_norm = if settings.patches {
+        surface.area_m2.iter().sum::<f64>().ln()
+    } else {
+        (surface.len().max(1) as f64).ln()
+    };
+    let search = Search {
+        posed,
+        tau,
+        settings,
+        hierarchy,
+        pair,
+        weights: settings.weights(),
+        ln_prior_norm,
+    };
+    let first = single.map_point;
+    let log_evidence_one = log_evidence(single, ln_prior_norm);
+    // From the places given, or from where one contact is believed to be,
+    // or from each contact of the best pair of a coarse grid of samples,
+    // searched whole (a two-contact frame's single contact can lie on
+    // neither push, and a search started there stays near it); the start
+    // with the larger evidence is kept.
+    let starts: Vec<[Placed; 2]> = match start {
+        PairStart::Both(both) => vec![(**both).clone()],
+        PairStart::One { point, force_newtons } => search
+            .alternate(search.at_sample(*point, *force_newtons))?
+            .into_iter()
+            .collect(),
+        PairStart::Unknown => {
+            let mut seeds: Vec<(usize, f64)> = coarse_pair(posed, tau, &search.weights, search.force_range())
+                .into_iter()
+                .flat_map(|(i, fi, j, fj)| [(i, fi), (j, fj)])
+                .collect();
+            if seeds.is_empty() {
+                seeds.push((first, single.force_newtons.get(first).copied().unwrap_or(0.0)));
+            }
+            let mut found = Vec::new();
+            for (k, f) in seeds {
+                found.extend(search.alternate(search.at_sample(k, f))?);
+            }
+            found
+        }
+    };
+    let mut best: Option<(f64, f64, [Conditional; 2])> = None;
+    for places in starts {
+        if let Some((z, residual, pair)) = search.evaluate(places)?
+            && best.as_ref().is_none_or(|(top, ..)| z > *top)
+        {
+            best = Some((z, residual, pair));
+        }
+    }
+    let Some((log_evidence_two, residual_chi2, [a, b])) = best else {
+        return Ok(None);
+    };
+    let odds = (pair.prior_two / (1.0 - pair.prior_two)).ln() + log_evidence_two - log_evidence_one;
+    let sensing_joints = sensing(posed, a.placed.link, b.placed.link);
+    let identifiable = sensing_joints >= 6
+        && weighted_cosine(&a.placed.torques, &b.placed.torques, &search.weights).abs() < COLLINEAR_COSINE;
+    let world = |k: usize| -> DVec3 {
+        match (surface.link.get(k), surface.point_in_link.get(k)) {
+            (Some(&link), Some(&p)) => pose.point_to_world(link, p),
+            _ => DVec3::ZERO,
+        }
+    };
+    let contact = |c: Conditional| PairContact {
+        point_world: pose.point_to_world(c.placed.link, c.placed.point_in_link),
+        credible90: credible_set(&c.posterior, world, 0.9),
+        placed: c.placed,
+    };
+    // The contact nearer the single contact's place first.
+    let first_world = world(first);
+    let mut contacts = [contact(a), contact(b)];
+    if contacts[1].point_world.distance(first_world) < contacts[0].point_world.distance(first_world) {
+        contacts.swap(0, 1);
+    }
+    Ok(Some(PairEstimate {
+        contacts,
+        log_evidence_one,
+        log_evidence_two,
+        probability_two: logistic(odds),
+        residual_chi2,
+        sensing_joints,
+        identifiable,
+    }))
+}
+
+/// ln of a posterior's marginal likelihood over the surface prior: its
+/// most probable point's log-likelihood over that point's probability,
+/// over the prior's normaliser.
+#[must_use]
+pub fn log_evidence(posterior: &Posterior, ln_prior_norm: f64) -> f64 {
+    let k = posterior.map_point;
+    match (posterior.log_likelihood.get(k), posterior.probability.get(k)) {
+        (Some(&l), Some(&p)) if p > 0.0 => l - p.ln() - ln_prior_norm,
+        _ => f64::NEG_INFINITY,
+    }
+}
+
+/// Pairs of the coarse grid the search starts from (each from either
+/// contact). Starts from the best three pairs were tried: on ten firm
+/// pushes on links 5 and 7 they found no more pairs, and no nearer.
+pub const COARSE_STARTS: usize = 1;
+
+/// Samples of the coarse grid the pair search starts from.
+pub const COARSE_SAMPLES: usize = 256;
+
+/// The best [`COARSE_STARTS`] pairs `(i, f_i, j, f_j)`, best first, of
+/// an evenly strided subset of the samples (at most [`COARSE_SAMPLES`]), every pair tried with both
+/// magnitudes fitted within `force_range` (least squares in the noise's
+/// metric, the box's edges where the free optimum lies outside).
+fn coarse_pair(
+    posed: &PosedSurface<'_>,
+    tau: &[f64],
+    weights: &[f64],
+    force_range: (f64, f64),
+) -> Vec<(usize, f64, usize, f64)> {
+    let n = posed.points();
+    let joints = posed.joints();
+    let m = n.min(COARSE_SAMPLES);
+    if m < 2 {
+        return Vec::new();
+    }
+    let points: Vec<usize> = (0..m).map(|i| i * n / m).collect();
+    let units: Vec<Vec<f64>> = points
+        .iter()
+        .map(|&k| {
+            let mut u = vec![0.0; joints];
+            posed.unit_torques_into(k, &mut u);
+            // Scaled by √w: plain dot products below.
+            u.iter_mut().zip(weights).for_each(|(x, w)| *x *= w.sqrt());
+            u
+        })
+        .collect();
+    let t: Vec<f64> = tau.iter().zip(weights).map(|(x, w)| x * w.sqrt()).collect();
+    let dot = |p: &[f64], q: &[f64]| -> f64 { p.iter().zip(q).map(|(x, y)| x * y).sum() };
+    let a: Vec<f64> = units.iter().map(|u| dot(u, u)).collect();
+    let b: Vec<f64> = units.iter().map(|u| dot(u, &t)).collect();
+    let mut best: Vec<(f64, usize, f64, usize, f64)> = Vec::with_capacity(COARSE_STARTS + 1);
+    for i in 0..m {
+        for j in i + 1..m {
+            let (Some(ui), Some(uj)) = (units.get(i), units.get(j)) else {
+                continue;
+            };
+            let (ai, aj, bi, bj) = (a[i], a[j], b[i], b[j]);
+            let c = dot(ui, uj);
+            let (fi, fj, gain) = best_magnitudes([ai, c, aj], [bi, bj], force_range);
+            if best.len() < COARSE_STARTS || best.last().is_some_and(|(g, ..)| gain > *g) {
+                let at = best.partition_point(|(g, ..)| *g >= gain);
+                best.insert(at, (gain, points[i], fi, points[j], fj));
+                best.truncate(COARSE_STARTS);
+            }
+        }
+    }
+    best.into_iter().map(|(_, i, fi, j, fj)| (i, fi, j, fj)).collect()
+}
+
+/// The magnitudes in the box `range²` that maximise `2 fᵀb − fᵀHf` for
+/// `H = [[h11, h12], [h12, h22]]`, and that maximum (the fall in the
+/// squared residual).
+fn best_magnitudes([h11, h12, h22]: [f64; 3], [b1, b2]: [f64; 2], (lo, hi): (f64, f64)) -> (f64, f64, f64) {
+    let gain = |f1: f64, f2: f64| 2.0 * (f1 * b1 + f2 * b2) - (h11 * f1 * f1 + 2.0 * h12 * f1 * f2 + h22 * f2 * f2);
+    let det = h11 * h22 - h12 * h12;
+    if det > 1e-12 * (h11 * h22).max(f64::MIN_POSITIVE) {
+        let f1 = (b1 * h22 - b2 * h12) / det;
+        let f2 = (b2 * h11 - b1 * h12) / det;
+        if (lo..=hi).contains(&f1) && (lo..=hi).contains(&f2) {
+            return (f1, f2, gain(f1, f2));
+        }
+    }
+    // On an edge: one magnitude at a bound, the other its best given it.
+    let other = |b: f64, h: f64, f: f64, hh: f64| if hh > 0.0 { ((b - h * f) / hh).clamp(lo, hi) } else { lo };
+    let mut best = (lo, lo, gain(lo, lo));
+    for bound in [lo, hi] {
+        let f2 = other(b2, h12, bound, h22);
+        let f1 = other(b1, h12, bound, h11);
+        for (x, y) in [(bound, f2), (f1, bound)] {
+            let g = gain(x, y);
+            if g > best.2 {
+                best = (x, y, g);
+            }
+        }
+    }
+    best
+}
+
+/// Sensed joints that feel a push on either of two links.
+fn sensing(posed: &PosedSurface<'_>, a: LinkId, b: LinkId) -> usize {
+    let mut felt = vec![false; posed.joints()];
+    for link in [a, b] {
+        for twist in posed.torque_model.twists(link) {
+            if let Some(slot) = felt.get_mut(twist.sensed_index) {
+                *slot = true;
+            }
+        }
+    }
+    felt.iter().filter(|&&f| f).count()
+}
+
+/// `⟨x, y⟩ / (|x| |y|)` in the metric `Σ w x y` (0 for a zero vector).
+fn weighted_cosine(x: &[f64], y: &[f64], weights: &[f64]) -> f64 {
+    let dot = |p: &[f64], q: &[f64]| -> f64 { p.iter().zip(q).zip(weights).map(|((a, b), w)| w * a * b).sum() };
+    let norms = (dot(x, x) * dot(y, y)).sqrt();
+    if norms > 0.0 { dot(x, y) / norms } else { 0.0 }
+}
+
+/// `1 / (1 + e^-x)`, without overflow.
+fn logistic(x: f64) -> f64 {
+    if x >= 0.0 {
+        1.0 / (1.0 + (-x).exp())
+    } else {
+        let e = x.exp();
+        e / (1.0 + e)
+    }
+}
+
+#[cfg(test)]
+#[path = "pair_tests.rs"]
+mod tests;
