@@ -105,5 +105,6 @@ pub fn interactive_frame(model: &Model, t: f64) -> Frame {
             },
             None => Truth::NoContact,
         },
+        truth_all: Vec::new(),
     }
 }

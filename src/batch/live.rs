@@ -238,6 +238,7 @@ mod tests {
                 q: f.q,
                 tau: f.tau,
                 truth: Truth::Unknown,
+                truth_all: Vec::new(),
             })
             .collect();
         assert_eq!(frames.len(), 50);

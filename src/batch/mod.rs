@@ -470,6 +470,7 @@ mod tests {
                     q: vec![],
                     tau: vec![],
                     truth: Truth::Unknown,
+                    truth_all: Vec::new(),
                 })
                 .collect(),
             file_frames: (0..times.len()).collect(),

@@ -117,6 +117,7 @@ pub fn run(args: &SynthArgs) -> Result<()> {
             q: f.q.clone(),
             tau: f.tau.clone(),
             truth,
+            truth_all: Vec::new(),
         })?;
     }
     let written = recorder.finish()?;

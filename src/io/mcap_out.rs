@@ -393,6 +393,7 @@ mod tests {
                 } else {
                     Truth::NoContact
                 },
+                truth_all: Vec::new(),
             })
             .collect();
         let origin = 1_760_000_000_000_000_000;

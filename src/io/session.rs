@@ -49,14 +49,49 @@ pub struct Frame {
     pub tau: Vec<f64>,
     /// The true contact.
     pub truth: Truth,
+    /// Every true contact, where the session records them all (its
+    /// `truth_all`: two probes pressing at once); empty where it does
+    /// not, and `truth` is then the only one known.
+    pub truth_all: Vec<ContactTruth>,
+}
+
+/// One true contact of a frame's `truth_all`.
+#[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
+pub struct ContactTruth {
+    /// Link touched.
+    pub link: String,
+    /// Contact point, world frame, m.
+    pub point: [f64; 3],
+    /// Force applied to the robot, world frame, N.
+    pub force: [f64; 3],
 }
 
 impl Frame {
+    /// Every contact known to press: `truth_all` where recorded, else
+    /// `truth`'s (none where it is unknown or says no contact).
+    #[must_use]
+    pub fn true_contacts(&self) -> Vec<ContactTruth> {
+        if !self.truth_all.is_empty() {
+            return self.truth_all.clone();
+        }
+        match &self.truth {
+            Truth::Contact { link, point, force } => vec![ContactTruth {
+                link: link.clone(),
+                point: *point,
+                force: *force,
+            }],
+            Truth::Unknown | Truth::NoContact => Vec::new(),
+        }
+    }
+
     /// The frame as the JSON form writes it (`truth` absent when unknown,
-    /// `null` without contact).
+    /// `null` without contact; `truth_all` where recorded).
     #[must_use]
     pub fn to_json(&self) -> serde_json::Value {
         let mut value = serde_json::json!({ "t": self.t, "q": self.q, "tau": self.tau });
+        if !self.truth_all.is_empty() {
+            value["truth_all"] = serde_json::json!(self.truth_all);
+        }
         match &self.truth {
             Truth::Unknown => {}
             Truth::NoContact => value["truth"] = serde_json::Value::Null,
@@ -167,6 +202,7 @@ impl From<FrameFile> for Frame {
                     force: t.force,
                 },
             },
+            truth_all: f.truth_all.unwrap_or_default(),
         }
     }
 }
@@ -184,6 +220,9 @@ struct FrameFile {
     tau: Vec<f64>,
     #[serde(default)]
     truth: TruthField,
+    // Extra keys of a listed contact (a probe's number) are ignored.
+    #[serde(default)]
+    truth_all: Option<Vec<ContactTruth>>,
 }
 
 fn not_a_number() -> f64 {
@@ -286,6 +325,7 @@ impl Session {
                         q: Vec::new(),
                         tau: Vec::new(),
                         truth: TruthField::Absent,
+                        truth_all: None,
                     });
                     Frame::from(f)
                 })
@@ -351,7 +391,13 @@ impl Session {
                     force: [v[3], v[4], v[5]],
                 }
             };
-            frames.push(Frame { t, q, tau, truth });
+            frames.push(Frame {
+                t,
+                q,
+                tau,
+                truth,
+                truth_all: Vec::new(),
+            });
         }
         Ok(Self {
             path: path.to_owned(),

@@ -19,6 +19,34 @@ fn json_truth_can_be_a_contact_null_or_absent() {
     assert_eq!(s.frames[2].truth, Truth::Unknown);
 }
 
+#[test]
+fn json_truth_all_lists_every_contact() {
+    let text = r#"{"format": "contact-session", "version": 1, "robot": "r", "frames": [
+        {"t": 0.0, "q": [0], "tau": [0.1], "truth": {"link": "a", "point": [1, 2, 3], "force": [4, 5, 6]},
+         "truth_all": [{"probe": 1, "link": "a", "point": [1, 2, 3], "force": [4, 5, 6]},
+                       {"probe": 2, "link": "b", "point": [0, 0, 1], "force": [0, -1, 0]}]},
+        {"t": 0.5, "q": [0], "tau": [0.0], "truth": null, "truth_all": []},
+        {"t": 1.0, "q": [0], "tau": [0.0], "truth": {"link": "a", "point": [1, 2, 3], "force": [4, 5, 6]}}
+      ]}"#;
+    let s = Session::parse_json(text, Path::new("s.json")).unwrap();
+    let links = |f: &Frame| f.true_contacts().into_iter().map(|c| c.link).collect::<Vec<_>>();
+    assert_eq!(links(&s.frames[0]), ["a", "b"]);
+    assert_eq!(s.frames[0].truth_all[1].force, [0.0, -1.0, 0.0]);
+    assert!(links(&s.frames[1]).is_empty());
+    // Without `truth_all`, `truth` is the only contact known.
+    assert_eq!(links(&s.frames[2]), ["a"]);
+    assert!(s.frames[2].truth_all.is_empty());
+    // Written back, read again: the same.
+    let again = Session::parse_json(
+        &serde_json::json!({"format": "contact-session", "version": 1, "robot": "r",
+            "frames": s.frames.iter().map(Frame::to_json).collect::<Vec<_>>()})
+        .to_string(),
+        Path::new("t.json"),
+    )
+    .unwrap();
+    assert_eq!(again.frames, s.frames);
+}
+
 /// A truth far beyond any arm made the errors against it overflow
 /// (`estimate` printed inf).
 #[test]
@@ -94,6 +122,23 @@ fn scripted_frames() -> Vec<Frame> {
                         point: [0.1, -0.2 * x, 1.0 / 7.0],
                         force: [3.0, 0.0, -x],
                     },
+                },
+                // Every sixth frame has two contacts, listed in `truth_all`.
+                truth_all: if i % 6 == 5 {
+                    vec![
+                        ContactTruth {
+                            link: "link_2".to_owned(),
+                            point: [0.1, -0.2 * x, 1.0 / 7.0],
+                            force: [3.0, 0.0, -x],
+                        },
+                        ContactTruth {
+                            link: "link_1".to_owned(),
+                            point: [0.0, 0.3, x],
+                            force: [-1.0, 2.0, 0.5],
+                        },
+                    ]
+                } else {
+                    Vec::new()
                 },
             }
         })

@@ -392,6 +392,7 @@ pub fn read_session(
                     q: q_row,
                     tau: tau_row.to_vec(),
                     truth,
+                    truth_all: Vec::new(),
                 };
                 // The rules of every session: finite values, one per joint.
                 match frame_problem(&frame, Some(tau.width), f64::NEG_INFINITY) {
