@@ -11,6 +11,7 @@ pub mod calibration;
 mod estimate;
 mod latest;
 mod live;
+pub mod pairs;
 
 pub use estimate::{EVERY_FRAME, EstimateJob, Estimated, SessionWorker};
 pub use latest::{Background, Latest, Serving};

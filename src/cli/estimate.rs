@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use anyhow::{Context as _, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use proprioscope::batch::pairs::{FramePair, PairScore, SingleSeen, session_pairs};
 use proprioscope::batch::{FrameEstimate, credible_set_holds_truth, frame_outcome, session_robot};
 use proprioscope::core::config::estimator::{EstimatorConfig, Friction};
 use proprioscope::core::config::limits;
@@ -16,6 +17,7 @@ use proprioscope::core::eval::metrics::{
 };
 use proprioscope::core::over_time::bias::{estimate_drifting_bias, without_drifting_bias};
 use proprioscope::core::over_time::frame::SequenceFrame;
+use proprioscope::core::over_time::pairs::SecondContactChain;
 use proprioscope::core::over_time::sequence::{Temporal, automatic_temporal, estimate_sequence};
 use proprioscope::core::over_time::temporal::is_continuous_recording;
 use proprioscope::core::robot::model::Robot;
@@ -172,8 +174,7 @@ impl Out {
     ) -> Result<()> {
         match self {
             Self::Json(w) => {
-                let held = credible_set_holds_truth(robot, &estimator.surface, update, &frame.truth);
-                let line = frame_json(robot, (number, frame.t), update, ms, &frame.truth, (outcome, held));
+                let line = json_line(estimator, robot, (number, frame), update, ms, outcome);
                 writeln!(w, "{line}").context("writing --out")
             }
             Self::Mcap(w) => w
@@ -186,6 +187,16 @@ impl Out {
                 ))
                 .context("writing --out"),
         }
+    }
+
+    /// Lines made elsewhere (JSON lines only; an MCAP gets none).
+    fn write_lines(&mut self, lines: &[serde_json::Value]) -> Result<()> {
+        if let Self::Json(w) = self {
+            for line in lines {
+                writeln!(w, "{line}").context("writing --out")?;
+            }
+        }
+        Ok(())
     }
 
     /// Flushes JSON lines, or closes the MCAP with its summary.
@@ -371,17 +382,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     let positions = joint_positions(&robot, &session, &file_frames)?;
     let (taus, sigma) = frame_torques(args, &robot, &session, &estimator.settings.sigma, &config, temporal)?;
     estimator.settings.sigma = sigma;
-    let sequence: Vec<SequenceFrame> = session
-        .frames
-        .iter()
-        .zip(&positions)
-        .zip(&taus)
-        .map(|((frame, joint_positions), tau)| SequenceFrame {
-            t_secs: frame.t,
-            joint_positions,
-            tau,
-        })
-        .collect();
+    let sequence = frame_sequence(&session, &positions, &taus);
     let bar = ProgressBar::new(session.frames.len() as u64);
     bar.set_style(ProgressStyle::with_template(
         "{bar:40} {pos}/{len} frames, {per_sec}, eta {eta}",
@@ -391,6 +392,9 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     let mut verdicts = [0usize; 3];
     let mut called = Vec::with_capacity(session.frames.len());
     let mut written: Result<()> = Ok(());
+    let two_contacts = config.contacts_at_once >= 2;
+    let mut singles = Vec::new();
+    let mut pending = Vec::new();
     args.estimator.with_threads(|| {
         estimate_sequence(
             &estimator,
@@ -412,7 +416,11 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
                 let estimate = FrameEstimate::of_frame(&robot, &estimator.surface, &update, ms, &frame.truth);
                 let outcome = frame_outcome(&robot, &estimate, &frame.truth);
                 outcomes.extend(outcome);
-                if let (Some(w), Ok(())) = (out.as_mut(), &written) {
+                if two_contacts {
+                    // The line waits for the session's second contacts.
+                    singles.push(SingleSeen::of(&update));
+                    pending.push(json_line(&estimator, &robot, (i, frame), &update, ms, outcome.as_ref()));
+                } else if let (Some(w), Ok(())) = (out.as_mut(), &written) {
                     written = w.write(&estimator, &robot, (i, frame), &update, ms, outcome.as_ref(), origin_ns);
                 }
                 bar.inc(1);
@@ -422,6 +430,13 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     })??;
     written?;
     bar.finish_and_clear();
+    if two_contacts {
+        let pairs = args
+            .estimator
+            .with_threads(|| second_contacts(&estimator, &robot, &config, &sequence, &singles))?
+            .map_err(|(n, e)| anyhow::anyhow!("{}: frame {n}: {e}", session.path.display()))?;
+        write_with_second_contacts(&robot, &session, &pairs, &mut pending, out.as_mut())?;
+    }
     if let Some(out) = out {
         out.finish()?;
     }
@@ -429,6 +444,147 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     if !outcomes.is_empty() {
         print_metrics(&outcomes)?;
     }
+    Ok(())
+}
+
+/// The session's second contacts ([`session_pairs`]), followed with the
+/// temporal model's onset and release rates.
+fn second_contacts(
+    estimator: &Estimator,
+    robot: &Robot,
+    config: &EstimatorConfig,
+    sequence: &[SequenceFrame<'_>],
+    singles: &[Option<SingleSeen>],
+) -> Result<Vec<Option<FramePair>>, (usize, proprioscope::core::estimate::settings::EstimateError)> {
+    let chain = SecondContactChain {
+        onset_per_s: config.temporal.onset_per_s,
+        release_per_s: config.temporal.release_per_s,
+    };
+    session_pairs(estimator, robot, sequence, singles, &config.pair, chain)
+}
+
+/// The session's frames as the sequence takes them.
+fn frame_sequence<'a>(session: &Session, positions: &'a [Vec<f64>], taus: &'a [Vec<f64>]) -> Vec<SequenceFrame<'a>> {
+    session
+        .frames
+        .iter()
+        .zip(positions)
+        .zip(taus)
+        .map(|((frame, joint_positions), tau)| SequenceFrame {
+            t_secs: frame.t,
+            joint_positions,
+            tau,
+        })
+        .collect()
+}
+
+/// The lines with their second contacts written, and their score printed.
+fn write_with_second_contacts(
+    robot: &Robot,
+    session: &Session,
+    pairs: &[Option<FramePair>],
+    lines: &mut [serde_json::Value],
+    out: Option<&mut Out>,
+) -> Result<()> {
+    let score = add_second_contacts(robot, session, pairs, lines);
+    if let Some(w) = out {
+        w.write_lines(lines)?;
+    }
+    report_pairs(&score)
+}
+
+/// Each line's `contacts` where two are called, and the score of every
+/// true contact.
+fn add_second_contacts(
+    robot: &Robot,
+    session: &Session,
+    pairs: &[Option<FramePair>],
+    lines: &mut [serde_json::Value],
+) -> PairScore {
+    let mut score = PairScore::default();
+    for ((line, pair), frame) in lines.iter_mut().zip(pairs).zip(&session.frames) {
+        let two = pair.as_ref().filter(|p| p.has_two());
+        if let Some(p) = two {
+            line["contacts"] = pair_contacts_json(robot, p, line["contact_probability"].as_f64());
+        }
+        score.add(
+            &frame.true_contacts(),
+            two.map(|p| p.pair.contacts.each_ref().map(|c| c.point_world)),
+        );
+    }
+    score
+}
+
+/// One frame's JSON line, its `contacts` the single contact's (or none).
+fn json_line(
+    estimator: &Estimator,
+    robot: &Robot,
+    (number, frame): (usize, &proprioscope::io::session::Frame),
+    update: &Update,
+    ms: f64,
+    outcome: Option<&FrameOutcome>,
+) -> serde_json::Value {
+    let held = credible_set_holds_truth(robot, &estimator.surface, update, &frame.truth);
+    let mut line = frame_json(robot, (number, frame.t), update, ms, &frame.truth, (outcome, held));
+    line["contacts"] = single_contact_json(robot, update);
+    line
+}
+
+/// A frame's `contacts` with one contact or none: the summary's.
+fn single_contact_json(robot: &Robot, update: &Update) -> serde_json::Value {
+    let s = &update.summary;
+    if s.verdict == Verdict::NoContact {
+        return serde_json::json!([]);
+    }
+    serde_json::json!([{
+        "link": robot.links.get(s.map.link).map(|l| l.name.clone()),
+        "point": s.map.point_world.to_array(),
+        "force": s.map.force_world.to_array(),
+        "probability": s.contact_probability.unwrap_or(1.0),
+        "credible90_radius_m": s.credible90.radius_m,
+    }])
+}
+
+/// A frame's `contacts` where two are called: each with its probability
+/// (the frame's contact probability, times that of two for the second).
+fn pair_contacts_json(robot: &Robot, pair: &FramePair, contact_probability: Option<f64>) -> serde_json::Value {
+    let contact = contact_probability.unwrap_or(1.0);
+    let entries: Vec<serde_json::Value> = pair
+        .pair
+        .contacts
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            serde_json::json!({
+                "link": robot.links.get(c.placed.link).map(|l| l.name.clone()),
+                "point": c.point_world.to_array(),
+                "force": c.force_world.to_array(),
+                "probability": if k == 0 { contact } else { contact * pair.probability_two },
+                "credible90_radius_m": c.credible90.radius_m,
+            })
+        })
+        .collect();
+    serde_json::json!(entries)
+}
+
+/// What `--contacts 2` found, scored against the session's `truth_all`.
+fn report_pairs(score: &PairScore) -> Result<()> {
+    if score.both_frames + score.one_frames == 0 {
+        return Ok(());
+    }
+    let share = |k: usize, n: usize| if n > 0 { 100.0 * k as f64 / n as f64 } else { f64::NAN };
+    let mut out = std::io::stdout().lock();
+    writeln!(
+        out,
+        "two contacts: called in {} of {} frames where both press ({:.1} %), median error {:.1} mm; in {} of {} frames where one presses ({:.1} %)",
+        score.both_called_two,
+        score.both_frames,
+        share(score.both_called_two, score.both_frames),
+        1e3 * score.median_error_m(),
+        score.one_called_two,
+        score.one_frames,
+        share(score.one_called_two, score.one_frames),
+    )?;
     Ok(())
 }
 

@@ -19,6 +19,7 @@ use proprioscope::core::config::estimator::{
 };
 use proprioscope::core::config::limits::{self, CountRange, Range};
 use proprioscope::core::estimate::estimator::Estimator;
+use proprioscope::core::estimate::pair::PairSettings;
 use proprioscope::core::over_time::calibration::{CalibrationSettings, ObserverGain};
 use proprioscope::core::over_time::sequence::Temporal;
 use proprioscope::core::over_time::temporal::TemporalSettings;
@@ -286,6 +287,15 @@ pub struct EstimatorArgs {
     /// store, whatever the recording's length (valid: 64 to 1048576).
     #[arg(long, default_value_t = EstimatorConfig::default().memory_mib, value_parser = counted(&limits::MEMORY_MIB))]
     pub memory: usize,
+    /// Most contacts looked for at once in a frame: 1, or 2 (a second push
+    /// where the evidence asks for it; `estimate` then lists both in
+    /// `contacts`).
+    #[arg(long, default_value_t = 1, value_parser = counted(&limits::CONTACTS_AT_ONCE))]
+    pub contacts: usize,
+    /// Prior probability that a frame with contact has two (with
+    /// `--contacts 2`; valid: 1e-6 to 0.5).
+    #[arg(long, default_value_t = EstimatorConfig::default().pair.prior_two)]
+    pub prior_two: f64,
 }
 
 /// One `--sigma` value.
@@ -395,6 +405,11 @@ impl EstimatorArgs {
                 },
             },
             memory_mib: self.memory,
+            contacts_at_once: self.contacts,
+            pair: PairSettings {
+                prior_two: self.prior_two,
+                ..PairSettings::default()
+            },
         };
         config.validate(None).map_err(|e| option_error(&e))?;
         Ok(config)

@@ -8,6 +8,7 @@
 
 use crate::core::config::limits::{self, CountOutOfRange, OutOfRange};
 use crate::core::estimate::estimator::Estimator;
+use crate::core::estimate::pair::PairSettings;
 use crate::core::estimate::settings::{EstimatorSettings, Mode, ParticleSettings, Sampling};
 use crate::core::over_time::calibration::{CalibrationSettings, ObserverGain};
 use crate::core::over_time::sequence::Temporal;
@@ -103,6 +104,12 @@ pub struct EstimatorConfig {
     /// smoother's store (whatever the recording's length), half for the
     /// rest (the session, the frames under way).
     pub memory_mib: usize,
+    /// Most contacts looked for at once in a frame: 1, or 2 (a second
+    /// push where the evidence asks for it,
+    /// [`crate::core::estimate::pair`]).
+    pub contacts_at_once: usize,
+    /// How a second contact is looked for.
+    pub pair: PairSettings,
 }
 
 /// What a recording's torques carry besides contacts, and what the
@@ -155,6 +162,8 @@ impl Default for EstimatorConfig {
             temporal: TemporalSettings::default(),
             torques: TorqueModel::default(),
             memory_mib: DEFAULT_MEMORY_MIB,
+            contacts_at_once: 1,
+            pair: PairSettings::default(),
         }
     }
 }
@@ -197,6 +206,10 @@ pub enum ConfigField {
     ObserverGain,
     /// [`EstimatorConfig::memory_mib`].
     Memory,
+    /// [`EstimatorConfig::contacts_at_once`].
+    ContactsAtOnce,
+    /// [`PairSettings::prior_two`] of [`EstimatorConfig::pair`].
+    PriorTwo,
 }
 
 impl ConfigField {
@@ -219,6 +232,8 @@ impl ConfigField {
             Self::JumpRate => "temporal.jump_per_s",
             Self::ObserverGain => "torques.observer_gain_per_s",
             Self::Memory => "memory_mib",
+            Self::ContactsAtOnce => "estimator.contacts",
+            Self::PriorTwo => "estimator.prior_two",
         }
     }
 
@@ -241,6 +256,8 @@ impl ConfigField {
             Self::JumpRate => "--jump-rate",
             Self::ObserverGain => "--observer-gain",
             Self::Memory => "--memory",
+            Self::ContactsAtOnce => "--contacts",
+            Self::PriorTwo => "--prior-two",
         }
     }
 }
@@ -366,6 +383,8 @@ impl EstimatorConfig {
         in_range(F::Slide, &limits::SLIDE, t.slide_m_per_sqrt_s)?;
         in_range(F::JumpRate, &limits::EVENT_RATE, t.jump_per_s)?;
         counted(F::Memory, &limits::MEMORY_MIB, self.memory_mib)?;
+        counted(F::ContactsAtOnce, &limits::CONTACTS_AT_ONCE, self.contacts_at_once)?;
+        in_range(F::PriorTwo, &limits::PRIOR_TWO, self.pair.prior_two)?;
         Ok(())
     }
 

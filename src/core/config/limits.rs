@@ -223,6 +223,15 @@ pub const ALPHA: Range = Range {
     min_excluded: false,
 };
 
+/// Prior probability that a frame with contact has two.
+pub const PRIOR_TWO: Range = Range {
+    quantity: "prior probability of two contacts",
+    unit: "",
+    min: 1e-6,
+    max: 0.5,
+    min_excluded: false,
+};
+
 /// The rate at which contacts begin, end or jump, 1/s.
 pub const EVENT_RATE: Range = Range::closed("event rate", "1/s", 0.0, 1e3);
 
@@ -288,11 +297,14 @@ pub const LIVE_FRAMES: CountRange = CountRange::new("live frames", 1, usize::MAX
 /// Memory a smoothed recording may take, MiB.
 pub const MEMORY_MIB: CountRange = CountRange::new("memory (MiB)", 64, 1 << 20);
 
+/// Contacts looked for at once in a frame.
+pub const CONTACTS_AT_ONCE: CountRange = CountRange::new("contacts at once", 1, 2);
+
 /// Random contacts of a bench run.
 pub const CONTACTS: CountRange = CountRange::new("contacts", 1, 1_000_000);
 
 /// Every range above, for the documentation's table (and its test).
-pub const RANGES: [&Range; 24] = [
+pub const RANGES: [&Range; 25] = [
     &SIGMA,
     &NOISE,
     &TORQUE,
@@ -317,10 +329,11 @@ pub const RANGES: [&Range; 24] = [
     &SPEED,
     &WAIT_SECONDS,
     &THRESHOLD,
+    &PRIOR_TWO,
 ];
 
 /// Every count range above.
-pub const COUNTS: [&CountRange; 8] = [
+pub const COUNTS: [&CountRange; 9] = [
     &SURFACE_POINTS,
     &PARTICLES,
     &MAGNITUDES,
@@ -329,6 +342,7 @@ pub const COUNTS: [&CountRange; 8] = [
     &CONTACTS,
     &LIVE_FRAMES,
     &MEMORY_MIB,
+    &CONTACTS_AT_ONCE,
 ];
 
 #[cfg(test)]

@@ -11,6 +11,7 @@ use glam::DVec3;
 
 use crate::core::estimate::contact::{PatchForms, PosedSurface};
 use crate::core::estimate::measurement::Measurement;
+use crate::core::estimate::pair::{PairEstimate, PairSettings, PairStart, estimate_pair};
 use crate::core::estimate::phases::{PhaseHierarchy, link_ranges};
 use crate::core::estimate::posterior::{Posterior, estimate_keeping_forms};
 use crate::core::estimate::press::{PlaceSpread, PressFrame, PressSettings, locate, press_spreads};
@@ -172,6 +173,38 @@ impl Estimator {
         };
         let posterior = estimate_keeping_forms(&posed, tau, &self.settings, self.hierarchy.as_ref(), forms)?;
         Ok((pose, torque_model, posterior))
+    }
+
+    /// The two-contact account of torques `tau` measured at
+    /// `joint_positions` ([`crate::core::estimate::pair`]), its search
+    /// started from each of `starts`; `None` when the surface has no place
+    /// for a second contact.
+    ///
+    /// # Errors
+    /// As [`Estimator::update`].
+    pub fn pair_at(
+        &self,
+        robot: &Robot,
+        joint_positions: &[f64],
+        tau: &[f64],
+        pair: &PairSettings,
+        starts: &[PairStart],
+    ) -> Result<Option<PairEstimate>, EstimateError> {
+        let (pose, torque_model, posterior) = self.posterior_at(robot, joint_positions, tau, None)?;
+        let posed = PosedSurface {
+            torque_model: &torque_model,
+            surface: &self.surface,
+        };
+        estimate_pair(
+            &posed,
+            &pose,
+            tau,
+            &self.settings,
+            self.hierarchy.as_ref(),
+            &posterior,
+            pair,
+            starts,
+        )
     }
 
     /// A frame's summary from its own posterior: the contact refined

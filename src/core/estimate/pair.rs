@@ -35,6 +35,7 @@
 use glam::DVec3;
 
 use crate::core::estimate::contact::{PosedSurface, UnitTorqueSource};
+use crate::core::estimate::friction::friction_evidence;
 use crate::core::estimate::measurement::Measurement;
 use crate::core::estimate::phases::PhaseHierarchy;
 use crate::core::estimate::posterior::{Posterior, estimate};
@@ -96,6 +97,8 @@ pub struct PairContact {
     pub placed: Placed,
     /// The same place, world frame, m.
     pub point_world: DVec3,
+    /// Its push on the robot, world frame, N.
+    pub force_world: DVec3,
     /// Its 90 % credible set given the other contact.
     pub credible90: CredibleSet,
 }
@@ -183,6 +186,8 @@ pub struct Placed {
     pub location: Option<MeshPoint>,
     /// Contact point, link frame, m.
     pub point_in_link: DVec3,
+    /// Inward unit normal there, link frame: the push's direction.
+    pub inward_normal_in_link: DVec3,
     /// Push magnitude along the inward normal, N.
     pub force_newtons: f64,
     /// Its torques (sensed order), N·m.
@@ -212,6 +217,10 @@ pub enum PairStart {
 struct Conditional {
     placed: Placed,
     log_evidence: f64,
+    /// ln of its Occam factor: the evidence over its best sample's
+    /// likelihood (the share of its prior place and magnitude the torques
+    /// left to it allow).
+    log_occam: f64,
     posterior: Posterior,
 }
 
@@ -258,6 +267,52 @@ impl Search<'_> {
         }
     }
 
+    /// How much the friction model (μ = the settings' friction) raises
+    /// the likelihood of `one` with `other`'s torques taken away (`other`
+    /// `None`: alone), in nats; 0 where it does not.
+    fn friction_gain(&self, one: &Placed, other: Option<&Placed>) -> f64 {
+        let mu = self.settings.friction;
+        if mu.is_nan() || mu <= 0.0 {
+            return 0.0;
+        }
+        let left = other.map_or_else(|| self.tau.to_vec(), |o| minus(self.tau, &o.torques));
+        let measurement = Measurement {
+            friction: mu,
+            ..self.measurement(&left)
+        };
+        friction_evidence(
+            self.posed.torque_model,
+            one.link,
+            (one.point_in_link, one.inward_normal_in_link),
+            &measurement,
+            mu,
+        )
+        .map_or(0.0, |(_, gain)| 0.5 * gain.max(0.0))
+    }
+
+    /// ln `Z₁`. With patches the one contact's evidence is, as each of
+    /// the pair's, its Occam factor from the samples times its peak on the
+    /// continuous surface (with friction, raised by what its tangential
+    /// force explains). The samples' own peak is the patch model's, linear
+    /// in the offset across a patch: a misfit that no place of the surface
+    /// removes is taken up there by offsets beyond the surface's reach.
+    fn log_evidence_one(&self, single: &Posterior) -> f64 {
+        let surface = self.posed.surface;
+        let first = single.map_point;
+        let peak_from_samples = self
+            .settings
+            .patches
+            .then(|| refine(self.posed.torque_model, surface, single, &self.measurement(self.tau)))
+            .flatten()
+            .map_or(0.0, |r| {
+                let area = surface.ln_area.get(first).copied().unwrap_or(0.0);
+                let samples_peak = single.log_likelihood.get(first).map_or(f64::NEG_INFINITY, |l| l - area);
+                let peak = -0.5 * r.residual_chi2 + self.friction_gain(&self.refined(&r), None);
+                peak - samples_peak
+            });
+        log_evidence(single, self.ln_prior_norm) + peak_from_samples
+    }
+
     /// Sample `k` pushed with `f` newtons.
     fn at_sample(&self, k: usize, f: f64) -> Placed {
         let surface = self.posed.surface;
@@ -269,6 +324,7 @@ impl Search<'_> {
             link,
             location: surface.location.get(k).copied(),
             point_in_link,
+            inward_normal_in_link: normal,
             force_newtons: f,
             torques: scaled(&unit_torques_at(self.posed, link, point_in_link, normal), f),
         }
@@ -281,6 +337,7 @@ impl Search<'_> {
             link: r.link,
             location: Some(r.location),
             point_in_link: r.point_in_link,
+            inward_normal_in_link: r.inward_normal_in_link,
             force_newtons: r.force_newtons,
             torques: scaled(
                 &unit_torques_at(self.posed, r.link, r.point_in_link, r.inward_normal_in_link),
@@ -330,6 +387,11 @@ impl Search<'_> {
             .map(|&l| (l - top).exp())
             .sum();
         let log_evidence = top + sum.max(1.0).ln() - self.ln_prior_norm;
+        let area = if self.settings.patches {
+            surface.ln_area.get(point).copied().unwrap_or(0.0)
+        } else {
+            0.0
+        };
         let refined = self
             .settings
             .patches
@@ -343,6 +405,7 @@ impl Search<'_> {
         Ok(Some(Conditional {
             placed,
             log_evidence,
+            log_occam: log_evidence - (top - area),
             posterior,
         }))
     }
@@ -424,8 +487,15 @@ impl Search<'_> {
         // The polished places are the pair's: the searches above are for
         // the evidence and each contact's posterior given the other.
         let residual = self.residual(&a, &b);
-        let log_evidence_two =
-            std::f64::consts::LN_2 + a_given_b.log_evidence + b_given_a.log_evidence + 0.5 * residual;
+        let log_evidence_two = if self.settings.patches {
+            // Each contact's Occam factor from its samples, the peak from
+            // the pair's places on the continuous surface (with friction,
+            // what each one's tangential force explains with the other held).
+            let friction = self.friction_gain(&a, Some(&b)) + self.friction_gain(&b, Some(&a));
+            std::f64::consts::LN_2 + a_given_b.log_occam + b_given_a.log_occam - 0.5 * residual + friction
+        } else {
+            std::f64::consts::LN_2 + a_given_b.log_evidence + b_given_a.log_evidence + 0.5 * residual
+        };
         Ok(Some((
             log_evidence_two,
             residual,
@@ -461,8 +531,9 @@ fn unit_torques_at(
 }
 
 /// The frame's two-contact account, from its one-contact posterior
-/// `single` of the torques `tau`, the search started from `start`
-/// (`None` when the surface has no sample away from the first contact).
+/// `single` of the torques `tau`, the search started from each of
+/// `starts_given`, the one with the larger evidence kept (`None` when no
+/// start finds a place away from the first contact).
 ///
 /// # Errors
 /// As [`estimate`], for a remainder's posterior.
@@ -475,7 +546,7 @@ pub fn estimate_pair(
     hierarchy: Option<&PhaseHierarchy>,
     single: &Posterior,
     pair: &PairSettings,
-    start: &PairStart,
+    starts_given: &[PairStart],
 ) -> Result<Option<PairEstimate>, EstimateError> {
     let surface = posed.surface;
     let ln_prior_norm = if settings.patches {
@@ -493,39 +564,51 @@ pub fn estimate_pair(
         ln_prior_norm,
     };
     let first = single.map_point;
-    let log_evidence_one = log_evidence(single, ln_prior_norm);
+    let log_evidence_one = search.log_evidence_one(single);
     // From the places given, or from where one contact is believed to be,
     // or from each contact of the best pair of a coarse grid of samples,
     // searched whole (a two-contact frame's single contact can lie on
-    // neither push, and a search started there stays near it); the start
+    // neither push, and a search started there stays near it); the pair
     // with the larger evidence is kept.
-    let starts: Vec<[Placed; 2]> = match start {
-        PairStart::Both(both) => vec![(**both).clone()],
-        PairStart::One { point, force_newtons } => search
-            .alternate(search.at_sample(*point, *force_newtons))?
-            .into_iter()
-            .collect(),
-        PairStart::Unknown => {
-            let mut seeds: Vec<(usize, f64)> = coarse_pair(posed, tau, &search.weights, search.force_range())
-                .into_iter()
-                .flat_map(|(i, fi, j, fj)| [(i, fi), (j, fj)])
-                .collect();
-            if seeds.is_empty() {
-                seeds.push((first, single.force_newtons.get(first).copied().unwrap_or(0.0)));
-            }
-            let mut found = Vec::new();
-            for (k, f) in seeds {
-                found.extend(search.alternate(search.at_sample(k, f))?);
-            }
-            found
-        }
-    };
+    // The starts are taken in the order given, and the search stops at
+    // the first whose pair explains the torques within the noise (a
+    // residual χ² no larger than the joints': what the noise alone gives
+    // on average): a pair followed from the last frame usually does.
     let mut best: Option<(f64, f64, [Conditional; 2])> = None;
-    for places in starts {
-        if let Some((z, residual, pair)) = search.evaluate(places)?
-            && best.as_ref().is_none_or(|(top, ..)| z > *top)
+    for start in starts_given {
+        let places: Vec<[Placed; 2]> = match start {
+            PairStart::Both(both) => vec![(**both).clone()],
+            PairStart::One { point, force_newtons } => search
+                .alternate(search.at_sample(*point, *force_newtons))?
+                .into_iter()
+                .collect(),
+            PairStart::Unknown => {
+                let mut seeds: Vec<(usize, f64)> = coarse_pair(posed, tau, &search.weights, search.force_range())
+                    .into_iter()
+                    .flat_map(|(i, fi, j, fj)| [(i, fi), (j, fj)])
+                    .collect();
+                if seeds.is_empty() {
+                    seeds.push((first, single.force_newtons.get(first).copied().unwrap_or(0.0)));
+                }
+                let mut found = Vec::new();
+                for (k, f) in seeds {
+                    found.extend(search.alternate(search.at_sample(k, f))?);
+                }
+                found
+            }
+        };
+        for places in places {
+            if let Some((z, residual, pair)) = search.evaluate(places)?
+                && best.as_ref().is_none_or(|(top, ..)| z > *top)
+            {
+                best = Some((z, residual, pair));
+            }
+        }
+        if best
+            .as_ref()
+            .is_some_and(|(_, residual, _)| *residual <= tau.len() as f64)
         {
-            best = Some((z, residual, pair));
+            break;
         }
     }
     let Some((log_evidence_two, residual_chi2, [a, b])) = best else {
@@ -543,6 +626,11 @@ pub fn estimate_pair(
     };
     let contact = |c: Conditional| PairContact {
         point_world: pose.point_to_world(c.placed.link, c.placed.point_in_link),
+        force_world: c.placed.force_newtons
+            * pose
+                .world_from_link
+                .get(c.placed.link)
+                .map_or(DVec3::ZERO, |w| w.transform_vector3(c.placed.inward_normal_in_link)),
         credible90: credible_set(&c.posterior, world, 0.9),
         placed: c.placed,
     };

@@ -107,7 +107,7 @@ impl Scene {
             None,
             &single,
             &PairSettings::default(),
-            start,
+            std::slice::from_ref(start),
         )
         .unwrap()
     }
@@ -187,6 +187,7 @@ fn two_pushes_are_followed_from_frame_to_frame() {
                 link,
                 location: Some(s.truths.location[k]),
                 point_in_link: p,
+                inward_normal_in_link: n,
                 force_newtons: f,
                 torques: scaled(&unit_torques_at(&posed, link, p, n), f),
             }

@@ -1,6 +1,6 @@
 //! A session: the temporal model (filter, smoother in bounded stretches),
 //! the frames run in parallel blocks, presses fitted as a whole, the torque
-//! bias and the calibration of a real arm's model error.
+//! bias, the calibration of a real arm's model error, and a second contact.
 //! Imports the rooms below it, `estimate` included.
 
 pub mod bias;
@@ -10,6 +10,7 @@ pub mod frame;
 pub mod graph;
 pub mod observer;
 pub mod offsets;
+pub mod pairs;
 pub mod parallel;
 pub mod presses;
 pub mod sequence;

@@ -1,0 +1,268 @@
+//! Two contacts over a session. Seven torques leave two contacts' six
+//! unknowns barely determined in one frame (several pairs explain the same
+//! torques; `docs/method.md`, *Two contacts*), but contacts come one at a
+//! time: where one has pressed alone, its place is known when the other
+//! arrives, and a pair once found moves little from frame to frame. So
+//! each frame's search starts where the frames before left the contacts
+//! ([`PairTracker`]), and whether a second contact presses is a chain of
+//! two states over the frames' evidence ([`SecondContactChain`]), with its
+//! own onset and release: one contact may hold while the other comes and
+//! goes.
+
+use crate::core::estimate::pair::{PairEstimate, PairStart, Placed};
+
+/// Where the next frame's pair search starts, from what the frames so
+/// far said.
+#[derive(Debug, Clone, Default)]
+pub struct PairTracker {
+    /// Both contacts as the last frame's search left them (called two or
+    /// not: a second push that grows from nothing is followed from its
+    /// first newtons).
+    both: Option<Box<[Placed; 2]>>,
+    /// The first contact that a frame's single contact explained since
+    /// the last frame without contact (its sample and magnitude): where
+    /// the first push is when a second arrives, before the single
+    /// contact, explaining both, drifts between them.
+    first_held: Option<(usize, f64)>,
+    /// The last contact that a frame's single contact explained.
+    held: Option<(usize, f64)>,
+}
+
+impl PairTracker {
+    /// A tracker that has seen nothing.
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Where the next frame's search starts: both contacts as the last
+    /// frame left them, the contact first held alone in this press and the
+    /// one last held; nothing known, the coarse grid.
+    #[must_use]
+    pub fn starts(&self) -> Vec<PairStart> {
+        let mut starts = Vec::with_capacity(2);
+        if let Some(both) = &self.both {
+            starts.push(PairStart::Both(both.clone()));
+        }
+        for (point, force_newtons) in self.first_held.into_iter().chain(self.held) {
+            let start = PairStart::One { point, force_newtons };
+            if !starts.contains(&start) {
+                starts.push(start);
+            }
+        }
+        if starts.is_empty() {
+            starts.push(PairStart::Unknown);
+        }
+        starts
+    }
+
+    /// What a frame said: `alone`, its single contact (sample and
+    /// magnitude) where that explains the torques, and `pair`, its
+    /// two-contact account. A frame with neither forgets both.
+    pub fn observe(&mut self, alone: Option<(usize, f64)>, pair: Option<&PairEstimate>) {
+        self.both = pair.map(|p| Box::new(p.contacts.clone().map(|c| c.placed)));
+        if alone.is_some() {
+            self.held = alone;
+            self.first_held = self.first_held.or(alone);
+        } else if pair.is_none() {
+            self.held = None;
+            self.first_held = None;
+        }
+    }
+}
+
+/// Log evidence ratio a frame without a pair account gives: "no second
+/// contact", surely but finitely (the chain stays arithmetic).
+pub const NO_PAIR_LOG_RATIO: f64 = -50.0;
+
+/// Whether a second contact presses, as a chain of two states over the
+/// frames: it arrives at `onset_per_s` and leaves at `release_per_s`; each
+/// frame weighs the states by its evidence ratio `Z₂ / Z₁`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SecondContactChain {
+    /// Rate at which a second contact arrives while one presses, 1/s.
+    pub onset_per_s: f64,
+    /// Rate at which it leaves, 1/s.
+    pub release_per_s: f64,
+}
+
+impl SecondContactChain {
+    /// Probability of "two" after a step of `dt_secs` from `two`.
+    fn predict(&self, two: f64, dt_secs: f64) -> f64 {
+        let onset = -(-self.onset_per_s * dt_secs.max(0.0)).exp_m1();
+        let release = -(-self.release_per_s * dt_secs.max(0.0)).exp_m1();
+        (two * (1.0 - release) + (1.0 - two) * onset).clamp(0.0, 1.0)
+    }
+
+    /// `predicted` weighed by a frame's `ln (Z₂ / Z₁)`.
+    fn correct(predicted: f64, log_ratio: f64) -> f64 {
+        let log_ratio = if log_ratio.is_nan() {
+            NO_PAIR_LOG_RATIO
+        } else {
+            log_ratio.clamp(-700.0, 700.0)
+        };
+        // odds × ratio, in logs.
+        let log_odds = predicted.max(1e-300).ln() - (1.0 - predicted).max(1e-300).ln() + log_ratio;
+        logistic(log_odds)
+    }
+
+    /// Each frame's probability of two contacts given it and the frames
+    /// before (`times_secs` ascending, `log_ratios` one per frame),
+    /// starting from `prior_two`.
+    #[must_use]
+    pub fn filter(&self, times_secs: &[f64], log_ratios: &[f64], prior_two: f64) -> Vec<f64> {
+        let mut out = Vec::with_capacity(log_ratios.len());
+        let mut two = prior_two;
+        let mut last: Option<f64> = None;
+        for (&t, &r) in times_secs.iter().zip(log_ratios) {
+            let predicted = last.map_or(two, |l| self.predict(two, t - l));
+            two = Self::correct(predicted, r);
+            out.push(two);
+            last = Some(t);
+        }
+        out
+    }
+
+    /// Each frame's probability of two contacts given every frame: the
+    /// filter forwards, and a backward pass of the messages.
+    #[must_use]
+    pub fn smooth(&self, times_secs: &[f64], log_ratios: &[f64], prior_two: f64) -> Vec<f64> {
+        let filtered = self.filter(times_secs, log_ratios, prior_two);
+        let n = filtered.len();
+        let mut out = filtered.clone();
+        // β over (one, two), scaled to sum to 1.
+        let mut beta = [0.5, 0.5];
+        for k in (0..n.saturating_sub(1)).rev() {
+            let (Some(&t0), Some(&t1), Some(&r1)) = (times_secs.get(k), times_secs.get(k + 1), log_ratios.get(k + 1))
+            else {
+                continue;
+            };
+            let dt = (t1 - t0).max(0.0);
+            let onset = -(-self.onset_per_s * dt).exp_m1();
+            let release = -(-self.release_per_s * dt).exp_m1();
+            // The next frame's likelihood of each state, relative: two
+            // weighs e^r against one's 1 (scaled to keep the larger at 1).
+            let r = if r1.is_nan() {
+                NO_PAIR_LOG_RATIO
+            } else {
+                r1.clamp(-700.0, 700.0)
+            };
+            let (l_one, l_two) = if r > 0.0 { ((-r).exp(), 1.0) } else { (1.0, r.exp()) };
+            let next = [l_one * beta[0], l_two * beta[1]];
+            let from_one = (1.0 - onset) * next[0] + onset * next[1];
+            let from_two = release * next[0] + (1.0 - release) * next[1];
+            let sum = from_one + from_two;
+            beta = if sum > 0.0 && sum.is_finite() {
+                [from_one / sum, from_two / sum]
+            } else {
+                [0.5, 0.5]
+            };
+            if let (Some(slot), Some(&f)) = (out.get_mut(k), filtered.get(k)) {
+                let two = f * beta[1];
+                let one = (1.0 - f) * beta[0];
+                *slot = if two + one > 0.0 { two / (two + one) } else { f };
+            }
+        }
+        out
+    }
+}
+
+/// `1 / (1 + e^-x)`, without overflow.
+fn logistic(x: f64) -> f64 {
+    if x >= 0.0 {
+        1.0 / (1.0 + (-x).exp())
+    } else {
+        let e = x.exp();
+        e / (1.0 + e)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CHAIN: SecondContactChain = SecondContactChain {
+        onset_per_s: 0.5,
+        release_per_s: 2.0,
+    };
+
+    /// The smoother against the sum over every path of a short chain,
+    /// done by brute force.
+    #[test]
+    fn smoothing_matches_every_path_summed() {
+        let times = [0.0, 0.01, 0.03, 0.04, 0.1, 0.12];
+        let ratios = [-3.0, 2.0, -0.5, 4.0, f64::NAN, 1.0];
+        let prior = 0.2;
+        let smoothed = CHAIN.smooth(&times, &ratios, prior);
+        let filtered = CHAIN.filter(&times, &ratios, prior);
+        let n = times.len();
+        let mut marginal = vec![0.0; n];
+        let mut total = 0.0;
+        for path in 0..(1usize << n) {
+            let state = |k: usize| (path >> k) & 1 == 1;
+            let mut w = if state(0) { prior } else { 1.0 - prior };
+            for k in 0..n {
+                if k > 0 {
+                    let dt = times[k] - times[k - 1];
+                    let onset = -(-CHAIN.onset_per_s * dt).exp_m1();
+                    let release = -(-CHAIN.release_per_s * dt).exp_m1();
+                    w *= match (state(k - 1), state(k)) {
+                        (false, false) => 1.0 - onset,
+                        (false, true) => onset,
+                        (true, false) => release,
+                        (true, true) => 1.0 - release,
+                    };
+                }
+                let r = if ratios[k].is_nan() {
+                    NO_PAIR_LOG_RATIO
+                } else {
+                    ratios[k]
+                };
+                if state(k) {
+                    w *= r.exp();
+                }
+            }
+            total += w;
+            for (k, m) in marginal.iter_mut().enumerate() {
+                if state(k) {
+                    *m += w;
+                }
+            }
+        }
+        for k in 0..n {
+            let exact = marginal[k] / total;
+            assert!(
+                (smoothed[k] - exact).abs() < 1e-12,
+                "frame {k}: {} vs {exact}",
+                smoothed[k]
+            );
+        }
+        // The last frame's smoothed belief is its filtered one.
+        assert!((smoothed[n - 1] - filtered[n - 1]).abs() < 1e-15);
+    }
+
+    #[test]
+    fn extreme_ratios_stay_probabilities() {
+        let times = [0.0, 0.001, 0.002];
+        for r in [f64::INFINITY, f64::NEG_INFINITY, 1e308, -1e308, f64::NAN] {
+            for p in CHAIN.smooth(&times, &[r, r, r], 0.1) {
+                assert!((0.0..=1.0).contains(&p), "{r}: {p}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_tracker_starts_where_the_contacts_were() {
+        let mut tracker = PairTracker::new();
+        assert_eq!(tracker.starts(), [PairStart::Unknown]);
+        tracker.observe(Some((7, 12.0)), None);
+        let one = |point, force_newtons| PairStart::One { point, force_newtons };
+        assert_eq!(tracker.starts(), [one(7, 12.0)]);
+        // The press's first contact is kept beside the last.
+        tracker.observe(Some((9, 14.0)), None);
+        assert_eq!(tracker.starts(), [one(7, 12.0), one(9, 14.0)]);
+        // A frame without contact forgets it.
+        tracker.observe(None, None);
+        assert_eq!(tracker.starts(), [PairStart::Unknown]);
+    }
+}
