@@ -572,18 +572,30 @@ fn report_pairs(score: &PairScore) -> Result<()> {
     if score.both_frames + score.one_frames == 0 {
         return Ok(());
     }
-    let share = |k: usize, n: usize| if n > 0 { 100.0 * k as f64 / n as f64 } else { f64::NAN };
+    let share = |k: usize, n: usize| if n > 0 { 100.0 * k as f64 / n as f64 } else { 0.0 };
     let mut out = std::io::stdout().lock();
-    writeln!(
-        out,
-        "two contacts: called in {} of {} frames where both press ({:.1} %), median error {:.1} mm; in {} of {} frames where one presses ({:.1} %)",
-        score.both_called_two,
-        score.both_frames,
-        share(score.both_called_two, score.both_frames),
-        1e3 * score.median_error_m(),
+    let one = format!(
+        "in {} of {} frames where one presses ({:.1} %)",
         score.one_called_two,
         score.one_frames,
         share(score.one_called_two, score.one_frames),
+    );
+    if score.both_frames == 0 {
+        writeln!(out, "two contacts: no frame where two press; called {one}")?;
+        // e.g. "two contacts: no frame where two press; called in 0 of 144 frames where one presses (0.0 %)"
+        return Ok(());
+    }
+    let error = if score.both_errors_m.is_empty() {
+        "no error measured".to_owned()
+    } else {
+        format!("median error {:.1} mm", 1e3 * score.median_error_m())
+    };
+    writeln!(
+        out,
+        "two contacts: called in {} of {} frames where both press ({:.1} %), {error}; {one}",
+        score.both_called_two,
+        score.both_frames,
+        share(score.both_called_two, score.both_frames),
     )?;
     Ok(())
 }

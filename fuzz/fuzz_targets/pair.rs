@@ -1,0 +1,94 @@
+//! Two contacts in one frame and the chain of two states over frames: any
+//! torques, σ and starts give a pair whose numbers are finite and whose
+//! probability of two is a probability, or an error; never a panic. Any
+//! times and evidence ratios give the chain's probabilities in [0, 1].
+#![no_main]
+
+use std::sync::OnceLock;
+
+use proprioscope::core::estimate::contact::PosedSurface;
+use proprioscope::core::estimate::pair::{PairSettings, PairStart, estimate_pair};
+use proprioscope::core::estimate::posterior::estimate;
+use proprioscope::core::estimate::settings::EstimatorSettings;
+use proprioscope::core::over_time::pairs::SecondContactChain;
+use proprioscope::core::robot::builtin;
+use proprioscope::core::robot::kinematics::RobotPose;
+use proprioscope::core::robot::model::Robot;
+use proprioscope::core::robot::torque::TorqueModel;
+use proprioscope::core::surface::sampling::{Surface, SurfaceRequest};
+
+/// The built-in LWR, 80 samples of it and one pose.
+fn scene() -> &'static (Robot, Surface, RobotPose) {
+    static SCENE: OnceLock<(Robot, Surface, RobotPose)> = OnceLock::new();
+    SCENE.get_or_init(|| {
+        let Ok(robot) = builtin::lwr4plus_generated() else {
+            std::process::abort()
+        };
+        let request = SurfaceRequest {
+            links: robot.default_candidate_links(),
+            total_points: 80,
+            seed: 0,
+        };
+        let Ok(surface) = Surface::sample(&robot, &request) else {
+            std::process::abort()
+        };
+        let Ok(q) = robot.joint_positions(&[1.2, 0.3, 0.8, -1.6, -1.0, -0.5, 0.9], &[]) else {
+            std::process::abort()
+        };
+        let pose = RobotPose::new(&robot, &q);
+        (robot, surface, pose)
+    })
+}
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    let numbers: Vec<f64> = data
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap_or([0; 8])))
+        .collect();
+    let (Some(&sigma), Some(&start), Some(&force), Some(&friction), Some(rest)) = (
+        numbers.first(),
+        numbers.get(1),
+        numbers.get(2),
+        numbers.get(3),
+        numbers.get(4..),
+    ) else {
+        return;
+    };
+    let (robot, surface, pose) = scene();
+    let links = robot.default_candidate_links();
+    let torque_model = TorqueModel::new(robot, pose, &links);
+    let posed = PosedSurface {
+        torque_model: &torque_model,
+        surface,
+    };
+    let tau: Vec<f64> = rest.iter().copied().take(7).collect();
+    if tau.len() == 7 {
+        let settings = EstimatorSettings {
+            friction: if friction.is_finite() { friction.abs() % 2.0 } else { 0.0 },
+            ..EstimatorSettings::exact(vec![sigma.abs().clamp(1e-4, 100.0); 7])
+        };
+        if let Ok(single) = estimate(&posed, &tau, &settings, None) {
+            let point = if start.is_finite() { (start.abs() as usize) % surface.len() } else { 0 };
+            let starts = [PairStart::One { point, force_newtons: force }, PairStart::Unknown];
+            if let Ok(Some(pair)) =
+                estimate_pair(&posed, pose, &tau, &settings, None, &single, &PairSettings::default(), &starts)
+            {
+                assert!((0.0..=1.0).contains(&pair.probability_two), "{pair:?}");
+                for c in &pair.contacts {
+                    assert!(c.point_world.is_finite() && c.placed.force_newtons.is_finite(), "{pair:?}");
+                }
+            }
+        }
+    }
+    // The chain: times and ratios from what is left.
+    let times: Vec<f64> = rest.iter().step_by(2).copied().collect();
+    let ratios: Vec<f64> = rest.iter().skip(1).step_by(2).copied().collect();
+    let n = times.len().min(ratios.len());
+    let chain = SecondContactChain {
+        onset_per_s: 0.5,
+        release_per_s: 2.0,
+    };
+    for p in chain.smooth(&times[..n], &ratios[..n], 0.1) {
+        assert!((0.0..=1.0).contains(&p), "{p}");
+    }
+});
