@@ -582,7 +582,6 @@ fn report_pairs(score: &PairScore) -> Result<()> {
     );
     if score.both_frames == 0 {
         writeln!(out, "two contacts: no frame where two press; called {one}")?;
-        // e.g. "two contacts: no frame where two press; called in 0 of 144 frames where one presses (0.0 %)"
         return Ok(());
     }
     let error = if score.both_errors_m.is_empty() {

@@ -43,8 +43,10 @@ use crate::core::estimate::refine::{RefinedContact, refine, refine_at};
 use crate::core::estimate::settings::{EstimateError, EstimatorSettings};
 use crate::core::estimate::summary::{CredibleSet, credible_set};
 use crate::core::geometry::shell::MeshPoint;
+use crate::core::numerics::special::logistic;
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::LinkId;
+use crate::core::robot::torque::weighted_dot;
 
 /// Conditional searches after the single contact's: the second contact
 /// given the first, the first given the second, the second again. More
@@ -246,7 +248,7 @@ impl Search<'_> {
     }
 
     fn chi2(&self, left: &[f64]) -> f64 {
-        left.iter().zip(&self.weights).map(|(r, w)| w * r * r).sum()
+        weighted_dot(&self.weights, left, left)
     }
 
     /// The pair's residual χ².
@@ -326,7 +328,7 @@ impl Search<'_> {
             point_in_link,
             inward_normal_in_link: normal,
             force_newtons: f,
-            torques: scaled(&unit_torques_at(self.posed, link, point_in_link, normal), f),
+            torques: self.posed.torque_model.torques(link, point_in_link, normal * f),
         }
     }
 
@@ -339,9 +341,10 @@ impl Search<'_> {
             point_in_link: r.point_in_link,
             inward_normal_in_link: r.inward_normal_in_link,
             force_newtons: r.force_newtons,
-            torques: scaled(
-                &unit_torques_at(self.posed, r.link, r.point_in_link, r.inward_normal_in_link),
-                r.force_newtons,
+            torques: self.posed.torque_model.torques(
+                r.link,
+                r.point_in_link,
+                r.inward_normal_in_link * r.force_newtons,
             ),
         }
     }
@@ -505,29 +508,6 @@ impl Search<'_> {
             ],
         )))
     }
-}
-
-/// `f · u`.
-fn scaled(u: &[f64], f: f64) -> Vec<f64> {
-    u.iter().map(|x| f * x).collect()
-}
-
-/// Torques per newton of a push along `inward_normal_in_link` at
-/// `point_in_link` of `link` (sensed order).
-fn unit_torques_at(
-    posed: &PosedSurface<'_>,
-    link: LinkId,
-    point_in_link: DVec3,
-    inward_normal_in_link: DVec3,
-) -> Vec<f64> {
-    let mut u = vec![0.0; posed.joints()];
-    let moment = point_in_link.cross(inward_normal_in_link);
-    for twist in posed.torque_model.twists(link) {
-        if let Some(slot) = u.get_mut(twist.sensed_index) {
-            *slot = twist.w.dot(moment) + twist.v.dot(inward_normal_in_link);
-        }
-    }
-    u
 }
 
 /// The frame's two-contact account, from its one-contact posterior
@@ -765,18 +745,11 @@ fn sensing(posed: &PosedSurface<'_>, a: LinkId, b: LinkId) -> usize {
 
 /// `⟨x, y⟩ / (|x| |y|)` in the metric `Σ w x y` (0 for a zero vector).
 fn weighted_cosine(x: &[f64], y: &[f64], weights: &[f64]) -> f64 {
-    let dot = |p: &[f64], q: &[f64]| -> f64 { p.iter().zip(q).zip(weights).map(|((a, b), w)| w * a * b).sum() };
-    let norms = (dot(x, x) * dot(y, y)).sqrt();
-    if norms > 0.0 { dot(x, y) / norms } else { 0.0 }
-}
-
-/// `1 / (1 + e^-x)`, without overflow.
-fn logistic(x: f64) -> f64 {
-    if x >= 0.0 {
-        1.0 / (1.0 + (-x).exp())
+    let norms = (weighted_dot(weights, x, x) * weighted_dot(weights, y, y)).sqrt();
+    if norms > 0.0 {
+        weighted_dot(weights, x, y) / norms
     } else {
-        let e = x.exp();
-        e / (1.0 + e)
+        0.0
     }
 }
 

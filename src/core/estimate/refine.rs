@@ -267,7 +267,25 @@ struct Search<'a> {
     trust: f64,
 }
 
-impl Search<'_> {
+impl<'a> Search<'a> {
+    /// A search on `link`'s continuous surface whose steps are as long as
+    /// sample `start`'s patch is wide; `None` where the link has none.
+    fn on(
+        model: &'a TorqueModel,
+        surface: &'a Surface,
+        measurement: &'a Measurement<'a>,
+        link: LinkId,
+        start: usize,
+    ) -> Option<Self> {
+        Some(Self {
+            model,
+            shape: surface.shape(link)?,
+            link,
+            measurement,
+            trust: surface.window_m.get(start).copied().unwrap_or(0.01).max(1e-4),
+        })
+    }
+
     fn state(&self, at: MeshPoint) -> Option<State> {
         State::at(self.model, self.shape, self.link, self.measurement, at)
     }
@@ -390,13 +408,7 @@ fn refine_from(
     centre: DVec3,
 ) -> Option<(RefinedContact, f64)> {
     let link = *surface.link.get(start)?;
-    let search = Search {
-        model,
-        shape: surface.shape(link)?,
-        link,
-        measurement,
-        trust: surface.window_m.get(start).copied().unwrap_or(0.01).max(1e-4),
-    };
+    let search = Search::on(model, surface, measurement, link, start)?;
     let mut state = search.state(*surface.location.get(start)?)?;
     let mut steps = search.descend(&mut state);
     steps += search.slide(&mut state, centre);
@@ -417,13 +429,7 @@ pub(crate) fn refine_at(
     (link, location): (LinkId, MeshPoint),
     start: usize,
 ) -> Option<RefinedContact> {
-    let search = Search {
-        model,
-        shape: surface.shape(link)?,
-        link,
-        measurement,
-        trust: surface.window_m.get(start).copied().unwrap_or(0.01).max(1e-4),
-    };
+    let search = Search::on(model, surface, measurement, link, start)?;
     let mut state = search.state(location)?;
     let steps = search.descend(&mut state);
     Some(state.contact(link, measurement, search.trust, start, steps))

@@ -228,9 +228,38 @@ pub fn chi_square_survival(x: f64, dof: usize) -> f64 {
     }
 }
 
+/// `1 / (1 + e^-x)`: a probability from its log odds, without overflow
+/// at either end.
+#[must_use]
+pub fn logistic(x: f64) -> f64 {
+    if x >= 0.0 {
+        1.0 / (1.0 + (-x).exp())
+    } else {
+        let e = x.exp();
+        e / (1.0 + e)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn logistic_is_the_sigmoid_and_saturates_without_overflow() {
+        assert!((logistic(0.0) - 0.5).abs() < 1e-15);
+        // σ(x) = e^x / (1 + e^x), and σ(x) + σ(-x) = 1.
+        for x in [-30.0, -2.5, -1e-3, 0.7, 4.0, 30.0] {
+            let e: f64 = f64::exp(x);
+            assert!((logistic(x) - e / (1.0 + e)).abs() < 1e-15, "{x}");
+            assert!((logistic(x) + logistic(-x) - 1.0).abs() < 1e-15, "{x}");
+        }
+        assert!(logistic(-1e308) >= 0.0 && logistic(-1e308) < 1e-300);
+        assert!((logistic(1e308) - 1.0).abs() < 1e-15);
+        assert_eq!(
+            [logistic(f64::INFINITY), logistic(f64::NEG_INFINITY)].map(f64::to_bits),
+            [1.0, 0.0].map(f64::to_bits)
+        );
+    }
 
     /// Torques of 1e70 N·m gave 0·∞ = NaN and a survival of 1 ("no
     /// contact").

@@ -10,6 +10,7 @@
 //! goes.
 
 use crate::core::estimate::pair::{PairEstimate, PairStart, Placed};
+use crate::core::numerics::special::logistic;
 
 /// Where the next frame's pair search starts, from what the frames so
 /// far said.
@@ -87,10 +88,16 @@ pub struct SecondContactChain {
 }
 
 impl SecondContactChain {
+    /// The chances that a second contact arrives, and that it leaves,
+    /// within `dt_secs`.
+    fn onset_release(&self, dt_secs: f64) -> (f64, f64) {
+        let p = |rate: f64| -(-rate * dt_secs.max(0.0)).exp_m1();
+        (p(self.onset_per_s), p(self.release_per_s))
+    }
+
     /// Probability of "two" after a step of `dt_secs` from `two`.
     fn predict(&self, two: f64, dt_secs: f64) -> f64 {
-        let onset = -(-self.onset_per_s * dt_secs.max(0.0)).exp_m1();
-        let release = -(-self.release_per_s * dt_secs.max(0.0)).exp_m1();
+        let (onset, release) = self.onset_release(dt_secs);
         (two * (1.0 - release) + (1.0 - two) * onset).clamp(0.0, 1.0)
     }
 
@@ -137,9 +144,7 @@ impl SecondContactChain {
             else {
                 continue;
             };
-            let dt = (t1 - t0).max(0.0);
-            let onset = -(-self.onset_per_s * dt).exp_m1();
-            let release = -(-self.release_per_s * dt).exp_m1();
+            let (onset, release) = self.onset_release(t1 - t0);
             // The next frame's likelihood of each state, relative: two
             // weighs e^r against one's 1 (scaled to keep the larger at 1).
             let r = if r1.is_nan() {
@@ -164,16 +169,6 @@ impl SecondContactChain {
             }
         }
         out
-    }
-}
-
-/// `1 / (1 + e^-x)`, without overflow.
-fn logistic(x: f64) -> f64 {
-    if x >= 0.0 {
-        1.0 / (1.0 + (-x).exp())
-    } else {
-        let e = x.exp();
-        e / (1.0 + e)
     }
 }
 
