@@ -148,12 +148,29 @@ fn act(harness: &mut Harness<'_, ProprioscopeApp>, rng: &mut Rng, m: &mut Monkey
                 format!("{role:?} '{}' to {value}", sliders[i])
             }
         }
-        5 | 6 => {
+        5 => {
             let p = random_pos(rng);
             harness.hover_at(p);
             harness.drag_at(p);
             harness.drop_at(p);
             format!("click at {p:?}")
+        }
+        6 => {
+            // Shift+click: a second push where it lands on the arm.
+            let p = random_pos(rng);
+            let shift = egui::Modifiers::SHIFT;
+            harness.event(egui::Event::ModifiersChanged(shift));
+            harness.hover_at(p);
+            for pressed in [true, false] {
+                harness.event(egui::Event::PointerButton {
+                    pos: p,
+                    button: egui::PointerButton::Primary,
+                    pressed,
+                    modifiers: shift,
+                });
+            }
+            harness.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+            format!("shift+click at {p:?}")
         }
         7 => {
             let (a, b) = (random_pos(rng), random_pos(rng));

@@ -125,3 +125,28 @@ fn hard_cases_have_their_defining_property() {
         }
     }
 }
+
+/// The two-as-one scene's two parallel pushes have exactly the torques of
+/// one push of their sum at their centre of force (within the scene's
+/// rounding of the force to 0.1 mN).
+#[test]
+fn two_parallel_pushes_have_the_torques_of_one_at_their_centre_of_force() {
+    let loaded = load("lwr-two-as-one");
+    let (a, b) = (loaded.push.unwrap(), loaded.second_push.unwrap());
+    assert_eq!(a.link, b.link);
+    assert!(a.force_world.normalize().dot(b.force_world.normalize()) > 1.0 - 1e-9);
+    let (fa, fb) = (a.force_world.length(), b.force_world.length());
+    let centre = (a.point_world * fa + b.point_world * fb) / (fa + fb);
+    let one = proprioscope::core::robot::torque::joint_torques(
+        &loaded.robot,
+        &loaded.pose,
+        a.link,
+        centre,
+        a.force_world + b.force_world,
+    );
+    let two = loaded.push_torques();
+    assert!(two.iter().any(|t| t.abs() > 0.5), "{two:?}");
+    for (x, y) in one.iter().zip(&two) {
+        assert!((x - y).abs() < 1e-4, "{one:?} vs {two:?}");
+    }
+}

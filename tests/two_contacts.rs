@@ -15,7 +15,8 @@ use proprioscope::core::robot::torque::joint_torques;
 use proprioscope::core::surface::sampling::{Surface, SurfaceRequest};
 
 /// The figures of the `two contacts:` line: frames called two where both
-/// press (%), median error (mm), frames called two where one presses (%).
+/// press and six or more joints feel them (%), median error (mm), frames
+/// called two where one presses (%).
 fn two_contact_figures(out: &str) -> (f64, f64, f64) {
     let line = out
         .lines()
@@ -25,9 +26,10 @@ fn two_contact_figures(out: &str) -> (f64, f64, f64) {
         .split(|c: char| !(c.is_ascii_digit() || c == '.'))
         .filter_map(|w| w.parse().ok())
         .collect();
-    // called, of, share, error; called, of, share.
-    assert_eq!(numbers.len(), 7, "{line}");
-    (numbers[2], numbers[3], numbers[6])
+    // called, of, share (all; then where six or more joints feel the
+    // pair: called, of, share), error; called, of, share.
+    assert_eq!(numbers.len(), 10, "{line}");
+    (numbers[5], numbers[6], numbers[9])
 }
 
 /// A session on the built-in LWR held still at `q`: push A (link 5)
@@ -164,11 +166,15 @@ fn a_point_away_from_both_is_not_a_match() {
     };
     score.add(
         &[truth(0.0), truth(1.0)],
+        7,
         Some([DVec3::new(1.01, 0.0, 0.0), DVec3::new(0.02, 0.0, 0.0)]),
     );
-    score.add(&[truth(0.0)], Some([DVec3::ZERO, DVec3::X]));
-    score.add(&[truth(0.0)], None);
-    assert_eq!((score.both_frames, score.both_called_two), (1, 1));
+    score.add(&[truth(0.0), truth(1.0)], 5, None);
+    score.add(&[truth(0.0)], 7, Some([DVec3::ZERO, DVec3::X]));
+    score.add(&[truth(0.0)], 7, None);
+    assert_eq!((score.both_frames, score.both_called_two), (2, 1));
+    // Five joints leave a pair open: not counted among the identifiable.
+    assert_eq!((score.both_identifiable, score.both_identifiable_called_two), (1, 1));
     assert_eq!((score.one_frames, score.one_called_two), (2, 1));
     // Errors 0.01 and 0.02 m; the median is the nearest rank's.
     assert!(
@@ -176,4 +182,52 @@ fn a_point_away_from_both_is_not_a_match() {
         "{:?}",
         score.both_errors_m
     );
+}
+
+/// `synth --contacts 2` writes a session where a second hand presses with
+/// the first (every true contact in `truth_all`), and `estimate --contacts
+/// 2` on it calls no second contact where one presses, keeps detecting
+/// every press, and scores every frame where both press.
+#[test]
+fn a_synthesized_two_hand_session_is_estimated_and_scored() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("two-hands");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("two-hands.session.json");
+    let path = path.to_str().unwrap();
+    let (ok, _, err) = common::run_out(&[
+        "synth",
+        path,
+        "--contacts",
+        "2",
+        "--seconds",
+        "6",
+        "--rate",
+        "100",
+        "--seed",
+        "2",
+        "--links",
+        "lwr_4_link,lwr_5_link,lwr_6_link,lwr_7_link",
+    ]);
+    assert!(ok, "{err}");
+    let session: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let frames = session["frames"].as_array().unwrap();
+    let both = frames
+        .iter()
+        .filter(|f| f["truth_all"].as_array().is_some_and(|a| a.len() == 2))
+        .count();
+    assert!(both > 100, "{both} frames where both press");
+    let (ok, out, err) = common::run_out(&["estimate", path, "--contacts", "2", "--temporal", "smooth"]);
+    assert!(ok, "{err}");
+    let line = out.lines().find(|l| l.starts_with("two contacts:")).unwrap();
+    assert!(line.contains(&format!("of {both} frames where both press")), "{line}");
+    let (_, _, one) = two_contact_figures(&out);
+    assert!(one <= 2.0, "{out}");
+    let detection = out.lines().find(|l| l.starts_with("detection:")).unwrap();
+    let detected: f64 = detection
+        .split('(')
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap();
+    assert!(detected >= 95.0, "{detection}");
 }

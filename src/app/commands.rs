@@ -21,8 +21,15 @@ pub enum Command {
     Push(Push),
     /// Set the push's magnitude, N.
     SetForce(f64),
-    /// Remove the push.
+    /// Remove the push (and a second one).
     ClearPush,
+    /// Apply a second push at the same time (the estimator then looks for
+    /// two contacts, and the view shows both contacts' posteriors).
+    SecondPush(Push),
+    /// Set the second push's magnitude, N.
+    SetSecondForce(f64),
+    /// Remove the second push.
+    ClearSecondPush,
     /// Set the likelihood σ of every joint, N·m (on a session σ is then
     /// no longer learned).
     SetSigma(f64),
@@ -102,7 +109,7 @@ impl Model {
         }
         match *command {
             Command::SetJoint(i, value) => self.joint_refusal(i, value),
-            Command::SetForce(f) => why(limits::PUSH_NEWTONS.check(f)),
+            Command::SetForce(f) | Command::SetSecondForce(f) => why(limits::PUSH_NEWTONS.check(f)),
             Command::SetNoise(s) => why(limits::NOISE.check(s)),
             Command::SetView(view) => why(limits::THRESHOLD.check(view.threshold)),
             Command::SetSpeed(speed) => why(super::SPEED.check(speed)),
@@ -242,13 +249,12 @@ impl Model {
                 }
             }
             Command::SetNoiseSeed(seed) => self.noise_seed = seed,
-            Command::Push(push) => self.push = Some(push),
-            Command::SetForce(f) => {
-                if let Some(p) = self.push.as_mut() {
-                    p.force_newtons = f;
-                }
-            }
-            Command::ClearPush => self.push = None,
+            Command::Push(_)
+            | Command::SetForce(_)
+            | Command::ClearPush
+            | Command::SecondPush(_)
+            | Command::SetSecondForce(_)
+            | Command::ClearSecondPush => self.apply_push(&command),
             Command::SetCandidate(link, on) => {
                 let can_touch = self.robot.default_candidate_links().contains(&link);
                 if on && can_touch && !self.candidate_links.contains(&link) {
@@ -305,8 +311,37 @@ impl Model {
         before != self.estimate_inputs()
     }
 
+    /// Applies a command that sets, scales or clears a push.
+    fn apply_push(&mut self, command: &Command) {
+        match *command {
+            Command::Push(push) => self.push = Some(push),
+            Command::SetForce(f) => {
+                if let Some(p) = self.push.as_mut() {
+                    p.force_newtons = f;
+                }
+            }
+            Command::ClearPush => {
+                self.push = None;
+                self.second_push = None;
+            }
+            Command::SecondPush(push) => {
+                self.second_push = Some(push);
+                // A second push is what the two-contact model is for.
+                self.config.contacts_at_once = 2;
+                self.view.layer = super::heat::HeatLayer::Contacts;
+            }
+            Command::SetSecondForce(f) => {
+                if let Some(p) = self.second_push.as_mut() {
+                    p.force_newtons = f;
+                }
+            }
+            Command::ClearSecondPush => self.second_push = None,
+            _ => {}
+        }
+    }
+
     /// Shows session frame `i` (clamped to the last): its `q`, and its true
-    /// contact as the push.
+    /// contacts as the pushes.
     fn show_frame(&mut self, i: usize) {
         let Some(replay) = &mut self.replay else {
             return;
@@ -320,23 +355,22 @@ impl Model {
         if frame.q.len() == self.q.len() {
             self.q.clone_from(&frame.q);
         }
-        let truth = frame.truth.clone();
+        let truths = frame.true_contacts();
         let pose = self.pose();
-        self.push = match truth {
-            crate::io::session::Truth::Contact { link, point, force } => {
-                self.robot.link_id(&link).ok().and_then(|link| {
-                    let link_from_world = pose.world_from_link.get(link)?.inverse();
-                    let force = DVec3::from_array(force);
-                    Some(Push {
-                        link,
-                        point_in_link: link_from_world.transform_point3(DVec3::from_array(point)),
-                        inward_normal_in_link: link_from_world.transform_vector3(force.try_normalize()?),
-                        force_newtons: force.length(),
-                    })
+        let mut pushes = truths.iter().filter_map(|truth| {
+            self.robot.link_id(&truth.link).ok().and_then(|link| {
+                let link_from_world = pose.world_from_link.get(link)?.inverse();
+                let force = DVec3::from_array(truth.force);
+                Some(Push {
+                    link,
+                    point_in_link: link_from_world.transform_point3(DVec3::from_array(truth.point)),
+                    inward_normal_in_link: link_from_world.transform_vector3(force.try_normalize()?),
+                    force_newtons: force.length(),
                 })
-            }
-            _ => None,
-        };
+            })
+        });
+        self.push = pushes.next();
+        self.second_push = pushes.next();
     }
 
     /// Advances playback by `dt_secs` of wall-clock time.

@@ -178,6 +178,10 @@ impl EstimatorPanel {
                             ));
                         }
                     }
+                    if model.config.contacts_at_once >= 2 {
+                        ui.separator();
+                        Self::pair_ui(ui, model, o.pair.as_ref());
+                    }
                     ui.separator();
                     ui.label("Probability per link (bar: summed; max: its best point)");
                     for share in &s.per_link {
@@ -196,6 +200,69 @@ impl EstimatorPanel {
             None => {
                 ui.label("estimating…");
             }
+        }
+    }
+
+    /// One contact or two: the probability of two, the evidence ratio,
+    /// and each contact given the other.
+    fn pair_ui(
+        ui: &mut egui::Ui,
+        model: &Model,
+        pair: Option<&Result<crate::core::estimate::pair::PairEstimate, String>>,
+    ) {
+        let pair = match pair {
+            None => {
+                ui.label("two contacts: no second place away from the first");
+                return;
+            }
+            Some(Err(e)) => {
+                ui.colored_label(egui::Color32::LIGHT_RED, format!("two contacts: {e}"));
+                return;
+            }
+            Some(Ok(pair)) => pair,
+        };
+        let ratio = pair.log_evidence_ratio();
+        ui.label(if pair.has_two() {
+            "two contacts: the evidence calls two".to_owned()
+        } else if pair.identifiable {
+            "one contact: the evidence calls one".to_owned()
+        } else {
+            format!(
+                "one contact: a pair here is not identifiable ({} joints sense it)",
+                pair.sensing_joints
+            )
+        })
+        .on_hover_text(
+            "The evidence of two contacts against one: each marginal likelihood over the places and \
+             magnitudes, so each extra place pays its Occam factor. With the prior of two \
+             (--prior-two), it gives the probability of two.",
+        );
+        ui.label(format!(
+            "P(two) = {:.2}; evidence ratio Z₂/Z₁ = e^{ratio:.1}",
+            pair.probability_two
+        ));
+        let pose = model.pose();
+        let pushes: Vec<_> = model
+            .push_world(&pose)
+            .into_iter()
+            .chain(model.second_push_world(&pose))
+            .collect();
+        for (name, c) in ["A", "B"].iter().zip(&pair.contacts) {
+            let link = model.robot.links.get(c.placed.link).map_or("?", |l| l.name.as_str());
+            let nearest = pushes
+                .iter()
+                .map(|(_, point, _)| c.point_world.distance(*point))
+                .fold(f64::INFINITY, f64::min);
+            let error = if nearest.is_finite() {
+                format!(", {:.0} mm from the nearer push", nearest * 1e3)
+            } else {
+                String::new()
+            };
+            ui.label(format!(
+                "{name}: {link}, {:.1} N, 90 % radius {:.0} mm{error}",
+                c.placed.force_newtons,
+                c.credible90.radius_m * 1e3
+            ));
         }
     }
 
@@ -239,6 +306,14 @@ impl EstimatorPanel {
         if config.mode == ModeKind::Exact {
             friction_ui(ui, &mut config);
         }
+        ui.horizontal(|ui| {
+            ui.label("contacts at once:");
+            ui.radio_value(&mut config.contacts_at_once, 1, "1");
+            ui.radio_value(&mut config.contacts_at_once, 2, "2").on_hover_text(
+                "Also search for two contacts whose torques add up, and weigh one against two by \
+                 their evidence (Shift+click the arm for a second push).",
+            );
+        });
         ui.checkbox(&mut config.phases, "phases A/B/C");
         if config.phases {
             fitted_slider(ui, egui::Slider::new(&mut config.alpha, 0.0..=0.99), "α");
@@ -292,9 +367,11 @@ impl EstimatorPanel {
                 .on_hover_text("where the contact is, given the torques: probability per cm² of surface");
             ui.radio_value(&mut view.layer, HeatLayer::Observability, "observability")
                 .on_hover_text("how sharply the sensed joints would locate a push at each point, in this pose");
+            ui.radio_value(&mut view.layer, HeatLayer::Contacts, "two contacts")
+                .on_hover_text("each of two contacts' posterior given the other (with two contacts looked for)");
         });
         ui.horizontal_wrapped(|ui| {
-            ui.add_enabled_ui(view.layer == HeatLayer::Posterior, |ui| {
+            ui.add_enabled_ui(view.layer != HeatLayer::Observability, |ui| {
                 ui.radio_value(&mut view.log_scale, true, "log");
                 ui.radio_value(&mut view.log_scale, false, "linear");
             });
@@ -311,10 +388,12 @@ impl EstimatorPanel {
             (HeatLayer::Observability, _) => format!(
                 "{high}: a push there is located to a millimetre; {low}: to a metre; dark grey: not at all (fewer than three joints feel it apart). The width is the posterior's (1σ) for the push's magnitude (10 N without a push) and σ."
             ),
-            (HeatLayer::Posterior, true) => format!(
+            (HeatLayer::Posterior | HeatLayer::Contacts, true) => format!(
                 "{high}: the densest; {low} fading into grey: e^-20 of it and less (the legend in the view gives the numbers)"
             ),
-            (HeatLayer::Posterior, false) => format!("{high}: the densest; {low} fading into grey: zero"),
+            (HeatLayer::Posterior | HeatLayer::Contacts, false) => {
+                format!("{high}: the densest; {low} fading into grey: zero")
+            }
         });
         fitted_slider(ui, egui::Slider::new(&mut view.threshold, 0.0..=0.99), "hide below");
         ui.checkbox(

@@ -4,6 +4,7 @@
 
 use crate::core::estimate::estimator::Update;
 use crate::core::estimate::observability::position_widths_m;
+use crate::core::estimate::pair::PairEstimate;
 use crate::core::estimate::summary::Verdict;
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::Robot;
@@ -104,9 +105,63 @@ pub fn legend_number(x: f64) -> String {
 /// weighed down by that: an arm with nothing touching stays grey.
 #[must_use]
 pub fn posterior_heat(update: &Update, surface: &Surface, log_scale: bool, threshold: f64, red_green: bool) -> Heat {
+    let weight = match (update.summary.contact_probability, update.summary.verdict) {
+        (Some(p), _) => p,
+        (None, Verdict::NoContact) => 0.0,
+        (None, _) => 1.0,
+    };
+    let mut heat = density_heat(
+        &update.posterior.display,
+        surface,
+        weight,
+        log_scale,
+        threshold,
+        red_green,
+    );
+    heat.legend.note = heat.legend.note.or_else(|| {
+        (0.05..0.95)
+            .contains(&weight)
+            .then(|| format!("painted × P(contact) = {weight:.2}"))
+    });
+    heat
+}
+
+/// Two contacts' posteriors, each given the other, painted together as
+/// probability per cm² (each contact's mass halved, so that the map holds
+/// one unit as the posterior does): two blobs where the torques place two
+/// pushes. The legend's note gives the probability of two contacts.
+#[must_use]
+pub fn contacts_heat(pair: &PairEstimate, surface: &Surface, log_scale: bool, threshold: f64, red_green: bool) -> Heat {
+    let [a, b] = &pair.contacts;
+    let mass: Vec<f64> = (0..surface.len())
+        .map(|k| 0.5 * (a.probability.get(k).copied().unwrap_or(0.0) + b.probability.get(k).copied().unwrap_or(0.0)))
+        .collect();
+    let mut heat = density_heat(&mass, surface, 1.0, log_scale, threshold, red_green);
+    heat.legend.title = format!(
+        "each contact given the other, per cm² ({})",
+        if log_scale { "log" } else { "linear" }
+    );
+    heat.legend.note = Some(if pair.identifiable {
+        format!("P(two contacts) = {:.2}", pair.probability_two)
+    } else {
+        format!("not identifiable ({} joints sense the pair)", pair.sensing_joints)
+    });
+    heat
+}
+
+/// Masses per surface sample as probability per cm², on the log or
+/// linear ramp, the paint weighed by `weight` (a contact's probability).
+fn density_heat(
+    mass_per_sample: &[f64],
+    surface: &Surface,
+    weight: f64,
+    log_scale: bool,
+    threshold: f64,
+    red_green: bool,
+) -> Heat {
     let density_per_cm2: Vec<f64> = (0..surface.len())
         .map(|k| {
-            let mass = update.posterior.display.get(k).copied().unwrap_or(0.0);
+            let mass = mass_per_sample.get(k).copied().unwrap_or(0.0);
             let area_cm2 = surface.area_m2.get(k).copied().unwrap_or(0.0) * 1e4;
             if area_cm2 > 0.0 && mass.is_finite() {
                 mass / area_cm2
@@ -116,11 +171,6 @@ pub fn posterior_heat(update: &Update, surface: &Surface, log_scale: bool, thres
         })
         .collect();
     let top = density_per_cm2.iter().copied().fold(0.0, f64::max);
-    let weight = match (update.summary.contact_probability, update.summary.verdict) {
-        (Some(p), _) => p,
-        (None, Verdict::NoContact) => 0.0,
-        (None, _) => 1.0,
-    };
     let ramp = Ramp {
         red_green,
         fade_below: if log_scale { 0.35 } else { 0.1 },
@@ -173,8 +223,6 @@ pub fn posterior_heat(update: &Update, surface: &Surface, log_scale: bool, thres
         Some("no estimate".to_owned())
     } else if weight < 0.05 {
         Some("no contact: nothing painted".to_owned())
-    } else if weight < 0.95 {
-        Some(format!("painted × P(contact) = {weight:.2}"))
     } else {
         None
     };

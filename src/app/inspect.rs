@@ -43,7 +43,11 @@ impl ProprioscopeApp {
         if m.candidate_links.is_empty() || m.candidate_links.iter().any(|&l| l >= links) {
             return Err(format!("candidate links {:?} of {links}", m.candidate_links));
         }
-        if let Some(p) = m.push
+        if let Some(p) = m
+            .push
+            .into_iter()
+            .chain(m.second_push)
+            .find(|p| p.link >= links || !p.force_newtons.is_finite() || !p.point_in_link.is_finite())
             && (p.link >= links || !p.force_newtons.is_finite() || !p.point_in_link.is_finite())
         {
             return Err(format!("push {p:?} on a robot of {links} links"));

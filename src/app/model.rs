@@ -28,6 +28,9 @@ pub struct Model {
     pub q: Vec<f64>,
     /// The applied push.
     pub push: Option<Push>,
+    /// A second push at the same time (Shift+click): the sensors read the
+    /// sum of both pushes' torques.
+    pub second_push: Option<Push>,
     /// The estimator's configuration (σ one per sensed joint).
     pub config: EstimatorConfig,
     /// Links that can be touched: only these are sampled and evaluated.
@@ -136,6 +139,7 @@ pub(crate) struct ViewKey {
 pub(crate) struct EstimateInputs {
     pub(crate) q: Vec<f64>,
     pub(crate) push: Option<Push>,
+    pub(crate) second_push: Option<Push>,
     pub(crate) config: EstimatorConfig,
     pub(crate) candidate_links: Vec<LinkId>,
     pub(crate) noise: (f64, u64),
@@ -159,6 +163,8 @@ pub struct StartSettings {
     pub view: Option<ViewOptions>,
     /// The scene's title and description, kept for saving.
     pub title: (String, String),
+    /// A second push, if the scene has one.
+    pub second_push: Option<Push>,
 }
 
 impl Default for StartSettings {
@@ -171,6 +177,7 @@ impl Default for StartSettings {
             other_joints: Vec::new(),
             view: None,
             title: (String::new(), String::new()),
+            second_push: None,
         }
     }
 }
@@ -191,6 +198,7 @@ impl Model {
         EstimateInputs {
             q: self.q.clone(),
             push: self.push,
+            second_push: self.second_push,
             config: self.estimation_config(),
             candidate_links: self.candidate_links.clone(),
             noise: (self.noise_sigma, self.noise_seed),
@@ -298,6 +306,7 @@ impl Model {
             robot: Arc::new(robot),
             q,
             push,
+            second_push: settings.second_push,
             config,
             candidate_links,
             noise_sigma: settings.noise.0,
@@ -310,26 +319,40 @@ impl Model {
         }
     }
 
-    /// The push in the world: (point, force).
+    /// The push in the world: (link, point, force).
     #[must_use]
     pub fn push_world(&self, pose: &RobotPose) -> Option<(LinkId, DVec3, DVec3)> {
-        let p = self.push?;
-        let frame = pose.world_from_link[p.link];
-        Some((
-            p.link,
-            frame.transform_point3(p.point_in_link),
-            frame.transform_vector3(p.inward_normal_in_link) * p.force_newtons,
-        ))
+        self.push.and_then(|p| push_in_world(&p, pose))
     }
 
-    /// Exact torques of the push (zeros without one).
+    /// The second push in the world: (link, point, force).
+    #[must_use]
+    pub fn second_push_world(&self, pose: &RobotPose) -> Option<(LinkId, DVec3, DVec3)> {
+        self.second_push.and_then(|p| push_in_world(&p, pose))
+    }
+
+    /// Exact torques of the pushes, summed (zeros without one).
     #[must_use]
     pub fn applied_torques(&self, pose: &RobotPose) -> Vec<f64> {
-        match self.push_world(pose) {
-            Some((link, point, force)) => joint_torques(&self.robot, pose, link, point, force),
-            None => vec![0.0; self.robot.sensed().len()],
+        let mut tau = vec![0.0; self.robot.sensed().len()];
+        for (link, point, force) in self.push_world(pose).into_iter().chain(self.second_push_world(pose)) {
+            for (t, x) in tau.iter_mut().zip(joint_torques(&self.robot, pose, link, point, force)) {
+                *t += x;
+            }
         }
+        tau
     }
+}
+
+/// A push in the world: (link, point, force); `None` where the pose has
+/// no such link.
+fn push_in_world(p: &Push, pose: &RobotPose) -> Option<(LinkId, DVec3, DVec3)> {
+    let frame = pose.world_from_link.get(p.link)?;
+    Some((
+        p.link,
+        frame.transform_point3(p.point_in_link),
+        frame.transform_vector3(p.inward_normal_in_link) * p.force_newtons,
+    ))
 }
 
 #[cfg(test)]
@@ -345,6 +368,7 @@ mod tests {
         Model {
             q: vec![0.0; 7],
             push: None,
+            second_push: None,
             config: EstimatorConfig {
                 sigma: Sigma::PerJoint(vec![0.1; 7]),
                 surface_points: 1000,

@@ -4,7 +4,10 @@ use std::path::Path;
 use std::time::Instant;
 
 use super::{Model, ProprioscopeApp, egui};
-use crate::io::session::{Frame, Recorder, Truth};
+use crate::io::session::{ContactTruth, Frame, Recorder, Truth};
+
+/// The first and second push.
+type Pushes = (Option<super::Push>, Option<super::Push>);
 
 /// While recording, a frame at least this often even when nothing moves.
 pub const RECORD_RATE_HZ: f64 = 10.0;
@@ -14,7 +17,7 @@ pub(crate) struct Recording {
     pub(super) recorder: Recorder,
     pub(super) started: Instant,
     /// What the last frame showed, and when it was written.
-    pub(super) last: Option<(Vec<f64>, Option<super::Push>, Instant)>,
+    pub(super) last: Option<(Vec<f64>, Pushes, Instant)>,
 }
 
 impl ProprioscopeApp {
@@ -73,7 +76,9 @@ impl ProprioscopeApp {
         let model = &self.model;
         let now = Instant::now();
         let due = recording.last.as_ref().is_none_or(|(q, push, at)| {
-            *q != model.q || *push != model.push || now.duration_since(*at).as_secs_f64() >= 1.0 / RECORD_RATE_HZ
+            *q != model.q
+                || *push != (model.push, model.second_push)
+                || now.duration_since(*at).as_secs_f64() >= 1.0 / RECORD_RATE_HZ
         });
         ctx.request_repaint_after(std::time::Duration::from_secs_f64(1.0 / RECORD_RATE_HZ));
         if !due {
@@ -85,7 +90,7 @@ impl ProprioscopeApp {
             self.files.recording = None;
             return;
         }
-        recording.last = Some((model.q.clone(), model.push, now));
+        recording.last = Some((model.q.clone(), (model.push, model.second_push), now));
     }
 }
 
@@ -105,6 +110,19 @@ pub fn interactive_frame(model: &Model, t: f64) -> Frame {
             },
             None => Truth::NoContact,
         },
-        truth_all: Vec::new(),
+        // Both pushes where there are two (`truth` keeps the first).
+        truth_all: match model.second_push_world(&pose) {
+            Some(second) => model
+                .push_world(&pose)
+                .into_iter()
+                .chain(Some(second))
+                .map(|(link, point, force)| ContactTruth {
+                    link: model.robot.links.get(link).map(|l| l.name.clone()).unwrap_or_default(),
+                    point: point.to_array(),
+                    force: force.to_array(),
+                })
+                .collect(),
+            None => Vec::new(),
+        },
     }
 }

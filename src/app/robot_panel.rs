@@ -37,7 +37,7 @@ impl RobotPanel {
             }
         });
         ui.separator();
-        ui.label("Push (click the arm)");
+        ui.label("Push (click the arm; Shift+click: a second push)");
         match model.push {
             Some(p) => {
                 let mut f = p.force_newtons;
@@ -56,6 +56,24 @@ impl RobotPanel {
             }
             None => {
                 ui.label("none");
+            }
+        }
+        if let Some(p) = model.second_push {
+            ui.label("Second push (Shift+click)");
+            let mut f = p.force_newtons;
+            if fine_slider(ui, &mut f, 0.0..=30.0, " N", "second force") {
+                commands.push(Command::SetSecondForce(f));
+            }
+            let at = model.pose().point_to_world(p.link, p.point_in_link);
+            ui.label(format!(
+                "on {} at ({:.3}, {:.3}, {:.3}) m",
+                model.robot.links.get(p.link).map_or("?", |l| l.name.as_str()),
+                at.x,
+                at.y,
+                at.z
+            ));
+            if ui.button("Clear second push").clicked() {
+                commands.push(Command::ClearSecondPush);
             }
         }
         ui.separator();

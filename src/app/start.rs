@@ -1,7 +1,7 @@
 //! Start-up: what the app opens on (scene, URDF, robot, session), and
 //! the headless harness behind `proprioscope screenshot` and the UI tests.
 
-use super::{ProprioscopeApp, Push, Robot, StartSettings, ViewOptions, egui, timeline};
+use super::{DVec3, LinkId, ProprioscopeApp, Push, Robot, StartSettings, ViewOptions, egui, timeline};
 
 /// Renders the app headless (Mesa's software Vulkan or a GPU, no window):
 /// runs frames until the estimate for the current model has arrived, then
@@ -156,15 +156,17 @@ fn scene_start(path: &std::path::Path, package_paths: &[std::path::PathBuf]) -> 
     use crate::io::scene::Scene;
     use std::path::Path;
     let loaded = Scene::read(path)?.load(path)?;
-    let push = loaded.push.and_then(|p| {
-        let link_from_world = loaded.pose.world_from_link[p.link].inverse();
+    let in_link = |p: crate::io::scene::ResolvedPush| {
+        let link_from_world = loaded.pose.world_from_link.get(p.link)?.inverse();
         Some(Push {
             link: p.link,
             point_in_link: link_from_world.transform_point3(p.point_world),
             inward_normal_in_link: link_from_world.transform_vector3(p.force_world.try_normalize()?),
             force_newtons: p.force_world.length(),
         })
-    });
+    };
+    let push = loaded.push.and_then(in_link);
+    let second_push = loaded.second_push.and_then(in_link);
     let settings = StartSettings {
         config: loaded.scene.config(),
         noise: (loaded.scene.noise.sigma_newton_metres, loaded.scene.noise.seed),
@@ -183,6 +185,7 @@ fn scene_start(path: &std::path::Path, package_paths: &[std::path::PathBuf]) -> 
             layer: v.layer,
         }),
         title: (loaded.scene.name.clone(), loaded.scene.description.clone()),
+        second_push,
     };
     let folder = path.parent().unwrap_or(Path::new("."));
     let mut package_paths = package_paths.to_vec();
@@ -242,6 +245,13 @@ impl ProprioscopeApp {
         let folder = scene_path.parent().unwrap_or(std::path::Path::new("."));
         let relative = |p: &std::path::Path| sc::relative_path(p, folder).display().to_string();
         let builtin = crate::io::builtin::is_builtin(&self.robot_spec);
+        let scene_push = |(link, point, force): (LinkId, DVec3, DVec3)| sc::Push {
+            link: m.robot.links.get(link).map(|l| l.name.clone()).unwrap_or_default(),
+            point_in_link: None,
+            point_world: Some(point.to_array()),
+            force_world: Some(force.to_array()),
+            force_newtons: None,
+        };
         sc::Scene {
             version: sc::SCENE_VERSION,
             name: m.title.0.clone(),
@@ -263,13 +273,8 @@ impl ProprioscopeApp {
             }),
             surface_points: m.config.surface_points,
             surface_seed: m.config.surface_seed,
-            push: m.push_world(&pose).map(|(link, point, force)| sc::Push {
-                link: m.robot.links[link].name.clone(),
-                point_in_link: None,
-                point_world: Some(point.to_array()),
-                force_world: Some(force.to_array()),
-                force_newtons: None,
-            }),
+            push: m.push_world(&pose).map(scene_push),
+            second_push: m.second_push_world(&pose).map(scene_push),
             noise: sc::Noise {
                 sigma_newton_metres: m.noise_sigma,
                 seed: m.noise_seed,

@@ -172,6 +172,7 @@ impl ProprioscopeApp {
             robot: Arc::new(robot),
             q,
             push: None,
+            second_push: None,
             // The largest σ of the robot before, for every joint of this one.
             config: EstimatorConfig {
                 sigma: Sigma::PerJoint(per_joint(&[old.sigma().iter().copied().fold(0.0, f64::max)], joints)),

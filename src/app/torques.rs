@@ -19,6 +19,36 @@ impl ProprioscopeApp {
         }
     }
 
+    /// The torques the estimate explains: its two contacts' summed where
+    /// the evidence calls two, else its most probable contact's.
+    fn explained_torques(&self, pose: &crate::core::robot::kinematics::RobotPose) -> Option<Vec<f64>> {
+        let outcome = self.current_outcome()?;
+        if let Some(pair) = outcome
+            .pair
+            .as_ref()
+            .and_then(|p| p.as_ref().ok())
+            .filter(|p| p.has_two())
+        {
+            let [a, b] = &pair.contacts;
+            return Some(
+                a.placed
+                    .torques
+                    .iter()
+                    .zip(&b.placed.torques)
+                    .map(|(x, y)| x + y)
+                    .collect(),
+            );
+        }
+        let m = outcome.update.as_ref().ok()?.summary.map;
+        Some(joint_torques(
+            &self.model.robot,
+            pose,
+            m.link,
+            m.point_world,
+            m.force_world,
+        ))
+    }
+
     pub(super) fn torques_ui(&mut self, ui: &mut egui::Ui) {
         use egui_plot::{Bar, BarChart, Plot};
         // In a session the push shown is the recorded true contact.
@@ -30,15 +60,14 @@ impl ProprioscopeApp {
         let pose = self.model.pose();
         let applied = self.model.applied_torques(&pose);
         let (measured, measured_name) = self.measured_shown(&pose);
-        let explained: Option<Vec<f64>> = self.current_outcome().and_then(|o| o.update.as_ref().ok()).map(|u| {
-            let m = u.summary.map;
-            joint_torques(&self.model.robot, &pose, m.link, m.point_world, m.force_world)
-        });
-        let path = self
+        let explained = self.explained_torques(&pose);
+        let path: Vec<_> = self
             .model
             .push
-            .map(|p| self.model.robot.path_joints(p.link))
-            .unwrap_or_default();
+            .into_iter()
+            .chain(self.model.second_push)
+            .flat_map(|p| self.model.robot.path_joints(p.link))
+            .collect();
         let bars = |values: &[f64], offset: f64, colour: egui::Color32| -> Vec<Bar> {
             values
                 .iter()

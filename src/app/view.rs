@@ -335,6 +335,20 @@ impl ViewPart {
         let surface = &outcome.estimator.surface;
         let view = shown.model.view;
         Some(match view.layer {
+            HeatLayer::Contacts => {
+                if let Some(pair) = outcome.pair.as_ref().and_then(|p| p.as_ref().ok()) {
+                    heat::contacts_heat(pair, surface, view.log_scale, view.threshold, view.red_green)
+                } else {
+                    let mut heat =
+                        heat::posterior_heat(update, surface, view.log_scale, view.threshold, view.red_green);
+                    heat.legend.note = Some(if shown.model.config.contacts_at_once < 2 {
+                        "one contact looked for: the posterior".to_owned()
+                    } else {
+                        "no second place: the posterior".to_owned()
+                    });
+                    heat
+                }
+            }
             HeatLayer::Posterior => {
                 heat::posterior_heat(update, surface, view.log_scale, view.threshold, view.red_green)
             }
@@ -415,14 +429,34 @@ impl ViewPart {
     #[must_use]
     pub fn markers(shown: &Shown<'_>, pose: &RobotPose) -> Vec<Marker> {
         let mut out = Vec::new();
-        if let Some((_, point, force)) = shown.model.push_world(pose) {
+        for (_, point, force) in shown
+            .model
+            .push_world(pose)
+            .into_iter()
+            .chain(shown.model.second_push_world(pose))
+        {
             out.push(Marker {
                 role: MarkerRole::Push,
                 point_world: point,
                 force_world: force,
             });
         }
-        if let Some(u) = shown.outcome.and_then(|o| o.update.as_ref().ok())
+        // Two contacts where the evidence calls two: both are the most
+        // probable account.
+        let pair = shown
+            .outcome
+            .and_then(|o| o.pair.as_ref())
+            .and_then(|p| p.as_ref().ok())
+            .filter(|p| p.has_two());
+        if let Some(pair) = pair {
+            for c in &pair.contacts {
+                out.push(Marker {
+                    role: MarkerRole::Estimate,
+                    point_world: c.point_world,
+                    force_world: c.force_world,
+                });
+            }
+        } else if let Some(u) = shown.outcome.and_then(|o| o.update.as_ref().ok())
             && (u.summary.verdict != Verdict::NoContact || u.summary.contact_probability.is_some_and(|p| p >= 0.5))
         {
             out.push(Marker {
@@ -458,7 +492,12 @@ impl ViewPart {
         if response.dragged_by(egui::PointerButton::Primary) {
             if let Some(drag) = self.push_drag {
                 if let Some(pointer) = response.interact_pointer_pos() {
-                    commands.push(Command::Push(self.dragged_push(shown, &drag, pointer, rect)));
+                    let push = self.dragged_push(shown, &drag, pointer, rect);
+                    commands.push(if ui.input(|i| i.modifiers.shift) {
+                        Command::SecondPush(push)
+                    } else {
+                        Command::Push(push)
+                    });
                 }
             } else {
                 let d = response.drag_delta();
@@ -507,15 +546,26 @@ impl ViewPart {
         } else if response.clicked()
             && let Some((hit, pose)) = response.interact_pointer_pos().and_then(|p| pick_at(p, &self.camera))
         {
-            let force = shown.model.push.map_or(15.0, |p| p.force_newtons);
-            commands.push(Command::Push(Push {
+            // Shift adds a second push, pressing with the first.
+            let second = ui.input(|i| i.modifiers.shift);
+            let held = if second {
+                shown.model.second_push
+            } else {
+                shown.model.push
+            };
+            let push = Push {
                 link: hit.link,
                 point_in_link: hit.point_in_link,
                 inward_normal_in_link: pose.world_from_link[hit.link]
                     .inverse()
                     .transform_vector3(hit.inward_normal_world),
-                force_newtons: force,
-            }));
+                force_newtons: held.or(shown.model.push).map_or(15.0, |p| p.force_newtons),
+            };
+            commands.push(if second {
+                Command::SecondPush(push)
+            } else {
+                Command::Push(push)
+            });
         }
         self.paint_view(shown, ui, frame, rect);
         commands

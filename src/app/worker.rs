@@ -10,6 +10,7 @@ pub use crate::batch::Background;
 use crate::batch::{Latest, Serving};
 use crate::core::config::estimator::EstimatorConfig;
 use crate::core::estimate::estimator::{Estimator, Update};
+use crate::core::estimate::pair::{PairEstimate, PairStart};
 use crate::core::estimate::settings::EstimatorSettings;
 use crate::core::over_time::sequence::Temporal;
 use crate::core::robot::model::{LinkId, Robot};
@@ -78,6 +79,10 @@ pub struct Outcome {
     pub update: Result<Update, String>,
     /// Time of the update, ms (surface sampling excluded).
     pub update_ms: f64,
+    /// The two-contact account, where the configuration looks for two
+    /// contacts at once (`None` otherwise, or where no second place is
+    /// found), or why it failed.
+    pub pair: Option<Result<PairEstimate, String>>,
 }
 
 /// Handle to the worker thread (a [`Latest`] thread: the newest request
@@ -147,6 +152,7 @@ fn failed(request: &Request, message: String) -> Outcome {
         nearest: Arc::new(Vec::new()),
         update: Err(message),
         update_ms: 0.0,
+        pair: None,
     }
 }
 
@@ -203,6 +209,23 @@ fn serve(cache: &mut Option<Cached>, request: &Request) -> Outcome {
         .update(&request.robot, &request.joint_positions, &request.tau)
         .map_err(|e| e.to_string());
     let update_ms = t0.elapsed().as_secs_f64() * 1e3;
+    // A frame on its own: the pair is searched from the coarse grid (its
+    // single contact can lie on neither push), whatever the fit test says,
+    // so that the panel always has the evidence for two.
+    let pair = (request.config.contacts_at_once >= 2 && update.is_ok())
+        .then(|| {
+            estimator
+                .pair_at(
+                    &request.robot,
+                    &request.joint_positions,
+                    &request.tau,
+                    &request.config.pair,
+                    &[PairStart::Unknown],
+                )
+                .map_err(|e| e.to_string())
+                .transpose()
+        })
+        .flatten();
     *cache = kept;
     Outcome {
         generation: request.generation,
@@ -211,6 +234,7 @@ fn serve(cache: &mut Option<Cached>, request: &Request) -> Outcome {
         nearest,
         update,
         update_ms,
+        pair,
     }
 }
 

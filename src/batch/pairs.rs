@@ -89,7 +89,7 @@ pub fn session_pairs(
             found.push(None);
             continue;
         }
-        let pair = estimator
+        let mut pair = estimator
             .pair_at(
                 robot,
                 frame.joint_positions,
@@ -98,6 +98,11 @@ pub fn session_pairs(
                 &tracker.starts(),
             )
             .map_err(|e| (i, e))?;
+        // A session keeps each pair's summary, not its posteriors over
+        // the surface: memory stays flat in the frames searched.
+        for contact in pair.iter_mut().flat_map(|p| p.contacts.iter_mut()) {
+            contact.probability = Vec::new();
+        }
         let alone = single.explained.then_some((single.point, single.force_newtons));
         tracker.observe(alone, pair.as_ref());
         found.push(pair);
@@ -123,6 +128,11 @@ pub struct PairScore {
     pub both_frames: usize,
     /// Of these, frames called two.
     pub both_called_two: usize,
+    /// Frames where two contacts press that six or more sensed joints
+    /// feel (fewer leave a pair's six unknowns open: it cannot be called).
+    pub both_identifiable: usize,
+    /// Of these, frames called two.
+    pub both_identifiable_called_two: usize,
     /// Frames where one contact presses.
     pub one_frames: usize,
     /// Of these, frames called two.
@@ -134,9 +144,10 @@ pub struct PairScore {
 }
 
 impl PairScore {
-    /// Adds a frame: its true contacts (world points) and the world
-    /// points of its two estimates where it is called two.
-    pub fn add(&mut self, truths: &[ContactTruth], two: Option<[DVec3; 2]>) {
+    /// Adds a frame: its true contacts (world points), how many sensed
+    /// joints feel them, and the world points of its two estimates where
+    /// it is called two.
+    pub fn add(&mut self, truths: &[ContactTruth], sensing_joints: usize, two: Option<[DVec3; 2]>) {
         match truths {
             [one] => {
                 let _ = one;
@@ -145,8 +156,11 @@ impl PairScore {
             }
             [a, b] => {
                 self.both_frames += 1;
+                let identifiable = sensing_joints >= 6;
+                self.both_identifiable += usize::from(identifiable);
                 if let Some([e0, e1]) = two {
                     self.both_called_two += 1;
+                    self.both_identifiable_called_two += usize::from(identifiable);
                     let (a, b) = (DVec3::from_array(a.point), DVec3::from_array(b.point));
                     let straight = [a.distance(e0), b.distance(e1)];
                     let crossed = [a.distance(e1), b.distance(e0)];

@@ -189,14 +189,26 @@ impl Out {
         }
     }
 
-    /// Lines made elsewhere (JSON lines only; an MCAP gets none).
-    fn write_lines(&mut self, lines: &[serde_json::Value]) -> Result<()> {
-        if let Self::Json(w) = self {
-            for line in lines {
-                writeln!(w, "{line}").context("writing --out")?;
+    /// Frames made elsewhere: their JSON lines, or their MCAP estimates.
+    fn write_made(&mut self, lines: &[serde_json::Value], messages: &[EstimateMessage]) -> Result<()> {
+        match self {
+            Self::Json(w) => {
+                for line in lines {
+                    writeln!(w, "{line}").context("writing --out")?;
+                }
+            }
+            Self::Mcap(w) => {
+                for message in messages {
+                    w.write_estimate(message).context("writing --out")?;
+                }
             }
         }
         Ok(())
+    }
+
+    /// Whether the estimates go to an MCAP.
+    fn is_mcap(&self) -> bool {
+        matches!(self, Self::Mcap(_))
     }
 
     /// Flushes JSON lines, or closes the MCAP with its summary.
@@ -237,6 +249,7 @@ fn estimate_message(estimator: &Estimator, robot: &Robot, update: &Update, origi
                 s.map.force_world.to_array(),
             )
         }),
+        second_contact: None,
         region,
     }
 }
@@ -345,6 +358,7 @@ fn friction_for(config: &EstimatorConfig, joints: usize, temporal: Temporal) -> 
 }
 
 /// Estimates the session file at `path`.
+#[allow(clippy::too_many_lines)] // One pass over the frames and its report, read top to bottom.
 fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     let (session, file_frames, origin_ns) = read_session(args, path)?;
     let robot = session_robot(
@@ -393,8 +407,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     let mut called = Vec::with_capacity(session.frames.len());
     let mut written: Result<()> = Ok(());
     let two_contacts = config.contacts_at_once >= 2;
-    let mut singles = Vec::new();
-    let mut pending = Vec::new();
+    let (mut singles, mut pending, mut messages) = (Vec::new(), Vec::new(), Vec::new());
     args.estimator.with_threads(|| {
         estimate_sequence(
             &estimator,
@@ -413,13 +426,26 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
                     Verdict::PoorFit => 2,
                 }] += 1;
                 called.push(update.summary.verdict != Verdict::NoContact);
-                let estimate = FrameEstimate::of_frame(&robot, &estimator.surface, &update, ms, &frame.truth);
-                let outcome = frame_outcome(&robot, &estimate, &frame.truth);
+                let outcome = frame_outcome(
+                    &robot,
+                    &FrameEstimate::of_frame(&robot, &estimator.surface, &update, ms, &frame.truth),
+                    &frame.truth,
+                );
                 outcomes.extend(outcome);
                 if two_contacts {
-                    // The line waits for the session's second contacts.
+                    // The frame's output waits for the session's second contacts.
                     singles.push(SingleSeen::of(&update));
-                    pending.push(json_line(&estimator, &robot, (i, frame), &update, ms, outcome.as_ref()));
+                    if out.as_ref().is_some_and(Out::is_mcap) {
+                        messages.push(estimate_message(
+                            &estimator,
+                            &robot,
+                            &update,
+                            origin_ns.unwrap_or(0),
+                            frame.t,
+                        ));
+                    } else {
+                        pending.push(json_line(&estimator, &robot, (i, frame), &update, ms, outcome.as_ref()));
+                    }
                 } else if let (Some(w), Ok(())) = (out.as_mut(), &written) {
                     written = w.write(&estimator, &robot, (i, frame), &update, ms, outcome.as_ref(), origin_ns);
                 }
@@ -435,7 +461,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
             .estimator
             .with_threads(|| second_contacts(&estimator, &robot, &config, &sequence, &singles))?
             .map_err(|(n, e)| anyhow::anyhow!("{}: frame {n}: {e}", session.path.display()))?;
-        write_with_second_contacts(&robot, &session, &pairs, &mut pending, out.as_mut())?;
+        write_with_second_contacts(&robot, &session, &pairs, (&mut pending, &mut messages), out.as_mut())?;
     }
     if let Some(out) = out {
         out.finish()?;
@@ -483,12 +509,30 @@ fn write_with_second_contacts(
     robot: &Robot,
     session: &Session,
     pairs: &[Option<FramePair>],
-    lines: &mut [serde_json::Value],
+    (lines, messages): (&mut [serde_json::Value], &mut [EstimateMessage]),
     out: Option<&mut Out>,
 ) -> Result<()> {
     let score = add_second_contacts(robot, session, pairs, lines);
+    // An MCAP frame called two carries both contacts of the pair.
+    let named = |c: &proprioscope::core::estimate::pair::PairContact| {
+        (
+            robot
+                .links
+                .get(c.placed.link)
+                .map_or_else(String::new, |l| l.name.clone()),
+            c.point_world.to_array(),
+            c.force_world.to_array(),
+        )
+    };
+    for (message, pair) in messages.iter_mut().zip(pairs) {
+        if let Some(p) = pair.as_ref().filter(|p| p.has_two()) {
+            let [a, b] = &p.pair.contacts;
+            message.contact = Some(named(a));
+            message.second_contact = Some(named(b));
+        }
+    }
     if let Some(w) = out {
-        w.write_lines(lines)?;
+        w.write_made(lines, messages)?;
     }
     report_pairs(&score)
 }
@@ -507,8 +551,10 @@ fn add_second_contacts(
         if let Some(p) = two {
             line["contacts"] = pair_contacts_json(robot, p, line["contact_probability"].as_f64());
         }
+        let truths = frame.true_contacts();
         score.add(
-            &frame.true_contacts(),
+            &truths,
+            sensing_joints(robot, &truths),
             two.map(|p| p.pair.contacts.each_ref().map(|c| c.point_world)),
         );
     }
@@ -568,6 +614,20 @@ fn pair_contacts_json(robot: &Robot, pair: &FramePair, contact_probability: Opti
 }
 
 /// What `--contacts 2` found, scored against the session's `truth_all`.
+/// Sensed joints that feel any of `truths` (links unknown to the robot
+/// feel none).
+fn sensing_joints(robot: &Robot, truths: &[proprioscope::io::session::ContactTruth]) -> usize {
+    let mut joints: Vec<usize> = truths
+        .iter()
+        .filter_map(|t| robot.link_id(&t.link).ok())
+        .flat_map(|link| robot.path_joints(link))
+        .filter(|j| robot.sensed().contains(j))
+        .collect();
+    joints.sort_unstable();
+    joints.dedup();
+    joints.len()
+}
+
 fn report_pairs(score: &PairScore) -> Result<()> {
     if score.both_frames + score.one_frames == 0 {
         return Ok(());
@@ -591,10 +651,13 @@ fn report_pairs(score: &PairScore) -> Result<()> {
     };
     writeln!(
         out,
-        "two contacts: called in {} of {} frames where both press ({:.1} %), {error}; {one}",
+        "two contacts: called in {} of {} frames where both press ({:.1} %; {} of {} where six or more joints feel them, {:.1} %), {error}; {one}",
         score.both_called_two,
         score.both_frames,
         share(score.both_called_two, score.both_frames),
+        score.both_identifiable_called_two,
+        score.both_identifiable,
+        share(score.both_identifiable_called_two, score.both_identifiable),
     )?;
     Ok(())
 }

@@ -6,9 +6,9 @@
 use std::path::PathBuf;
 
 use anyhow::{Context as _, Result};
-use proprioscope::core::eval::synth::{ObserverSim, SynthSettings, synthesize};
+use proprioscope::core::eval::synth::{ObserverSim, SynthContact, SynthSettings, synthesize};
 use proprioscope::core::robot::builtin;
-use proprioscope::io::session::{Frame, Recorder, Truth};
+use proprioscope::io::session::{ContactTruth, Frame, Recorder, Truth};
 
 use proprioscope::core::config::limits;
 
@@ -62,6 +62,12 @@ pub struct SynthArgs {
     /// (valid: [0, 3.2]).
     #[arg(long, default_value_t = 0.2, value_parser = within(&limits::SWING))]
     pub swing: f64,
+    /// Contacts that may press at once, 1 or 2. With 2, a second hand
+    /// presses during each press on another link, coming while the first
+    /// holds and staying a while after it lets go; every true contact is
+    /// written in `truth_all`.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=2))]
+    pub contacts: u8,
 }
 
 /// `--sensing`.
@@ -98,26 +104,35 @@ pub fn run(args: &SynthArgs) -> Result<()> {
             motor_side: args.sensing == Sensing::Motor,
             ..ObserverSim::default()
         }),
+        contacts_at_once: usize::from(args.contacts),
         ..SynthSettings::default()
     };
     let frames = synthesize(&robot, &links, &settings, args.seed)?;
     let joints: Vec<String> = robot.sensed_names().iter().map(|s| (*s).to_owned()).collect();
     let mut recorder = Recorder::create(&args.out, "lwr4plus", &joints)?;
+    let truth_of = |c: &SynthContact| ContactTruth {
+        link: robot.links.get(c.link).map(|l| l.name.clone()).unwrap_or_default(),
+        point: c.point_world.to_array(),
+        force: c.force_world.to_array(),
+    };
     for f in &frames {
-        let truth = match &f.contact {
-            Some(c) => Truth::Contact {
-                link: robot.links.get(c.link).map(|l| l.name.clone()).unwrap_or_default(),
-                point: c.point_world.to_array(),
-                force: c.force_world.to_array(),
-            },
+        // `truth` the first contact pressing; `truth_all` every one where
+        // two press.
+        let truth = match f.contacts().next().map(truth_of) {
+            Some(ContactTruth { link, point, force }) => Truth::Contact { link, point, force },
             None => Truth::NoContact,
+        };
+        let truth_all = if f.contacts().count() > 1 {
+            f.contacts().map(truth_of).collect()
+        } else {
+            Vec::new()
         };
         recorder.write(&Frame {
             t: f.t_secs,
             q: f.q.clone(),
             tau: f.tau.clone(),
             truth,
-            truth_all: Vec::new(),
+            truth_all,
         })?;
     }
     let written = recorder.finish()?;

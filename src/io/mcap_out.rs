@@ -10,6 +10,9 @@
 //!   most probable contact, only in frames with one, in the convention of
 //!   the truth topics (`frame_id` of the wrench is the touched link, its
 //!   force is in the world frame; the point is in the world frame);
+//! - `/proprioscope/second_contact` and `/proprioscope/second_contact_point`
+//!   (the same types): in frames where two contacts are called, the
+//!   second (`/proprioscope/contact` then holds the first of the pair);
 //! - `/proprioscope/region` (`sensor_msgs/PointCloud2`, world frame): the
 //!   90 % credible set, fields `x y z` and `probability` (float32), empty
 //!   in frames without contact.
@@ -18,7 +21,9 @@ use std::collections::{BTreeMap, HashMap};
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
-use super::recording::{RecordingError, TRUTH_POINT_TOPIC, TRUTH_TOPIC, scan};
+use super::recording::{
+    RecordingError, SECOND_TRUTH_POINT_TOPIC, SECOND_TRUTH_TOPIC, TRUTH_POINT_TOPIC, TRUTH_TOPIC, scan,
+};
 use super::session::{Frame, Truth};
 
 /// Why the MCAP could not be written.
@@ -48,6 +53,9 @@ pub struct EstimateMessage {
     /// The most probable contact, when the frame has one: link, point
     /// (world, m), force on the robot (world, N).
     pub contact: Option<(String, [f64; 3], [f64; 3])>,
+    /// The second contact where two are called (`contact` is then the
+    /// first of the pair), as `contact`.
+    pub second_contact: Option<(String, [f64; 3], [f64; 3])>,
     /// The probable region: points (world, m) with their probability.
     pub region: Vec<([f64; 3], f64)>,
 }
@@ -164,10 +172,12 @@ pub struct EstimateWriter {
     sequence: u32,
 }
 
-const OUT_TOPICS: [(&str, &str); 4] = [
+const OUT_TOPICS: [(&str, &str); 6] = [
     ("/proprioscope/contact_probability", "std_msgs/msg/Float64"),
     ("/proprioscope/contact", "geometry_msgs/msg/WrenchStamped"),
     ("/proprioscope/contact_point", "geometry_msgs/msg/PointStamped"),
+    ("/proprioscope/second_contact", "geometry_msgs/msg/WrenchStamped"),
+    ("/proprioscope/second_contact_point", "geometry_msgs/msg/PointStamped"),
     ("/proprioscope/region", "sensor_msgs/msg/PointCloud2"),
 ];
 
@@ -280,15 +290,44 @@ impl EstimateWriter {
         self.write_joint_states("/joint_states", joints, frames, origin_ns)?;
         let truth = self.channel(TRUTH_TOPIC, "geometry_msgs/msg/WrenchStamped")?;
         let truth_point = self.channel(TRUTH_POINT_TOPIC, "geometry_msgs/msg/PointStamped")?;
+        // A second true contact's topics only where one is recorded.
+        let second = if frames.iter().any(|f| f.truth_all.len() >= 2) {
+            Some((
+                self.channel(SECOND_TRUTH_TOPIC, "geometry_msgs/msg/WrenchStamped")?,
+                self.channel(SECOND_TRUTH_POINT_TOPIC, "geometry_msgs/msg/PointStamped")?,
+            ))
+        } else {
+            None
+        };
         for frame in frames {
             let stamp = origin_ns.saturating_add((frame.t * 1e9).round() as i64);
-            if let Truth::Contact { link, point, force } = &frame.truth {
+            // The first contact is `truth` (else `truth_all`'s first), the
+            // second the other of `truth_all`.
+            let first = match (&frame.truth, frame.truth_all.first()) {
+                (Truth::Contact { link, point, force }, _) => Some((link.as_str(), *point, *force)),
+                (_, Some(c)) => Some((c.link.as_str(), c.point, c.force)),
+                _ => None,
+            };
+            let second_contact = (frame.truth_all.len() >= 2)
+                .then(|| {
+                    frame
+                        .truth_all
+                        .iter()
+                        .map(|c| (c.link.as_str(), c.point, c.force))
+                        .find(|c| Some(*c) != first)
+                })
+                .flatten();
+            for ((wrench_id, point_id), contact) in [
+                ((truth, truth_point), first),
+                (second.unwrap_or((truth, truth_point)), second_contact),
+            ] {
+                let Some((link, point, force)) = contact else { continue };
                 let mut w = Cdr::new();
-                w.header(stamp, link).xyz(*force).xyz([0.0; 3]);
-                self.write(truth, stamp, &w.0)?;
+                w.header(stamp, link).xyz(force).xyz([0.0; 3]);
+                self.write(wrench_id, stamp, &w.0)?;
                 let mut p = Cdr::new();
-                p.header(stamp, &self.world_frame).xyz(*point);
-                self.write(truth_point, stamp, &p.0)?;
+                p.header(stamp, &self.world_frame).xyz(point);
+                self.write(point_id, stamp, &p.0)?;
             }
         }
         Ok(())
@@ -328,13 +367,18 @@ impl EstimateWriter {
             id("/proprioscope/contact_point"),
             id("/proprioscope/region"),
         );
+        let second = (
+            id("/proprioscope/second_contact"),
+            id("/proprioscope/second_contact_point"),
+        );
         if let Some(p) = e.contact_probability {
             let mut m = Cdr::new();
             m.f64(p);
             self.write(probability, e.stamp_ns, &m.0)?;
         }
         let world = self.world_frame.clone();
-        if let Some((link, p, f)) = &e.contact {
+        for ((contact, point), c) in [((contact, point), &e.contact), (second, &e.second_contact)] {
+            let Some((link, p, f)) = c else { continue };
             let mut w = Cdr::new();
             w.header(e.stamp_ns, link).xyz(*f).xyz([0.0; 3]);
             self.write(contact, e.stamp_ns, &w.0)?;
@@ -372,6 +416,7 @@ mod tests {
     use super::*;
     use crate::io::recording::{self, TopicChoice};
     use crate::io::rosmsg::Value;
+    use crate::io::session::ContactTruth;
 
     #[test]
     fn estimates_and_frames_read_back_with_our_reader() {
@@ -393,7 +438,23 @@ mod tests {
                 } else {
                     Truth::NoContact
                 },
-                truth_all: Vec::new(),
+                // Frame 2 has a second true contact.
+                truth_all: if k == 2 {
+                    vec![
+                        ContactTruth {
+                            link: "l2".into(),
+                            point: [0.1, 0.2, 0.3],
+                            force: [0.0, -5.0, 1.0],
+                        },
+                        ContactTruth {
+                            link: "l3".into(),
+                            point: [0.4, 0.5, 0.6],
+                            force: [1.0, 0.0, 2.0],
+                        },
+                    ]
+                } else {
+                    Vec::new()
+                },
             })
             .collect();
         let origin = 1_760_000_000_000_000_000;
@@ -404,6 +465,7 @@ mod tests {
                 stamp_ns: origin + (f.t * 1e9).round() as i64,
                 contact_probability: Some(0.25 * k as f64),
                 contact: (k == 2).then(|| ("l2".to_owned(), [0.1, 0.2, 0.3], [0.0, -4.0, 0.0])),
+                second_contact: (k == 2).then(|| ("l3".to_owned(), [0.4, 0.2, 0.3], [0.0, 0.0, 5.0])),
                 region: vec![([0.1, 0.2, 0.3], 0.5), ([0.0, 0.0, 1.0], 0.25)],
             })
             .unwrap();
@@ -421,6 +483,12 @@ mod tests {
         let first = topic("/proprioscope/contact").first.clone().unwrap();
         assert_eq!(first.get("header.frame_id"), Some(&Value::Str("l2".into())));
         assert_eq!(first.get("wrench.force.y").and_then(Value::as_f64), Some(-4.0));
+        assert_eq!(topic("/proprioscope/second_contact").count, 1);
+        let second = topic("/proprioscope/second_contact").first.clone().unwrap();
+        assert_eq!(second.get("header.frame_id"), Some(&Value::Str("l3".into())));
+        assert_eq!(second.get("wrench.force.z").and_then(Value::as_f64), Some(5.0));
+        let point = topic("/proprioscope/second_contact_point").first.clone().unwrap();
+        assert_eq!(point.get("point.x").and_then(Value::as_f64), Some(0.4));
         let cloud = topic("/proprioscope/region").first.clone().unwrap();
         assert_eq!(cloud.get("width").and_then(Value::as_i64), Some(2));
         assert_eq!(cloud.get("point_step").and_then(Value::as_i64), Some(16));

@@ -64,6 +64,10 @@ pub struct Scene {
     /// The applied push. Default: none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub push: Option<Push>,
+    /// A second push, pressing at the same time: the sensors read the
+    /// sum of both pushes' torques. Default: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub second_push: Option<Push>,
     /// Sensor noise added to the push's torques. Default: none.
     #[serde(default)]
     pub noise: Noise,
@@ -109,6 +113,9 @@ pub enum Layer {
     Posterior,
     /// How sharply the sensed joints would locate a push at each point.
     Observability,
+    /// Each of two contacts' posterior given the other, together (where
+    /// the estimator looks for two contacts; else the posterior).
+    Contacts,
 }
 
 fn default_true() -> bool {
@@ -289,6 +296,9 @@ pub struct EstimatorSettings {
     /// of push (see `core::estimate::friction`). Default: 0, which leaves
     /// it to how frames are combined (none for a frame alone).
     pub friction: f64,
+    /// Contacts looked for at once, 1 or 2 (two: the second contact's
+    /// search and the evidence for it). Default: 1.
+    pub contacts: usize,
 }
 
 impl Default for EstimatorSettings {
@@ -334,6 +344,7 @@ impl EstimatorSettings {
                 Friction::Auto => 0.0,
                 Friction::Mu(mu) => mu,
             },
+            contacts: config.contacts_at_once,
         }
     }
 }
@@ -420,16 +431,23 @@ pub struct LoadedScene {
     pub candidate_links: Vec<LinkId>,
     /// The push, if any.
     pub push: Option<ResolvedPush>,
+    /// The second push, if any.
+    pub second_push: Option<ResolvedPush>,
 }
 
 impl LoadedScene {
-    /// Exact torques of the push on the sensed joints (zeros without push).
+    /// Exact torques of the pushes on the sensed joints, summed (zeros
+    /// without a push).
     #[must_use]
     pub fn push_torques(&self) -> Vec<f64> {
-        match self.push {
-            Some(p) => joint_torques(&self.robot, &self.pose, p.link, p.point_world, p.force_world),
-            None => vec![0.0; self.robot.sensed().len()],
+        let mut tau = vec![0.0; self.robot.sensed().len()];
+        for p in self.push.iter().chain(&self.second_push) {
+            let one = joint_torques(&self.robot, &self.pose, p.link, p.point_world, p.force_world);
+            for (t, x) in tau.iter_mut().zip(one) {
+                *t += x;
+            }
         }
+        tau
     }
 
     /// What the sensors read: the push's torques plus the scene's noise.
@@ -498,7 +516,10 @@ impl Scene {
             in_range(path, &format!("other_joints.{name}"), &limits::JOINT_POSITION, v)?;
         }
         if let Some(push) = &self.push {
-            push.validate(path)?;
+            push.validate(path, "push")?;
+        }
+        if let Some(push) = &self.second_push {
+            push.validate(path, "second_push")?;
         }
         in_range(
             path,
@@ -545,6 +566,7 @@ impl Scene {
             },
             surface_points: self.surface_points,
             surface_seed: self.surface_seed,
+            contacts_at_once: e.contacts,
             ..EstimatorConfig::default()
         }
     }
@@ -589,7 +611,11 @@ impl Scene {
         };
         let push = match &self.push {
             None => None,
-            Some(p) => Some(resolve_push(&robot, &pose, p, scene_path)?),
+            Some(p) => Some(resolve_push(&robot, &pose, p, scene_path, "push")?),
+        };
+        let second_push = match &self.second_push {
+            None => None,
+            Some(p) => Some(resolve_push(&robot, &pose, p, scene_path, "second_push")?),
         };
         Ok(LoadedScene {
             scene: self,
@@ -598,6 +624,7 @@ impl Scene {
             pose,
             candidate_links,
             push,
+            second_push,
         })
     }
 }
@@ -616,7 +643,8 @@ fn in_range(path: &Path, field: &str, range: &limits::Range, value: f64) -> Resu
 }
 
 impl Push {
-    fn validate(&self, path: &Path) -> Result<(), SceneError> {
+    /// Checks the push named `name` (its fields are named under it).
+    fn validate(&self, path: &Path, name: &str) -> Result<(), SceneError> {
         let each = |field: &str, range: &limits::Range, v: &[f64; 3]| {
             for (axis, &x) in ["x", "y", "z"].iter().zip(v) {
                 in_range(path, &format!("{field}.{axis}"), range, x)?;
@@ -624,32 +652,38 @@ impl Push {
             Ok(())
         };
         match (&self.point_in_link, &self.point_world) {
-            (Some(p), None) => each("push.point_in_link", &limits::COORDINATE, p)?,
-            (None, Some(p)) => each("push.point_world", &limits::COORDINATE, p)?,
+            (Some(p), None) => each(&format!("{name}.point_in_link"), &limits::COORDINATE, p)?,
+            (None, Some(p)) => each(&format!("{name}.point_world"), &limits::COORDINATE, p)?,
             _ => {
                 return Err(invalid(
                     path,
-                    "push",
+                    name,
                     "give exactly one of point_in_link and point_world".to_owned(),
                 ));
             }
         }
         match (&self.force_world, self.force_newtons) {
-            (Some(f), None) => each("push.force_world", &limits::FORCE_COMPONENT, f),
-            (None, Some(f)) => in_range(path, "push.force_newtons", &limits::PUSH_NEWTONS, f).map(|_| ()),
+            (Some(f), None) => each(&format!("{name}.force_world"), &limits::FORCE_COMPONENT, f),
+            (None, Some(f)) => in_range(path, &format!("{name}.force_newtons"), &limits::PUSH_NEWTONS, f).map(|_| ()),
             _ => Err(invalid(
                 path,
-                "push",
+                name,
                 "give exactly one of force_world and force_newtons".to_owned(),
             )),
         }
     }
 }
 
-fn resolve_push(robot: &Robot, pose: &RobotPose, push: &Push, scene_path: &Path) -> Result<ResolvedPush, SceneError> {
+fn resolve_push(
+    robot: &Robot,
+    pose: &RobotPose,
+    push: &Push,
+    scene_path: &Path,
+    name: &str,
+) -> Result<ResolvedPush, SceneError> {
     let link = robot.link_id(&push.link).map_err(|cause| SceneError::Model {
         path: scene_path.to_owned(),
-        field: "push.link".to_owned(),
+        field: format!("{name}.link"),
         cause: Box::new(cause),
     })?;
     let world_from_link = pose.world_from_link[link];
@@ -666,9 +700,9 @@ fn resolve_push(robot: &Robot, pose: &RobotPose, push: &Push, scene_path: &Path)
                 .closest(point_in_link)
                 .ok_or_else(|| SceneError::Invalid {
                     path: scene_path.to_owned(),
-                    field: "push.force_newtons".to_owned(),
+                    field: format!("{name}.force_newtons"),
                     message: format!(
-                        "link '{}' has no mesh to take the surface normal from: give push.force_world",
+                        "link '{}' has no mesh to take the surface normal from: give {name}.force_world",
                         push.link
                     ),
                 })?;

@@ -333,8 +333,11 @@ impl Session {
         })
     }
 
-    /// Parses the CSV form: `t,q1..qn,tau1..taun[,link,px,py,pz,fx,fy,fz]`.
-    /// An empty `link` in a file with truth columns means no contact.
+    /// Parses the CSV form:
+    /// `t,q1..qn,tau1..taun[,link,px,py,pz,fx,fy,fz[,link2,px2,py2,pz2,fx2,fy2,fz2]]`.
+    /// An empty `link` in a file with truth columns means no contact; a
+    /// second contact's columns, where its `link2` is given, make the
+    /// frame's `truth_all` both contacts.
     pub fn parse_csv(text: &str, path: &Path) -> Result<Self, SessionError> {
         let parse = |line: usize, message: String| SessionError::Parse {
             path: path.to_owned(),
@@ -348,19 +351,26 @@ impl Session {
         let columns: Vec<&str> = header.split(',').map(str::trim).collect();
         let n = columns.iter().filter(|c| c.starts_with('q')).count();
         let truth_columns = ["link", "px", "py", "pz", "fx", "fy", "fz"];
-        let has_truth = columns.len() == 1 + 2 * n + 7;
+        let has_second = columns.len() == 1 + 2 * n + 14;
+        let has_truth = has_second || columns.len() == 1 + 2 * n + 7;
         let mut expected: Vec<String> = vec!["t".to_owned()];
         expected.extend((1..=n).map(|i| format!("q{i}")));
         expected.extend((1..=n).map(|i| format!("tau{i}")));
         if has_truth {
             expected.extend(truth_columns.iter().map(|s| (*s).to_owned()));
         }
+        if has_second {
+            expected.extend(truth_columns.iter().map(|s| format!("{s}2")));
+        }
         if n == 0 || columns != expected {
             return Err(parse(
                 1,
-                format!("header '{header}' is not 't,q1..qn,tau1..taun[,link,px,py,pz,fx,fy,fz]'"),
+                format!(
+                    "header '{header}' is not 't,q1..qn,tau1..taun[,link,px,py,pz,fx,fy,fz[,link2,px2,py2,pz2,fx2,fy2,fz2]]'"
+                ),
             ));
         }
+        let truth_width = columns.len() - (1 + 2 * n);
         // A row with a value that is not a number, or with too few or too
         // many values, stays a frame (NaN where unreadable, its values
         // counted as given) so that the check names it by frame and field.
@@ -374,29 +384,43 @@ impl Session {
             let tau_given = if cells.len() == columns.len() {
                 n
             } else if has_truth {
-                values_given.saturating_sub(truth_columns.len())
+                values_given.saturating_sub(truth_width)
             } else {
                 values_given
             };
             let tau: Vec<f64> = (n + 1..n + 1 + tau_given).map(|k| number(cells.get(k))).collect();
-            let truth = if !has_truth || cells.len() != columns.len() {
-                Truth::Unknown
-            } else if cells.get(1 + 2 * n).is_none_or(|c| c.is_empty()) {
-                Truth::NoContact
-            } else {
-                let v: [f64; 6] = std::array::from_fn(|k| number(cells.get(2 * n + 2 + k)));
-                Truth::Contact {
-                    link: cells.get(1 + 2 * n).map(|c| (*c).to_owned()).unwrap_or_default(),
+            // The contact whose `link` column is `at`, if one is given.
+            let contact_at = |at: usize| -> Option<ContactTruth> {
+                let link = cells.get(at).filter(|c| !c.is_empty())?;
+                let v: [f64; 6] = std::array::from_fn(|k| number(cells.get(at + 1 + k)));
+                Some(ContactTruth {
+                    link: (*link).to_owned(),
                     point: [v[0], v[1], v[2]],
                     force: [v[3], v[4], v[5]],
-                }
+                })
+            };
+            let complete = has_truth && cells.len() == columns.len();
+            let first = complete.then(|| contact_at(1 + 2 * n)).flatten();
+            let second = (complete && has_second).then(|| contact_at(1 + 2 * n + 7)).flatten();
+            let truth = match (&first, complete) {
+                (_, false) => Truth::Unknown,
+                (None, true) => Truth::NoContact,
+                (Some(c), true) => Truth::Contact {
+                    link: c.link.clone(),
+                    point: c.point,
+                    force: c.force,
+                },
+            };
+            let truth_all = match (first, second) {
+                (Some(a), Some(b)) => vec![a, b],
+                _ => Vec::new(),
             };
             frames.push(Frame {
                 t,
                 q,
                 tau,
                 truth,
-                truth_all: Vec::new(),
+                truth_all,
             });
         }
         Ok(Self {

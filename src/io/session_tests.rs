@@ -74,6 +74,31 @@ fn csv_reads_the_same_frames() {
     assert_eq!(s.frames[..2], j.frames[..2]);
 }
 
+/// A CSV with a second contact's columns: both contacts in `truth_all`
+/// where `link2` is given, the first alone where it is empty; a row too
+/// short for its truth has none known.
+#[test]
+#[allow(clippy::float_cmp)] // Numbers read from text, compared as written.
+fn csv_reads_a_second_contact_into_truth_all() {
+    let header = "t,q1,q2,tau1,tau2,link,px,py,pz,fx,fy,fz,link2,px2,py2,pz2,fx2,fy2,fz2";
+    let csv = format!(
+        "{header}\n0.0,0,0,0.1,0.2,a,1,2,3,4,5,6,b,7,8,9,10,11,12\n0.1,0,0,0.1,0.2,a,1,2,3,4,5,6,,,,,,,\n0.2,0,0,0,0,,,,,,,,,,,,,,\n0.3,0,0,0.5,0.5\n"
+    );
+    let s = Session::parse_csv(&csv, Path::new("s.csv")).unwrap();
+    let links = |f: &Frame| f.true_contacts().into_iter().map(|c| c.link).collect::<Vec<_>>();
+    assert_eq!(links(&s.frames[0]), ["a", "b"]);
+    assert_eq!(s.frames[0].truth_all[1].point, [7.0, 8.0, 9.0]);
+    assert_eq!(s.frames[0].truth_all[1].force, [10.0, 11.0, 12.0]);
+    assert_eq!(links(&s.frames[1]), ["a"]);
+    assert!(s.frames[1].truth_all.is_empty());
+    assert_eq!(s.frames[2].truth, Truth::NoContact);
+    assert_eq!(s.frames[3].truth, Truth::Unknown);
+    // A second contact's columns named otherwise are refused with the form.
+    let bad = csv.replace("link2", "other");
+    let e = Session::parse_csv(&bad, Path::new("s.csv")).unwrap_err().to_string();
+    assert!(e.contains("link2,px2"), "{e}");
+}
+
 #[test]
 fn bad_frames_are_named() {
     let text = JSON.replace(r#""t": 0.5"#, r#""t": -0.5"#);

@@ -103,6 +103,10 @@ pub struct PairContact {
     pub force_world: DVec3,
     /// Its 90 % credible set given the other contact.
     pub credible90: CredibleSet,
+    /// Its posterior given the other contact: each surface sample's
+    /// probability of being its place (empty where a caller keeps only
+    /// the summary, as a whole session's pass does).
+    pub probability: Vec<f64>,
 }
 
 /// What a frame says about two contacts.
@@ -612,6 +616,7 @@ pub fn estimate_pair(
                 .get(c.placed.link)
                 .map_or(DVec3::ZERO, |w| w.transform_vector3(c.placed.inward_normal_in_link)),
         credible90: credible_set(&c.posterior, world, 0.9),
+        probability: c.posterior.probability,
         placed: c.placed,
     };
     // The contact nearer the single contact's place first.

@@ -54,6 +54,10 @@ pub struct SynthSettings {
     /// observer on a model whose inertials are wrong; `None`: `JᵀF` plus
     /// bias and noise.
     pub observer: Option<ObserverSim>,
+    /// Contacts that may press at once, 1 or 2. With 2, a second hand
+    /// presses during each press of the first, on another link: it comes
+    /// while the first holds and may stay after it lets go.
+    pub contacts_at_once: usize,
 }
 
 /// A real arm's external torque (see [`crate::core::over_time::observer`]):
@@ -121,6 +125,7 @@ impl Default for SynthSettings {
             motion_rad: 0.2,
             min_torque_newton_metres: 0.5,
             observer: None,
+            contacts_at_once: 1,
         }
     }
 }
@@ -149,8 +154,18 @@ pub struct SynthFrame {
     pub q: Vec<f64>,
     /// Measured torques: the contact's, the bias and noise, N·m.
     pub tau: Vec<f64>,
-    /// The contact, if any.
+    /// The contact, if any (the first hand's).
     pub contact: Option<SynthContact>,
+    /// The second hand's contact, if any (sessions drawn with two
+    /// contacts at once).
+    pub second: Option<SynthContact>,
+}
+
+impl SynthFrame {
+    /// Every contact pressing, the first hand's first.
+    pub fn contacts(&self) -> impl Iterator<Item = &SynthContact> {
+        self.contact.iter().chain(&self.second)
+    }
 }
 
 /// Every joint's position at each of `frames` (see
@@ -247,6 +262,9 @@ impl SynthSettings {
                     return bad(name, hi);
                 }
             }
+        }
+        if !(1..=2).contains(&self.contacts_at_once) {
+            return bad("contacts at once", self.contacts_at_once as f64);
         }
         let frames = (self.duration_secs * self.rate_hz).floor();
         if !(1.0..=MAX_SYNTH_FRAMES as f64).contains(&frames) {
@@ -389,6 +407,127 @@ fn draw_presses(
     presses
 }
 
+/// The second hand's presses: one during each of `first`'s (whose
+/// start it follows by 20–60 % of that press's length), of the same
+/// spread of lengths and forces (ending at most half-way into the gap
+/// after that press), on a link other than those of the first
+/// hand's presses it overlaps (where the pool has one), never two at once.
+fn draw_second_presses(pool: &Surface, first: &[Press], settings: &SynthSettings, rng: &mut Rng) -> Vec<Press> {
+    let mut presses: Vec<Press> = Vec::new();
+    for (k, p) in first.iter().enumerate() {
+        let start = p.start + rng.uniform_in(0.2, 0.6) * (p.end - p.start);
+        let length = rng.uniform_in(settings.press_secs.0, settings.press_secs.1);
+        let peak = rng.uniform_in(settings.force_newtons.0, settings.force_newtons.1);
+        // It outstays the first by half the gap after it at most: the arm
+        // stays free between presses for about as long as with one hand
+        // (a model error is learned from those frames).
+        let next = first.get(k + 1).map_or(settings.duration_secs, |n| n.start);
+        let end = (start + length)
+            .min(p.end + 0.5 * (next - p.end).max(0.0))
+            .min(settings.duration_secs);
+        let busy = presses.last().is_some_and(|last| start < last.end + settings.ramp_secs);
+        // The links of the first hand's presses it overlaps.
+        let taken: Vec<Option<&LinkId>> = first
+            .iter()
+            .filter(|f| f.start < end && f.end > start)
+            .map(|f| pool.link.get(f.sample))
+            .collect();
+        let mut sample = rng.below(pool.len().max(1));
+        for _ in 0..100 {
+            if !taken.contains(&pool.link.get(sample)) {
+                break;
+            }
+            sample = rng.below(pool.len().max(1));
+        }
+        let press = Press {
+            start,
+            end,
+            peak,
+            sample,
+            slide_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
+            slide_speed: rng.uniform_in(0.0, settings.slide_m_per_s),
+            friction: rng.uniform_in(0.0, settings.friction),
+            friction_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
+        };
+        if !busy && press.end > press.start && !pool.is_empty() {
+            presses.push(press);
+        }
+    }
+    presses
+}
+
+/// One hand's presses over the session, and where its press is now.
+struct Track {
+    presses: Vec<Press>,
+    index: usize,
+    /// Where the press is now (it slides from here).
+    place: Option<crate::core::geometry::shell::MeshPoint>,
+    /// The press's slide and drag directions, link frame: drawn at its
+    /// first frame as angles in the tangent plane there, then kept (the
+    /// slide takes its part along the surface at each frame). A mesh's
+    /// tangents are its triangles' edges, so angles taken anew at every
+    /// frame would turn both at every edge the slide crosses.
+    heading: Option<(DVec3, DVec3)>,
+}
+
+impl Track {
+    fn new(presses: Vec<Press>) -> Self {
+        Self {
+            presses,
+            index: 0,
+            place: None,
+            heading: None,
+        }
+    }
+
+    /// The contact at time `t` in `pose` (frames `dt_secs` apart), the
+    /// press moved on by its slide.
+    fn contact_at(
+        &mut self,
+        t: f64,
+        dt_secs: f64,
+        pose: &RobotPose,
+        pool: &Surface,
+        ramp_secs: f64,
+    ) -> Option<SynthContact> {
+        while self.presses.get(self.index).is_some_and(|p| t >= p.end) {
+            self.index += 1;
+            self.place = None;
+            self.heading = None;
+        }
+        let p = self.presses.get(self.index).filter(|p| t >= p.start)?;
+        let ramp = ramp_secs.max(1e-9);
+        let up = ((t - p.start) / ramp).min(1.0);
+        let down = ((p.end - t) / ramp).min(1.0);
+        let magnitude = p.peak * up.min(down).max(0.0);
+        let link = pool.link.get(p.sample).copied()?;
+        let shape = pool.shape(link)?;
+        // Slide from where the press is now.
+        let at = self.place.or_else(|| pool.location.get(p.sample).copied())?;
+        let f = shape.frame(at)?;
+        let (slide_in_link, drag_in_link) = *self.heading.get_or_insert_with(|| {
+            let towards = |angle: f64| f.tangents[0] * angle.cos() + f.tangents[1] * angle.sin();
+            (towards(p.slide_angle), towards(p.friction_angle))
+        });
+        let on_surface = |v: DVec3| (v - v.dot(f.inward_normal) * f.inward_normal).normalize_or_zero();
+        let direction = on_surface(slide_in_link);
+        self.place = Some(shape.walk(at, direction * (p.slide_speed * dt_secs)));
+        if magnitude <= 0.0 {
+            return None;
+        }
+        // The drag as drawn (for a press that holds its place, the
+        // tangent direction of its triangle).
+        let world = pose.world_from_link.get(link).copied().unwrap_or_default();
+        Some(SynthContact {
+            link,
+            point_in_link: f.point,
+            point_world: world.transform_point3(f.point),
+            force_world: world.transform_vector3(f.inward_normal + drag_in_link * p.friction) * magnitude,
+            normal_newtons: magnitude,
+        })
+    }
+}
+
 /// Draws a session of `robot` pressed on `links`.
 ///
 /// # Errors
@@ -458,14 +597,14 @@ pub fn synthesize_with_plant(
     let presses = draw_presses(robot, &pool, &start_pose, settings, &mut rng);
     let dt = 1.0 / settings.rate_hz;
     let mut observer = settings.observer.map(|o| SimulatedObserver::new(robot, &o, &mut rng));
-    let mut press_index = 0;
-    let mut place = None;
-    // The press's slide and drag directions, link frame: drawn at its
-    // first frame as angles in the tangent plane there, then kept (the
-    // slide takes its part along the surface at each frame). A mesh's
-    // tangents are its triangles' edges, so angles taken anew at every
-    // frame would turn both at every edge the slide crosses.
-    let mut heading: Option<(DVec3, DVec3)> = None;
+    // The second hand draws from a stream of its own: a one-contact
+    // session of a seed is the same with or without this option.
+    let second_presses = if settings.contacts_at_once >= 2 {
+        draw_second_presses(&pool, &presses, settings, &mut Rng::new(seed ^ 0x2c0_17ac7))
+    } else {
+        Vec::new()
+    };
+    let mut hands = [Track::new(presses), Track::new(second_presses)];
     let mut out = Vec::with_capacity(frames);
     for i in 0..frames {
         let t = i as f64 * dt;
@@ -474,50 +613,17 @@ pub fn synthesize_with_plant(
             .zip(&phase)
             .map(|(q0, ph)| q0 + settings.motion_rad * (std::f64::consts::TAU * t / 4.0 + ph).sin())
             .collect();
-        while presses.get(press_index).is_some_and(|p| t >= p.end) {
-            press_index += 1;
-            place = None;
-            heading = None;
-        }
         let pose = RobotPose::new(robot, &robot.joint_positions(&q, &[]).unwrap_or_default());
+        let [first, second] = &mut hands;
+        let contact = first.contact_at(t, dt, &pose, &pool, settings.ramp_secs);
+        let second = second.contact_at(t, dt, &pose, &pool, settings.ramp_secs);
         let mut tau = vec![0.0; joints];
-        let mut contact = None;
-        if let Some(p) = presses.get(press_index).filter(|p| t >= p.start) {
-            let ramp = settings.ramp_secs.max(1e-9);
-            let up = ((t - p.start) / ramp).min(1.0);
-            let down = ((p.end - t) / ramp).min(1.0);
-            let magnitude = p.peak * up.min(down).max(0.0);
-            let link = pool.link.get(p.sample).copied();
-            let shape = link.and_then(|l| pool.shape(l));
-            // Slide from where the press is now.
-            let at = place.or_else(|| pool.location.get(p.sample).copied());
-            if let (Some(link), Some(shape), Some(at)) = (link, shape, at)
-                && let Some(f) = shape.frame(at)
+        for c in contact.iter().chain(&second) {
+            for (t, x) in tau
+                .iter_mut()
+                .zip(joint_torques(robot, &pose, c.link, c.point_world, c.force_world))
             {
-                let (slide_in_link, drag_in_link) = *heading.get_or_insert_with(|| {
-                    let towards = |angle: f64| f.tangents[0] * angle.cos() + f.tangents[1] * angle.sin();
-                    (towards(p.slide_angle), towards(p.friction_angle))
-                });
-                let on_surface = |v: DVec3| (v - v.dot(f.inward_normal) * f.inward_normal).normalize_or_zero();
-                let direction = on_surface(slide_in_link);
-                place = Some(shape.walk(at, direction * (p.slide_speed * dt)));
-                // The drag as drawn (for a press that holds its place, the
-                // tangent direction of its triangle, as before headings
-                // were kept).
-                let along = drag_in_link;
-                let world = pose.world_from_link.get(link).copied().unwrap_or_default();
-                let point_world = world.transform_point3(f.point);
-                let force_world = world.transform_vector3(f.inward_normal + along * p.friction) * magnitude;
-                if magnitude > 0.0 {
-                    tau = joint_torques(robot, &pose, link, point_world, force_world);
-                    contact = Some(SynthContact {
-                        link,
-                        point_in_link: f.point,
-                        point_world,
-                        force_world,
-                        normal_newtons: magnitude,
-                    });
-                }
+                *t += x;
             }
         }
         for (t, b) in tau.iter_mut().zip(&bias) {
@@ -542,6 +648,7 @@ pub fn synthesize_with_plant(
             q,
             tau,
             contact,
+            second,
         });
     }
     let plant = observer.map(|sim| PlantTruth {
@@ -559,135 +666,5 @@ pub fn synthesize_with_plant(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::core::robot::builtin;
-
-    #[test]
-    fn presses_come_and_go_hold_their_place_and_reproduce_per_seed() {
-        let robot = builtin::lwr4plus_generated().unwrap();
-        let links = robot.default_candidate_links();
-        let settings = SynthSettings::default();
-        let a = synthesize(&robot, &links, &settings, 3).unwrap();
-        assert_eq!(a, synthesize(&robot, &links, &settings, 3).unwrap());
-        assert_eq!(a.len(), 1200);
-        let contact = a.iter().filter(|f| f.contact.is_some()).count();
-        assert!(contact > 200 && contact < 1000, "{contact}");
-        // Onsets and releases both happen.
-        let switches = a
-            .windows(2)
-            .filter(|w| w[0].contact.is_some() != w[1].contact.is_some())
-            .count();
-        assert!(switches >= 4, "{switches}");
-        // Without slide, a press keeps its place on its link.
-        for w in a.windows(2) {
-            if let (Some(x), Some(y)) = (w[0].contact, w[1].contact)
-                && x.link == y.link
-                && x.point_in_link.distance(y.point_in_link) > 0.0
-            {
-                assert!(
-                    x.point_in_link.distance(y.point_in_link) > 0.05,
-                    "a press moved without sliding"
-                );
-            }
-        }
-        // Torques are the contact's plus noise: without contact, noise only.
-        let quiet: Vec<f64> = a
-            .iter()
-            .filter(|f| f.contact.is_none())
-            .flat_map(|f| f.tau.clone())
-            .collect();
-        let rms = (quiet.iter().map(|t| t * t).sum::<f64>() / quiet.len() as f64).sqrt();
-        assert!((rms - 0.05).abs() < 0.005, "{rms}");
-    }
-
-    #[test]
-    fn slides_move_the_contact_at_about_the_asked_speed() {
-        let robot = builtin::lwr4plus_generated().unwrap();
-        let links = robot.default_candidate_links();
-        let settings = SynthSettings {
-            slide_m_per_s: 0.04,
-            ..SynthSettings::default()
-        };
-        let a = synthesize(&robot, &links, &settings, 5).unwrap();
-        let steps: Vec<f64> = a
-            .windows(2)
-            .filter_map(|w| match (w[0].contact, w[1].contact) {
-                (Some(x), Some(y)) if x.link == y.link => Some(x.point_in_link.distance(y.point_in_link)),
-                _ => None,
-            })
-            .filter(|d| *d < 0.01)
-            .collect();
-        let fastest = steps.iter().copied().fold(0.0, f64::max);
-        assert!(fastest > 0.0 && fastest <= 0.04 / 200.0 * 1.01, "{fastest}");
-    }
-
-    /// A sliding press keeps its heading: the place moves along a smooth
-    /// path (no turn at the mesh's triangle edges, where the tangents of
-    /// the surface frame change), and the tangential force keeps its
-    /// direction in the link's frame.
-    #[test]
-    fn slides_and_drags_keep_their_heading() {
-        let robot = builtin::lwr4plus_generated().unwrap();
-        let links = robot.default_candidate_links();
-        let settings = SynthSettings {
-            slide_m_per_s: 0.04,
-            friction: 0.3,
-            ..SynthSettings::default()
-        };
-        let frames = synthesize(&robot, &links, &settings, 5).unwrap();
-        let contacts: Vec<Option<(SynthContact, DVec3)>> = frames
-            .iter()
-            .map(|f| {
-                let c = f.contact?;
-                let pose = RobotPose::new(&robot, &robot.joint_positions(&f.q, &[]).ok()?);
-                let link_from_world = pose.world_from_link.get(c.link)?.inverse();
-                Some((c, link_from_world.transform_vector3(c.force_world)))
-            })
-            .collect();
-        let (mut turns, mut drag_turns) = (Vec::new(), Vec::new());
-        for w in contacts.windows(3) {
-            let [Some((a, fa)), Some((b, fb)), Some((c, _))] = w else {
-                continue;
-            };
-            if a.link != b.link || b.link != c.link {
-                continue;
-            }
-            let (s1, s2) = (b.point_in_link - a.point_in_link, c.point_in_link - b.point_in_link);
-            if s1.length() > 1e-6 && s2.length() > 1e-6 && s1.length() < 0.01 && s2.length() < 0.01 {
-                turns.push(s1.angle_between(s2));
-            }
-            // The whole force, link frame: its normal part turns only by
-            // a step over the surface's radius, so a turn of its
-            // tangential part shows.
-            if fa.length() > 1.0 && fb.length() > 1.0 {
-                drag_turns.push(fa.angle_between(*fb));
-            }
-        }
-        let most = |v: &[f64]| v.iter().copied().fold(0.0, f64::max).to_degrees();
-        eprintln!(
-            "{} steps, largest turn {:.1}°; {} forces, largest turn {:.1}°",
-            turns.len(),
-            most(&turns),
-            drag_turns.len(),
-            most(&drag_turns)
-        );
-        assert!(turns.len() > 100 && drag_turns.len() > 100);
-        assert!(most(&turns) < 20.0, "{turns:?}");
-        assert!(most(&drag_turns) < 2.0);
-    }
-
-    #[test]
-    fn bad_settings_are_named() {
-        let robot = builtin::lwr4plus_generated().unwrap();
-        let links = robot.default_candidate_links();
-        let settings = SynthSettings {
-            rate_hz: f64::NAN,
-            ..SynthSettings::default()
-        };
-        assert!(matches!(
-            synthesize(&robot, &links, &settings, 0),
-            Err(SynthError::BadSetting { name: "rate", .. })
-        ));
-    }
-}
+#[path = "synth_tests.rs"]
+mod tests;

@@ -819,12 +819,15 @@ pub fn calibrate(
     let threshold = 4.0 * chi_square_quantile(1e-3, n);
     let huber = chi_square_quantile(1e-2, n);
     // Start from the quietest 30 % of frames, each joint scaled by its
-    // median reading.
+    // reading's lower quartile: where contacts fill most of a recording
+    // (two hands taking turns), a joint's median reading is a contact's,
+    // and a joint scaled by it lets contacts that load mostly that joint
+    // pass for quiet.
     let scale: Vec<f64> = (0..n)
         .map(|j| {
             let mut v: Vec<f64> = torques.iter().map(|t| t[j].abs()).collect();
             v.sort_by(f64::total_cmp);
-            v[v.len() / 2].max(1e-6)
+            v.get(v.len() / 4).copied().unwrap_or(0.0).max(1e-6)
         })
         .collect();
     let loudness: Vec<f64> = torques

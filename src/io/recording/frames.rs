@@ -5,10 +5,13 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use crate::io::rosmsg::Value;
-use crate::io::session::{Frame, FrameProblem, Session, Truth, frame_problem};
+use crate::io::session::{ContactTruth, Frame, FrameProblem, Session, Truth, frame_problem};
 
 use super::scan::{Topics, scan};
-use super::{Mapping, RecordingError, StampSource, TRUTH_POINT_TOPIC, TRUTH_TOPIC, TopicChoice, index};
+use super::{
+    Mapping, RecordingError, SECOND_TRUTH_POINT_TOPIC, SECOND_TRUTH_TOPIC, StampSource, TRUTH_POINT_TOPIC, TRUTH_TOPIC,
+    TopicChoice, index,
+};
 
 /// Samples of one topic: stamps and values in a fixed joint order.
 #[derive(Default)]
@@ -201,13 +204,20 @@ pub fn read_session(
     let mut tau_problems: Vec<(Option<i64>, String)> = Vec::new();
     let mut q_problems = 0usize;
     let mut first_q_problem = None;
-    let mut truths: HashMap<i64, (String, [f64; 3])> = HashMap::new();
-    let mut truth_points: HashMap<i64, [f64; 3]> = HashMap::new();
-    let truth_stamps = index
-        .topic(TRUTH_TOPIC)
-        .zip(index.topic(TRUTH_POINT_TOPIC))
-        .map(|(t, p)| (t.stamp_source(), p.stamp_source()));
-    let has_truth = truth_stamps.is_some();
+    // The first true contact's wrench and point by stamp; then the second's.
+    let mut truths: [HashMap<i64, (String, [f64; 3])>; 2] = [HashMap::new(), HashMap::new()];
+    let mut truth_points: [HashMap<i64, [f64; 3]>; 2] = [HashMap::new(), HashMap::new()];
+    let truth_topics = [
+        (TRUTH_TOPIC, TRUTH_POINT_TOPIC),
+        (SECOND_TRUTH_TOPIC, SECOND_TRUTH_POINT_TOPIC),
+    ];
+    let truth_stamps = truth_topics.map(|(wrench, point)| {
+        index
+            .topic(wrench)
+            .zip(index.topic(point))
+            .map(|(t, p)| (t.stamp_source(), p.stamp_source()))
+    });
+    let has_truth = truth_stamps[0].is_some();
     let mut topics = Topics::default();
     let mut seen = 0usize;
 
@@ -219,7 +229,13 @@ pub fn read_session(
         let topic = info.topic.as_str();
         let is_tau = topic == mapping.tau_topic;
         let is_q = topic == mapping.q_topic;
-        let is_truth = has_truth && (topic == TRUTH_TOPIC || topic == TRUTH_POINT_TOPIC);
+        // Which true contact (0 or 1) and whether its wrench (else its point).
+        let truth_of = truth_topics
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| truth_stamps[*k].is_some())
+            .find_map(|(k, (wrench, point))| (topic == *wrench || topic == *point).then_some((k, topic == *wrench)));
+        let is_truth = has_truth && truth_of.is_some();
         if !(is_tau || is_q || is_truth) {
             return;
         }
@@ -231,28 +247,24 @@ pub fn read_session(
         if seen.is_multiple_of(4096) {
             progress(0.3 + 0.6 * seen as f64 / total.max(1) as f64);
         }
-        if is_truth {
-            let (Ok(value), Some((wrench_stamps, point_stamps))) = (decoded, &truth_stamps) else {
+        if let Some((k, is_wrench)) = truth_of.filter(|_| is_truth) {
+            let (Ok(value), Some(Some((wrench_stamps, point_stamps)))) = (decoded, truth_stamps.get(k)) else {
                 return;
             };
-            let stamps = if topic == TRUTH_TOPIC {
-                wrench_stamps
-            } else {
-                point_stamps
-            };
+            let stamps = if is_wrench { wrench_stamps } else { point_stamps };
             let Some(stamp) = stamps.stamp_ns(&value, message.log_ns) else {
                 return;
             };
-            if topic == TRUTH_TOPIC {
+            if is_wrench {
                 let link = match value.get("header.frame_id") {
                     Some(Value::Str(s)) => s.clone(),
                     _ => return,
                 };
-                if let Some(force) = xyz(&value, "wrench.force") {
-                    truths.insert(stamp, (link, force));
+                if let (Some(force), Some(map)) = (xyz(&value, "wrench.force"), truths.get_mut(k)) {
+                    map.insert(stamp, (link, force));
                 }
-            } else if let Some(point) = xyz(&value, "point") {
-                truth_points.insert(stamp, point);
+            } else if let (Some(point), Some(map)) = (xyz(&value, "point"), truth_points.get_mut(k)) {
+                map.insert(stamp, point);
             }
             return;
         }
@@ -375,7 +387,7 @@ pub fn read_session(
         match positions_in_tau_order(stamp) {
             Ok(q_row) => {
                 let truth = if has_truth {
-                    match (truths.get(&stamp), truth_points.get(&stamp)) {
+                    match (truths[0].get(&stamp), truth_points[0].get(&stamp)) {
                         (Some((link, force)), Some(point)) => Truth::Contact {
                             link: link.clone(),
                             point: *point,
@@ -387,12 +399,25 @@ pub fn read_session(
                 } else {
                     Truth::Unknown
                 };
+                // Both true contacts where a second is recorded with the first.
+                let contact = |k: usize| -> Option<ContactTruth> {
+                    let (link, force) = truths[k].get(&stamp)?;
+                    Some(ContactTruth {
+                        link: link.clone(),
+                        point: *truth_points[k].get(&stamp)?,
+                        force: *force,
+                    })
+                };
+                let truth_all = match (contact(0), contact(1)) {
+                    (Some(a), Some(b)) => vec![a, b],
+                    _ => Vec::new(),
+                };
                 let frame = Frame {
                     t: seconds(stamp),
                     q: q_row,
                     tau: tau_row.to_vec(),
                     truth,
-                    truth_all: Vec::new(),
+                    truth_all,
                 };
                 // The rules of every session: finite values, one per joint.
                 match frame_problem(&frame, Some(tau.width), f64::NEG_INFINITY) {

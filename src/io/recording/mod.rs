@@ -29,6 +29,11 @@ pub(crate) use scan::scan;
 pub const TRUTH_TOPIC: &str = "/contact/truth";
 /// The truth point's topic.
 pub const TRUTH_POINT_TOPIC: &str = "/contact/truth_point";
+/// A second true contact's topic (where two press at once), as
+/// [`TRUTH_TOPIC`].
+pub const SECOND_TRUTH_TOPIC: &str = "/contact/truth_2";
+/// The second true contact's point, as [`TRUTH_POINT_TOPIC`].
+pub const SECOND_TRUTH_POINT_TOPIC: &str = "/contact/truth_point_2";
 
 /// The first bytes of an MCAP file.
 const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
@@ -321,7 +326,14 @@ impl RecordingIndex {
     pub fn torque_candidates(&self) -> Vec<(String, String, u8)> {
         let mut candidates = Vec::new();
         for topic in &self.topics {
-            if topic.topic == TRUTH_TOPIC || topic.topic == TRUTH_POINT_TOPIC {
+            if [
+                TRUTH_TOPIC,
+                TRUTH_POINT_TOPIC,
+                SECOND_TRUTH_TOPIC,
+                SECOND_TRUTH_POINT_TOPIC,
+            ]
+            .contains(&topic.topic.as_str())
+            {
                 continue;
             }
             for (field, _) in topic.float_arrays() {

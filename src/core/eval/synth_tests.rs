@@ -1,0 +1,191 @@
+//! Tests of the synthetic sessions.
+
+use super::*;
+use crate::core::robot::builtin;
+
+#[test]
+fn presses_come_and_go_hold_their_place_and_reproduce_per_seed() {
+    let robot = builtin::lwr4plus_generated().unwrap();
+    let links = robot.default_candidate_links();
+    let settings = SynthSettings::default();
+    let a = synthesize(&robot, &links, &settings, 3).unwrap();
+    assert_eq!(a, synthesize(&robot, &links, &settings, 3).unwrap());
+    assert_eq!(a.len(), 1200);
+    let contact = a.iter().filter(|f| f.contact.is_some()).count();
+    assert!(contact > 200 && contact < 1000, "{contact}");
+    // Onsets and releases both happen.
+    let switches = a
+        .windows(2)
+        .filter(|w| w[0].contact.is_some() != w[1].contact.is_some())
+        .count();
+    assert!(switches >= 4, "{switches}");
+    // Without slide, a press keeps its place on its link.
+    for w in a.windows(2) {
+        if let (Some(x), Some(y)) = (w[0].contact, w[1].contact)
+            && x.link == y.link
+            && x.point_in_link.distance(y.point_in_link) > 0.0
+        {
+            assert!(
+                x.point_in_link.distance(y.point_in_link) > 0.05,
+                "a press moved without sliding"
+            );
+        }
+    }
+    // Torques are the contact's plus noise: without contact, noise only.
+    let quiet: Vec<f64> = a
+        .iter()
+        .filter(|f| f.contact.is_none())
+        .flat_map(|f| f.tau.clone())
+        .collect();
+    let rms = (quiet.iter().map(|t| t * t).sum::<f64>() / quiet.len() as f64).sqrt();
+    assert!((rms - 0.05).abs() < 0.005, "{rms}");
+}
+
+#[test]
+fn slides_move_the_contact_at_about_the_asked_speed() {
+    let robot = builtin::lwr4plus_generated().unwrap();
+    let links = robot.default_candidate_links();
+    let settings = SynthSettings {
+        slide_m_per_s: 0.04,
+        ..SynthSettings::default()
+    };
+    let a = synthesize(&robot, &links, &settings, 5).unwrap();
+    let steps: Vec<f64> = a
+        .windows(2)
+        .filter_map(|w| match (w[0].contact, w[1].contact) {
+            (Some(x), Some(y)) if x.link == y.link => Some(x.point_in_link.distance(y.point_in_link)),
+            _ => None,
+        })
+        .filter(|d| *d < 0.01)
+        .collect();
+    let fastest = steps.iter().copied().fold(0.0, f64::max);
+    assert!(fastest > 0.0 && fastest <= 0.04 / 200.0 * 1.01, "{fastest}");
+}
+
+/// A sliding press keeps its heading: the place moves along a smooth
+/// path (no turn at the mesh's triangle edges, where the tangents of
+/// the surface frame change), and the tangential force keeps its
+/// direction in the link's frame.
+#[test]
+fn slides_and_drags_keep_their_heading() {
+    let robot = builtin::lwr4plus_generated().unwrap();
+    let links = robot.default_candidate_links();
+    let settings = SynthSettings {
+        slide_m_per_s: 0.04,
+        friction: 0.3,
+        ..SynthSettings::default()
+    };
+    let frames = synthesize(&robot, &links, &settings, 5).unwrap();
+    let contacts: Vec<Option<(SynthContact, DVec3)>> = frames
+        .iter()
+        .map(|f| {
+            let c = f.contact?;
+            let pose = RobotPose::new(&robot, &robot.joint_positions(&f.q, &[]).ok()?);
+            let link_from_world = pose.world_from_link.get(c.link)?.inverse();
+            Some((c, link_from_world.transform_vector3(c.force_world)))
+        })
+        .collect();
+    let (mut turns, mut drag_turns) = (Vec::new(), Vec::new());
+    for w in contacts.windows(3) {
+        let [Some((a, fa)), Some((b, fb)), Some((c, _))] = w else {
+            continue;
+        };
+        if a.link != b.link || b.link != c.link {
+            continue;
+        }
+        let (s1, s2) = (b.point_in_link - a.point_in_link, c.point_in_link - b.point_in_link);
+        if s1.length() > 1e-6 && s2.length() > 1e-6 && s1.length() < 0.01 && s2.length() < 0.01 {
+            turns.push(s1.angle_between(s2));
+        }
+        // The whole force, link frame: its normal part turns only by
+        // a step over the surface's radius, so a turn of its
+        // tangential part shows.
+        if fa.length() > 1.0 && fb.length() > 1.0 {
+            drag_turns.push(fa.angle_between(*fb));
+        }
+    }
+    let most = |v: &[f64]| v.iter().copied().fold(0.0, f64::max).to_degrees();
+    eprintln!(
+        "{} steps, largest turn {:.1}°; {} forces, largest turn {:.1}°",
+        turns.len(),
+        most(&turns),
+        drag_turns.len(),
+        most(&drag_turns)
+    );
+    assert!(turns.len() > 100 && drag_turns.len() > 100);
+    assert!(most(&turns) < 20.0, "{turns:?}");
+    assert!(most(&drag_turns) < 2.0);
+}
+
+#[test]
+fn bad_settings_are_named() {
+    let robot = builtin::lwr4plus_generated().unwrap();
+    let links = robot.default_candidate_links();
+    let settings = SynthSettings {
+        rate_hz: f64::NAN,
+        ..SynthSettings::default()
+    };
+    assert!(matches!(
+        synthesize(&robot, &links, &settings, 0),
+        Err(SynthError::BadSetting { name: "rate", .. })
+    ));
+}
+
+/// With two contacts at once, a second hand presses during the first's
+/// presses on another link, and the first hand's presses, bias and noise
+/// are those of the one-contact session of the same seed: the torques
+/// differ by the second contact's exactly.
+#[test]
+fn a_second_hand_presses_with_the_first_and_adds_its_torques() {
+    let robot = builtin::lwr4plus_generated().unwrap();
+    let links = robot.default_candidate_links();
+    let one = synthesize(&robot, &links, &SynthSettings::default(), 3).unwrap();
+    let settings = SynthSettings {
+        contacts_at_once: 2,
+        ..SynthSettings::default()
+    };
+    let two = synthesize(&robot, &links, &settings, 3).unwrap();
+    assert_eq!(two, synthesize(&robot, &links, &settings, 3).unwrap());
+    let (mut both, mut second_alone) = (0, 0);
+    for (a, b) in one.iter().zip(&two) {
+        assert_eq!(a.contact, b.contact);
+        assert!(a.second.is_none());
+        let extra = b.second.map_or_else(
+            || vec![0.0; a.tau.len()],
+            |c| {
+                let pose = RobotPose::new(&robot, &robot.joint_positions(&b.q, &[]).unwrap());
+                joint_torques(&robot, &pose, c.link, c.point_world, c.force_world)
+            },
+        );
+        for ((x, y), e) in a.tau.iter().zip(&b.tau).zip(&extra) {
+            assert!((y - x - e).abs() < 1e-9, "{x} + {e} != {y}");
+        }
+        match (b.contact, b.second) {
+            (Some(first), Some(second)) => {
+                both += 1;
+                assert_ne!(first.link, second.link);
+            }
+            (None, Some(_)) => second_alone += 1,
+            _ => {}
+        }
+        assert_eq!(
+            b.contacts().count(),
+            usize::from(b.contact.is_some()) + usize::from(b.second.is_some())
+        );
+    }
+    // Both press in a good share of the frames; the second also outstays
+    // the first.
+    assert!(both > 150, "{both}");
+    assert!(second_alone > 20, "{second_alone}");
+    let bad = SynthSettings {
+        contacts_at_once: 3,
+        ..SynthSettings::default()
+    };
+    assert!(matches!(
+        synthesize(&robot, &links, &bad, 0),
+        Err(SynthError::BadSetting {
+            name: "contacts at once",
+            ..
+        })
+    ));
+}
