@@ -62,6 +62,12 @@ pub struct SynthArgs {
     /// (valid: [0, 3.2]).
     #[arg(long, default_value_t = 0.2, value_parser = within(&limits::SWING))]
     pub swing: f64,
+    /// Kinetic friction of sliding presses, `LO,HI`: each press's `μ_k` is
+    /// drawn in it, and a press that slides (--slide) sticks at rest for
+    /// its first and last quarter and slides in between, dragging the arm
+    /// along the slide with `μ_k` times its push (valid: [0, 2] each).
+    #[arg(long, value_delimiter = ',', value_name = "LO,HI", value_parser = within(&limits::FRICTION))]
+    pub kinetic_friction: Option<Vec<f64>>,
     /// Contacts that may press at once, 1 or 2. With 2, a second hand
     /// presses during each press on another link, coming while the first
     /// holds and staying a while after it lets go; every true contact is
@@ -90,6 +96,11 @@ pub fn run(args: &SynthArgs) -> Result<()> {
             .map(|name| robot.link_id(name).with_context(|| format!("--links {name}")))
             .collect::<Result<Vec<_>>>()?
     };
+    let kinetic_friction = match args.kinetic_friction.as_deref() {
+        None => None,
+        Some(&[lo, hi]) if lo <= hi => Some((lo, hi)),
+        Some(other) => anyhow::bail!("--kinetic-friction {other:?}: give LO,HI with LO ≤ HI"),
+    };
     let settings = SynthSettings {
         duration_secs: args.seconds,
         rate_hz: args.rate,
@@ -105,6 +116,7 @@ pub fn run(args: &SynthArgs) -> Result<()> {
             ..ObserverSim::default()
         }),
         contacts_at_once: usize::from(args.contacts),
+        kinetic_friction,
         ..SynthSettings::default()
     };
     let frames = synthesize(&robot, &links, &settings, args.seed)?;

@@ -54,6 +54,13 @@ pub struct SynthSettings {
     /// observer on a model whose inertials are wrong; `None`: `JᵀF` plus
     /// bias and noise.
     pub observer: Option<ObserverSim>,
+    /// Kinetic friction of sliding presses: `Some((lo, hi))` draws each
+    /// press's `μ_k` uniformly in it, and a press that slides then sticks
+    /// at rest for its first and last quarter and slides in between with
+    /// a tangential force of `μ_k` times its normal force along the slide
+    /// (the direction the object moves over the surface). `None`: a press
+    /// slides throughout, its tangential force drawn as `friction` says.
+    pub kinetic_friction: Option<(f64, f64)>,
     /// Contacts that may press at once, 1 or 2. With 2, a second hand
     /// presses during each press of the first, on another link: it comes
     /// while the first holds and may stay after it lets go.
@@ -125,6 +132,7 @@ impl Default for SynthSettings {
             motion_rad: 0.2,
             min_torque_newton_metres: 0.5,
             observer: None,
+            kinetic_friction: None,
             contacts_at_once: 1,
         }
     }
@@ -234,6 +242,7 @@ impl SynthSettings {
             ("press duration", self.press_secs),
             ("gap", self.gap_secs),
             ("force", self.force_newtons),
+            ("kinetic friction", self.kinetic_friction.unwrap_or((0.0, 0.0))),
         ] {
             if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && hi >= lo) {
                 return bad(name, lo);
@@ -284,6 +293,21 @@ struct Press {
     slide_speed: f64,
     friction: f64,
     friction_angle: f64,
+    /// `μ_k` of a press that slides with kinetic friction (see
+    /// [`SynthSettings::kinetic_friction`]).
+    kinetic: Option<f64>,
+}
+
+impl Press {
+    /// Whether the press is sliding at `t`: throughout without kinetic
+    /// friction; with it, between its first and last quarter.
+    fn slides_at(&self, t: f64) -> bool {
+        if self.kinetic.is_none() {
+            return true;
+        }
+        let quarter = 0.25 * (self.end - self.start);
+        t >= self.start + quarter && t < self.end - quarter
+    }
 }
 
 /// The plant behind a simulated observer, and the observer's lag.
@@ -401,6 +425,7 @@ fn draw_presses(
             slide_speed: rng.uniform_in(0.0, settings.slide_m_per_s),
             friction: rng.uniform_in(0.0, settings.friction),
             friction_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
+            kinetic: settings.kinetic_friction.map(|(lo, hi)| rng.uniform_in(lo, hi)),
         });
         t += length + rng.uniform_in(settings.gap_secs.0, settings.gap_secs.1).max(1e-3);
     }
@@ -448,6 +473,7 @@ fn draw_second_presses(pool: &Surface, first: &[Press], settings: &SynthSettings
             slide_speed: rng.uniform_in(0.0, settings.slide_m_per_s),
             friction: rng.uniform_in(0.0, settings.friction),
             friction_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
+            kinetic: settings.kinetic_friction.map(|(lo, hi)| rng.uniform_in(lo, hi)),
         };
         if !busy && press.end > press.start && !pool.is_empty() {
             presses.push(press);
@@ -511,18 +537,28 @@ impl Track {
         });
         let on_surface = |v: DVec3| (v - v.dot(f.inward_normal) * f.inward_normal).normalize_or_zero();
         let direction = on_surface(slide_in_link);
-        self.place = Some(shape.walk(at, direction * (p.slide_speed * dt_secs)));
+        let sliding = p.slides_at(t) && p.slide_speed > 0.0;
+        if sliding || p.kinetic.is_none() {
+            self.place = Some(shape.walk(at, direction * (p.slide_speed * dt_secs)));
+        }
         if magnitude <= 0.0 {
             return None;
         }
-        // The drag as drawn (for a press that holds its place, the
-        // tangent direction of its triangle).
+        // Sliding with kinetic friction: μ_k times the push along the
+        // slide (the object moves that way over the arm, and drags it
+        // along). Otherwise the drag as drawn, anywhere in the cone (for a
+        // press that holds its place, the tangent direction of its
+        // triangle).
+        let tangential = match p.kinetic {
+            Some(mu) if sliding => direction * mu,
+            _ => drag_in_link * p.friction,
+        };
         let world = pose.world_from_link.get(link).copied().unwrap_or_default();
         Some(SynthContact {
             link,
             point_in_link: f.point,
             point_world: world.transform_point3(f.point),
-            force_world: world.transform_vector3(f.inward_normal + drag_in_link * p.friction) * magnitude,
+            force_world: world.transform_vector3(f.inward_normal + tangential) * magnitude,
             normal_newtons: magnitude,
         })
     }

@@ -189,3 +189,63 @@ fn a_second_hand_presses_with_the_first_and_adds_its_torques() {
         })
     ));
 }
+
+/// With kinetic friction a sliding press sticks at rest for its first
+/// and last quarter and slides in between, its tangential force `μ_k` times
+/// its push (`μ_k` within the range asked) along the way the place moves.
+#[test]
+fn sliding_presses_drag_the_arm_along_the_slide_with_kinetic_friction() {
+    let robot = builtin::lwr4plus_generated().unwrap();
+    let links = robot.default_candidate_links();
+    let settings = SynthSettings {
+        slide_m_per_s: 0.08,
+        friction: 0.2,
+        kinetic_friction: Some((0.3, 0.6)),
+        ramp_secs: 0.0,
+        ..SynthSettings::default()
+    };
+    let frames = synthesize(&robot, &links, &settings, 7).unwrap();
+    let in_link = |f: &SynthFrame| {
+        let c = f.contact?;
+        let pose = RobotPose::new(&robot, &robot.joint_positions(&f.q, &[]).ok()?);
+        let link_from_world = pose.world_from_link.get(c.link)?.inverse();
+        Some((c, link_from_world.transform_vector3(c.force_world)))
+    };
+    let (mut sliding, mut along_slide, mut sticking) = (0, 0, 0);
+    for w in frames.windows(2) {
+        let (Some((a, fa)), Some((b, _))) = (in_link(&w[0]), in_link(&w[1])) else {
+            continue;
+        };
+        if a.link != b.link || a.normal_newtons < 1.0 {
+            continue;
+        }
+        // The force is N (n + t) with n the unit inward normal and t
+        // tangent: |t| = √(|F|²/N² − 1).
+        let tangential = ((fa.length() / a.normal_newtons).powi(2) - 1.0).max(0.0).sqrt();
+        let step = b.point_in_link - a.point_in_link;
+        if step.length() > 1e-6 && step.length() < 0.01 {
+            sliding += 1;
+            assert!(
+                (0.3 - 1e-9..=0.6 + 1e-9).contains(&tangential),
+                "μ_k {tangential} while sliding"
+            );
+            // Along the slide: the force's part along the step is most of
+            // its tangential part (the step lies in the mesh's flat
+            // triangle, the force's tangent plane is the smoothed
+            // normal's: they part by up to about 25°).
+            let along = fa.dot(step.normalize()) / a.normal_newtons;
+            along_slide += usize::from(along >= tangential * 30f64.to_radians().cos());
+        } else if step.length() == 0.0 {
+            sticking += 1;
+            assert!(tangential <= 0.2 + 1e-9, "{tangential} while sticking");
+        }
+    }
+    assert!(
+        along_slide * 10 >= sliding * 9,
+        "{along_slide} of {sliding} sliding frames pull along the slide"
+    );
+    assert!(
+        sliding > 100 && sticking > 100,
+        "{sliding} sliding, {sticking} sticking"
+    );
+}
