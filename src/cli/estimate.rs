@@ -25,7 +25,7 @@ use proprioscope::io::mcap_out::{EstimateMessage, EstimateWriter};
 use proprioscope::io::recording::{is_recording, read_bytes};
 use proprioscope::io::session::{Session, kept_frame_numbers};
 
-use super::output::frame_json;
+use super::output::{SlideVelocity, frame_json};
 use super::{EstimatorArgs, TemporalArg, TemporalArgs, TopicArgs, option_error};
 
 /// Options of `estimate`.
@@ -124,7 +124,7 @@ fn read_session(args: &EstimateArgs, path: &std::path::Path) -> Result<(Session,
 /// Where `--out` goes: JSON lines, or an MCAP file with the input's
 /// topics and the estimates.
 enum Out {
-    Json(std::io::BufWriter<std::fs::File>),
+    Json(std::io::BufWriter<std::fs::File>, SlideVelocity),
     Mcap(Box<EstimateWriter>),
 }
 
@@ -144,7 +144,7 @@ impl Out {
             .is_some_and(|e| e.eq_ignore_ascii_case("mcap"));
         if !is_mcap {
             let file = std::fs::File::create(out_path).with_context(|| format!("creating {}", out_path.display()))?;
-            return Ok(Self::Json(std::io::BufWriter::new(file)));
+            return Ok(Self::Json(std::io::BufWriter::new(file), SlideVelocity::default()));
         }
         let world = robot.links.get(robot.root).map_or("world", |l| l.name.as_str());
         let mut w = EstimateWriter::create(out_path, world)?;
@@ -173,8 +173,9 @@ impl Out {
         origin_ns: Option<i64>,
     ) -> Result<()> {
         match self {
-            Self::Json(w) => {
-                let line = json_line(estimator, robot, (number, frame), update, ms, outcome);
+            Self::Json(w, slide) => {
+                let mut line = json_line(estimator, robot, (number, frame), update, ms, outcome);
+                slide.mark(&mut line);
                 writeln!(w, "{line}").context("writing --out")
             }
             Self::Mcap(w) => w
@@ -190,10 +191,11 @@ impl Out {
     }
 
     /// Frames made elsewhere: their JSON lines, or their MCAP estimates.
-    fn write_made(&mut self, lines: &[serde_json::Value], messages: &[EstimateMessage]) -> Result<()> {
+    fn write_made(&mut self, lines: &mut [serde_json::Value], messages: &[EstimateMessage]) -> Result<()> {
         match self {
-            Self::Json(w) => {
+            Self::Json(w, slide) => {
                 for line in lines {
+                    slide.mark(line);
                     writeln!(w, "{line}").context("writing --out")?;
                 }
             }
@@ -214,7 +216,7 @@ impl Out {
     /// Flushes JSON lines, or closes the MCAP with its summary.
     fn finish(self) -> Result<()> {
         match self {
-            Self::Json(mut w) => w.flush().context("writing --out"),
+            Self::Json(mut w, _) => w.flush().context("writing --out"),
             Self::Mcap(w) => Ok(w.finish()?),
         }
     }
@@ -613,7 +615,6 @@ fn pair_contacts_json(robot: &Robot, pair: &FramePair, contact_probability: Opti
     serde_json::json!(entries)
 }
 
-/// What `--contacts 2` found, scored against the session's `truth_all`.
 /// Sensed joints that feel any of `truths` (links unknown to the robot
 /// feel none).
 fn sensing_joints(robot: &Robot, truths: &[proprioscope::io::session::ContactTruth]) -> usize {
@@ -628,6 +629,7 @@ fn sensing_joints(robot: &Robot, truths: &[proprioscope::io::session::ContactTru
     joints.len()
 }
 
+/// What `--contacts 2` found, scored against the session's `truth_all`.
 fn report_pairs(score: &PairScore) -> Result<()> {
     if score.both_frames + score.one_frames == 0 {
         return Ok(());

@@ -18,7 +18,7 @@ use proprioscope::io::session::Session;
 
 use super::TemporalArg;
 use super::estimate::EstimateArgs;
-use super::output::frame_json;
+use super::output::{SlideVelocity, frame_json};
 
 /// Options of `stream`.
 #[derive(Debug, clap::Args)]
@@ -156,6 +156,7 @@ struct Live {
 pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
     let source = LiveSource::listen(address, || {})?;
     log::info!("listening on {}", source.address);
+    let mut slide = SlideVelocity::default();
     let mut out: Box<dyn std::io::Write> = match &args.out {
         Some(path) => Box::new(std::io::BufWriter::new(
             std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
@@ -219,7 +220,8 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
                 }
                 let Some(l) = live.as_mut() else { continue };
                 match estimate_frame(l, done, &frame, temporal) {
-                    Ok(value) => {
+                    Ok(mut value) => {
+                        slide.mark(&mut value);
                         writeln!(out, "{value}").context("writing an estimate")?;
                         out.flush().context("writing an estimate")?;
                         done += 1;
