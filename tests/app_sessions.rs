@@ -711,3 +711,60 @@ fn measure_a_long_recording_opened_and_scrubbed() {
         );
     }
 }
+
+/// A sliding press replayed smoothed: the view draws the over-time
+/// contact's track over the last second, on its link, ending at the frame's
+/// over-time estimate.
+#[test]
+fn a_sliding_contact_leaves_its_track_over_the_last_second() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("slide.session.json");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .arg("synth")
+        .arg(&path)
+        .args([
+            "--seconds",
+            "3",
+            "--rate",
+            "50",
+            "--slide",
+            "0.1",
+            "--kinetic-friction",
+            "0.3,0.6",
+        ])
+        .args(["--links", "lwr_5_link", "--seed", "2"])
+        .stdout(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let mut harness = session_harness(&path);
+    // A frame whose contact was on its link for the 10 frames before it
+    // (the track ends where the estimate leaves the link).
+    let estimates = harness.state().session.estimates.clone();
+    let frame = (10..estimates.len())
+        .find(|&k| {
+            let link = estimates[k].map(|e| e.link);
+            estimates[k - 10..=k].iter().all(|e| {
+                e.is_some_and(|e| {
+                    e.verdict != proprioscope::core::estimate::summary::Verdict::NoContact && Some(e.link) == link
+                })
+            })
+        })
+        .unwrap();
+    harness.state_mut().apply(proprioscope::app::Command::SetFrame(frame));
+    harness.run_steps(2);
+    settle(&mut harness);
+    let app = harness.state();
+    let track = app.over_time_track();
+    let now = app.session.estimates[frame].unwrap();
+    assert!(track.len() > 10 && track.len() <= 51, "{} points", track.len());
+    assert!(track.last().unwrap().distance(now.point_world) < 1e-9);
+    assert!(track.iter().all(|p| p.distance(now.point_world) < 0.2));
+    // Without an over-time estimate there is no track.
+    harness.state_mut().apply(proprioscope::app::Command::SetOverTime(
+        proprioscope::core::over_time::sequence::Temporal::None,
+    ));
+    harness.run_steps(2);
+    assert!(harness.state().over_time_track().is_empty());
+}

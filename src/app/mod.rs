@@ -97,6 +97,12 @@ fn shipped_scenes() -> Vec<std::path::PathBuf> {
 /// arrays over the surface, about 200 kB at 5000 points).
 const VISITED_FRAMES: usize = 128;
 
+/// How far back the over-time contact's track reaches, s.
+const TRACK_SECS: f64 = 1.0;
+
+/// Most points of the track (a 1 kHz session's last second is thinned).
+const TRACK_POINTS: usize = 200;
+
 /// Which side panels are shown (View menu).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct PanelsShown {
@@ -329,6 +335,49 @@ impl ProprioscopeApp {
         self.session.estimates.get(replay.frame).copied().flatten()
     }
 
+    /// The over-time contact's track over the last [`TRACK_SECS`] of the
+    /// session up to the frame shown, while it stays on one link: each
+    /// place taken into its link's frame at its own frame's pose, then
+    /// into the world at the pose shown (so the track is where the contact
+    /// went over the link, the arm's own motion left out); at most
+    /// [`TRACK_POINTS`] points, oldest first.
+    #[must_use]
+    pub fn over_time_track(&self) -> Vec<DVec3> {
+        let (Some(replay), Some(now)) = (self.model.replay.as_ref(), self.over_time_estimate()) else {
+            return Vec::new();
+        };
+        if now.verdict == Verdict::NoContact {
+            return Vec::new();
+        }
+        let frames = &replay.session.frames;
+        let t_now = frames.get(replay.frame).map_or(0.0, |f| f.t);
+        let first = frames.partition_point(|f| f.t < t_now - TRACK_SECS).min(replay.frame);
+        let stride = (replay.frame - first).div_ceil(TRACK_POINTS).max(1);
+        let pose_now = self.model.pose();
+        let Some(world_now) = pose_now.world_from_link.get(now.link) else {
+            return Vec::new();
+        };
+        let mut track = Vec::new();
+        for j in (first..=replay.frame).rev().step_by(stride) {
+            let (Some(Some(e)), Some(frame)) = (self.session.estimates.get(j), frames.get(j)) else {
+                break;
+            };
+            if e.verdict == Verdict::NoContact || e.link != now.link {
+                break;
+            }
+            let Ok(positions) = self.model.robot.joint_positions(&frame.q, &self.model.other_joints) else {
+                break;
+            };
+            let pose = RobotPose::new(&self.model.robot, &positions);
+            let Some(world_then) = pose.world_from_link.get(e.link) else {
+                break;
+            };
+            track.push(world_now.transform_point3(world_then.inverse().transform_point3(e.point_world)));
+        }
+        track.reverse();
+        track
+    }
+
     /// What the view shows from outside its part (borrowing the model and
     /// the estimate, not the view).
     fn shown(&self) -> view::Shown<'_> {
@@ -336,6 +385,7 @@ impl ProprioscopeApp {
             model: &self.model,
             outcome: self.current_outcome(),
             over_time: self.over_time_estimate(),
+            track: self.over_time_track(),
             status: &self.status,
         }
     }
@@ -350,6 +400,7 @@ impl ProprioscopeApp {
                 .as_ref()
                 .filter(|o| Arc::ptr_eq(&o.robot, &self.model.robot)),
             over_time: self.over_time_estimate(),
+            track: self.over_time_track(),
             status: &self.status,
         };
         self.view.ui(&shown, ui, frame)

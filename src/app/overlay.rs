@@ -177,6 +177,28 @@ pub fn paint_arrows(painter: &egui::Painter, rect: egui::Rect, arrows: &[ScreenA
     }
 }
 
+/// Draws the over-time contact's track (world points, oldest first) as a
+/// line in the over-time estimate's colour, fading towards its oldest end.
+pub fn paint_track(painter: &egui::Painter, rect: egui::Rect, camera: &OrbitCamera, track: &[DVec3]) {
+    let size = Vec2::new(rect.width(), rect.height());
+    let screen: Vec<Option<egui::Pos2>> = track
+        .iter()
+        .map(|p| {
+            camera
+                .project(p.as_vec3(), size)
+                .map(|s| rect.min + egui::vec2(s.x, s.y))
+        })
+        .collect();
+    let count = screen.len().max(1) as f32;
+    for (k, pair) in screen.windows(2).enumerate() {
+        if let [Some(a), Some(b)] = pair {
+            let age = 1.0 - k as f32 / count;
+            let colour = MarkerRole::OverTime.colour().gamma_multiply(1.0 - 0.8 * age);
+            painter.line_segment([*a, *b], egui::Stroke::new(2.5, colour));
+        }
+    }
+}
+
 /// Gamma-encoded RGBA (as the 3-D view uses) to egui's colour.
 fn colour32(c: [f32; 4]) -> egui::Color32 {
     let byte = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;

@@ -206,6 +206,7 @@ impl ViewPart {
         let pose = shown.model.pose();
         let markers = Self::markers(shown, &pose);
         let size = Vec2::new(rect.width(), rect.height());
+        overlay::paint_track(&painter, rect, &self.camera, &shown.track);
         let arrows = overlay::screen_arrows(&markers, &self.camera, size, &self.picker, &pose);
         overlay::paint_arrows(&painter, rect, &arrows);
         if let Some(legend) = &self.legend {
@@ -579,6 +580,9 @@ pub(crate) struct Shown<'a> {
     pub(crate) model: &'a super::Model,
     pub(crate) outcome: Option<&'a super::Outcome>,
     pub(crate) over_time: Option<crate::batch::FrameEstimate>,
+    /// The over-time contact's places over the last second of the session,
+    /// on its link as the arm is posed now (world, m; oldest first).
+    pub(crate) track: Vec<DVec3>,
     pub(crate) status: &'a str,
 }
 
