@@ -177,9 +177,23 @@ fn a_session_of_bad_frames_only_summarises_nothing_in_words() {
 
 /// The fields of an estimate's JSON line that may be null, and when.
 fn nullable(line: &serde_json::Value) -> Vec<&'static str> {
-    let mut ok = vec!["update_parts_ms", "contact_probability", "truth"];
+    // A slide needs a contact on one link in the frame before too.
+    let mut ok = vec![
+        "update_parts_ms",
+        "contact_probability",
+        "truth",
+        "slide_velocity_in_link",
+    ];
     if line["verdict"] == "no_contact" {
-        ok.extend(["link", "point", "force", "grid", "links"]);
+        ok.extend([
+            "link",
+            "point",
+            "force",
+            "grid",
+            "links",
+            "point_in_link",
+            "force_tangential",
+        ]);
     }
     ok
 }
