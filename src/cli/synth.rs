@@ -41,6 +41,9 @@ pub struct SynthArgs {
     /// Each press slides at up to this speed, m/s (valid: [0, 1]).
     #[arg(long, default_value_t = 0.0, value_parser = within(&limits::SLIDE_SPEED))]
     pub slide: f64,
+    /// And at least at this speed, m/s (valid: [0, 1], not above --slide).
+    #[arg(long, default_value_t = 0.0, value_parser = within(&limits::SLIDE_SPEED))]
+    pub slide_min: f64,
     /// Gaussian noise on every torque, N·m (valid: [0, 100]).
     #[arg(long, default_value_t = 0.05, value_parser = within(&limits::NOISE))]
     pub noise: f64,
@@ -107,6 +110,7 @@ pub fn run(args: &SynthArgs) -> Result<()> {
         friction: args.friction,
         bias_newton_metres: args.bias,
         slide_m_per_s: args.slide,
+        slide_min_m_per_s: args.slide_min,
         noise_newton_metres: args.noise,
         motion_rad: args.swing,
         observer: args.observer_gain.map(|gain_per_s| ObserverSim {

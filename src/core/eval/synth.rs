@@ -31,10 +31,13 @@ pub struct SynthSettings {
     pub force_newtons: (f64, f64),
     /// Ramp up and down, s each.
     pub ramp_secs: f64,
-    /// Each press slides at a speed uniform in `[0, this]`, m/s, in a random
+    /// Each press slides at a speed uniform in `[slide_min_m_per_s, this]`, m/s, in a random
     /// tangent direction (fixed in the link's frame for the press, its part
     /// along the surface at each frame).
     pub slide_m_per_s: f64,
+    /// The slowest a press slides, m/s (its speed is uniform in
+    /// `[this, slide_m_per_s]`; 0: presses that barely move too).
+    pub slide_min_m_per_s: f64,
     /// Each press's tangential force is this fraction of its normal
     /// force at most (uniform in `[0, this]`), in a random tangent direction
     /// (fixed in the link's frame for the press, as the slide's).
@@ -126,6 +129,7 @@ impl Default for SynthSettings {
             force_newtons: (5.0, 25.0),
             ramp_secs: 0.05,
             slide_m_per_s: 0.0,
+            slide_min_m_per_s: 0.0,
             friction: 0.0,
             bias_newton_metres: 0.0,
             noise_newton_metres: 0.05,
@@ -228,6 +232,7 @@ impl SynthSettings {
             ("rate", self.rate_hz),
             ("ramp", self.ramp_secs),
             ("slide", self.slide_m_per_s),
+            ("slowest slide", self.slide_min_m_per_s),
             ("friction", self.friction),
             ("bias", self.bias_newton_metres),
             ("noise", self.noise_newton_metres),
@@ -239,6 +244,7 @@ impl SynthSettings {
             }
         }
         for (name, (lo, hi)) in [
+            ("slide speeds", (self.slide_min_m_per_s, self.slide_m_per_s)),
             ("press duration", self.press_secs),
             ("gap", self.gap_secs),
             ("force", self.force_newtons),
@@ -422,7 +428,7 @@ fn draw_presses(
             peak,
             sample,
             slide_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
-            slide_speed: rng.uniform_in(0.0, settings.slide_m_per_s),
+            slide_speed: rng.uniform_in(settings.slide_min_m_per_s, settings.slide_m_per_s),
             friction: rng.uniform_in(0.0, settings.friction),
             friction_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
             kinetic: settings.kinetic_friction.map(|(lo, hi)| rng.uniform_in(lo, hi)),
@@ -470,7 +476,7 @@ fn draw_second_presses(pool: &Surface, first: &[Press], settings: &SynthSettings
             peak,
             sample,
             slide_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
-            slide_speed: rng.uniform_in(0.0, settings.slide_m_per_s),
+            slide_speed: rng.uniform_in(settings.slide_min_m_per_s, settings.slide_m_per_s),
             friction: rng.uniform_in(0.0, settings.friction),
             friction_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
             kinetic: settings.kinetic_friction.map(|(lo, hi)| rng.uniform_in(lo, hi)),

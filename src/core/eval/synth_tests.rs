@@ -249,3 +249,39 @@ fn sliding_presses_drag_the_arm_along_the_slide_with_kinetic_friction() {
         "{sliding} sliding, {sticking} sticking"
     );
 }
+
+/// Slides as fast as asked at least: with speeds in [2, 10] cm/s no
+/// sliding step is shorter than 2 cm/s over a frame.
+#[test]
+fn slides_are_at_least_the_slowest_speed_asked() {
+    let robot = builtin::lwr4plus_generated().unwrap();
+    let links = robot.default_candidate_links();
+    let settings = SynthSettings {
+        slide_m_per_s: 0.1,
+        slide_min_m_per_s: 0.02,
+        ..SynthSettings::default()
+    };
+    let frames = synthesize(&robot, &links, &settings, 5).unwrap();
+    let steps: Vec<f64> = frames
+        .windows(2)
+        .filter_map(|w| match (w[0].contact, w[1].contact) {
+            (Some(x), Some(y)) if x.link == y.link => Some(x.point_in_link.distance(y.point_in_link)),
+            _ => None,
+        })
+        .filter(|d| *d < 0.01)
+        .collect();
+    let slowest = steps.iter().copied().fold(f64::INFINITY, f64::min);
+    // A step along a curved mesh is a chord of the walk: a little shorter.
+    assert!(steps.len() > 100 && slowest >= 0.02 / 200.0 * 0.9, "{slowest}");
+    let bad = SynthSettings {
+        slide_min_m_per_s: 0.2,
+        ..settings
+    };
+    assert!(matches!(
+        synthesize(&robot, &links, &bad, 5),
+        Err(SynthError::BadSetting {
+            name: "slide speeds",
+            ..
+        })
+    ));
+}
