@@ -305,6 +305,23 @@ struct Press {
 }
 
 impl Press {
+    /// A press over `(start, end)` of `peak` newtons at `sample`, its
+    /// slide and drag drawn from `rng` (in one order: both hands' presses
+    /// draw them alike, and a seed's sessions stay as they were).
+    fn drawn((start, end): (f64, f64), peak: f64, sample: usize, settings: &SynthSettings, rng: &mut Rng) -> Self {
+        Self {
+            start,
+            end,
+            peak,
+            sample,
+            slide_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
+            slide_speed: rng.uniform_in(settings.slide_min_m_per_s, settings.slide_m_per_s),
+            friction: rng.uniform_in(0.0, settings.friction),
+            friction_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
+            kinetic: settings.kinetic_friction.map(|(lo, hi)| rng.uniform_in(lo, hi)),
+        }
+    }
+
     /// Whether the press is sliding at `t`: throughout without kinetic
     /// friction; with it, between its first and last quarter.
     fn slides_at(&self, t: f64) -> bool {
@@ -422,17 +439,7 @@ fn draw_presses(
             }
             sample = rng.below(pool.len());
         }
-        presses.push(Press {
-            start: t,
-            end: t + length,
-            peak,
-            sample,
-            slide_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
-            slide_speed: rng.uniform_in(settings.slide_min_m_per_s, settings.slide_m_per_s),
-            friction: rng.uniform_in(0.0, settings.friction),
-            friction_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
-            kinetic: settings.kinetic_friction.map(|(lo, hi)| rng.uniform_in(lo, hi)),
-        });
+        presses.push(Press::drawn((t, t + length), peak, sample, settings, rng));
         t += length + rng.uniform_in(settings.gap_secs.0, settings.gap_secs.1).max(1e-3);
     }
     presses
@@ -470,17 +477,7 @@ fn draw_second_presses(pool: &Surface, first: &[Press], settings: &SynthSettings
             }
             sample = rng.below(pool.len().max(1));
         }
-        let press = Press {
-            start,
-            end,
-            peak,
-            sample,
-            slide_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
-            slide_speed: rng.uniform_in(settings.slide_min_m_per_s, settings.slide_m_per_s),
-            friction: rng.uniform_in(0.0, settings.friction),
-            friction_angle: rng.uniform_in(0.0, std::f64::consts::TAU),
-            kinetic: settings.kinetic_friction.map(|(lo, hi)| rng.uniform_in(lo, hi)),
-        };
+        let press = Press::drawn((start, end), peak, sample, settings, rng);
         if !busy && press.end > press.start && !pool.is_empty() {
             presses.push(press);
         }
