@@ -6,7 +6,9 @@
 pub mod contact;
 pub mod estimator;
 pub mod evidence;
+pub mod explain;
 pub mod friction;
+mod kinetic;
 pub mod measurement;
 pub mod observability;
 pub mod pair;

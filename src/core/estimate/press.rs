@@ -51,6 +51,12 @@ pub const FRICTION_GAIN: f64 = 30.0;
 /// friction), and the press keeps its frictionless estimate.
 pub const RATIO_LIMIT_SPREADS: f64 = 4.0;
 
+/// The spread of `μ_k`'s prior (half-normal: `μ_k` ≥ 0). Dry contacts
+/// between a hand, a tool or a probe and a robot's shell lie within
+/// 0.1–1; a spread of 0.6 leaves `μ_k` = 0.5 at a prior cost of 0.7, so
+/// that the torques, not the prior, set it.
+pub const KINETIC_SPREAD: f64 = 0.6;
+
 /// Gauss–Newton steps at most per search.
 const MAX_STEPS: usize = 50;
 
@@ -175,125 +181,6 @@ impl PlaceRegion {
     }
 }
 
-/// A press explained with a tangential force fixed in the link's frame.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PressFit {
-    /// Each frame's contact, in the frames' order.
-    pub contacts: Vec<PressContact>,
-    /// γ: the tangential force per newton of push, link frame (its part
-    /// along the surface acts at each frame).
-    pub tangential_ratio_in_link: DVec3,
-    /// How much lower `-2 ln L` is with friction than without.
-    pub gain: f64,
-}
-
-/// Fits the press `frames` (in time order, all on `link`) with a
-/// tangential force fixed in the link's frame, and returns it when the
-/// friction model explains the press by [`FRICTION_GAIN`] better than the
-/// frictionless one with a plausible γ; `None` otherwise (also when μ is
-/// 0, there are no frames, or the surface cannot be evaluated).
-#[must_use]
-pub fn fit_press(shape: &LinkShape, link: LinkId, frames: &[PressFrame], settings: &PressSettings) -> Option<PressFit> {
-    let answer = explain_press(shape, link, frames, settings)?;
-    answer.friction.then_some(PressFit {
-        contacts: answer.contacts,
-        tangential_ratio_in_link: answer.tangential_ratio_in_link,
-        gain: answer.gain,
-    })
-}
-
-/// The press's best explanation on one link from one start: the
-/// frictionless fit, or the friction model's where it is kept (as in
-/// [`fit_press`]), with its cost, so that explanations on other links or
-/// from other starts can be weighed against it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PressAnswer {
-    /// Each frame's contact, in the frames' order.
-    pub contacts: Vec<PressContact>,
-    /// γ, link frame (zero without friction).
-    pub tangential_ratio_in_link: DVec3,
-    /// `-2 ln` of the posterior at the fit (the cost of the module's
-    /// documentation, γ's prior included when friction is kept).
-    pub cost: f64,
-    /// Whether the friction model was kept.
-    pub friction: bool,
-    /// How much lower the cost is with friction than without (0 without a
-    /// friction setting).
-    pub gain: f64,
-}
-
-/// Fits the press `frames` (in time order, all on `link`, each started at
-/// its `start`) without friction and, with a friction setting, with it;
-/// returns the friction model's fit where [`fit_press`] would keep it and
-/// the frictionless one otherwise. `None` without frames, without a
-/// positive finite slide length, or where the surface cannot be
-/// evaluated.
-#[must_use]
-pub fn explain_press(
-    shape: &LinkShape,
-    link: LinkId,
-    frames: &[PressFrame],
-    settings: &PressSettings,
-) -> Option<PressAnswer> {
-    let problem = Problem::new(shape, link, frames, settings)?;
-    let start: Vec<MeshPoint> = frames.iter().map(|f| f.start).collect();
-    let frictionless = problem.descend(start.clone(), false)?;
-    let with_friction = settings.friction > 0.0 && settings.friction.is_finite();
-    // From the recording's places; where that search ends above the
-    // frictionless cost (in another valley: γ = 0 is the frictionless
-    // answer, so the friction model's best is never worse), again from
-    // where the frictionless search ended, which ends at or below it.
-    let frictional = if with_friction {
-        match problem.descend(start, true) {
-            Some(cold) if cold.normal.cost <= frictionless.normal.cost => Some(cold),
-            cold => problem.descend(frictionless.locations.clone(), true).or(cold),
-        }
-    } else {
-        None
-    };
-    let gain = frictional
-        .as_ref()
-        .map_or(0.0, |f| frictionless.normal.cost - f.normal.cost);
-    let kept =
-        frictional.filter(|f| gain > FRICTION_GAIN && f.ratio.length() <= RATIO_LIMIT_SPREADS * settings.friction);
-    let friction = kept.is_some();
-    let found = kept.unwrap_or(frictionless);
-    let ratio = found.ratio;
-    let spreads = problem.spreads(&found.locations, ratio, with_friction);
-    let contacts = found
-        .locations
-        .iter()
-        .zip(&found.normal.surface)
-        .zip(&found.normal.magnitudes)
-        .zip(&found.normal.residuals)
-        .enumerate()
-        .map(
-            |(t, (((&location, surface), &force_newtons), &residual_chi2))| PressContact {
-                location,
-                point_in_link: surface.point,
-                inward_normal_in_link: surface.inward_normal,
-                force_newtons,
-                tangential_in_link: along_surface(ratio, surface.inward_normal) * force_newtons,
-                residual_chi2,
-                spread: spreads
-                    .as_ref()
-                    .and_then(|all| all.get(t))
-                    .map(|&covariance_m2| PlaceSpread {
-                        tangents_in_link: surface.tangents,
-                        covariance_m2,
-                    }),
-            },
-        )
-        .collect();
-    Some(PressAnswer {
-        contacts,
-        tangential_ratio_in_link: ratio,
-        cost: found.normal.cost,
-        friction,
-        gain,
-    })
-}
-
 /// Each frame's [`PlaceSpread`] at the frames' `start` places with no
 /// tangential force, γ marginalised under its prior where μ > 0: what
 /// the frames leave undetermined of places already chosen (a filter's
@@ -363,22 +250,84 @@ fn columns_at(model: &TorqueModel, link: LinkId, here: &SurfaceFrame, columns: &
 }
 
 /// The part of `v` perpendicular to the unit normal `n`.
-fn along_surface(v: DVec3, n: DVec3) -> DVec3 {
+pub(super) fn along_surface(v: DVec3, n: DVec3) -> DVec3 {
     v - v.dot(n) * n
 }
 
+/// Each frame's slide, from a track of places.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Slides {
+    /// The slide's direction times the frame's share of sliding, link
+    /// frame, along the surface: `v / √(|v|² + v₀²)`.
+    pub directions: Vec<DVec3>,
+    /// The place's velocity over the surface, link frame, m/s.
+    pub velocities_m_per_s: Vec<DVec3>,
+}
+
+/// The tangential force a search fits.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Drag<'d> {
+    /// None: the push is along the normal.
+    None,
+    /// γ, fixed in the link's frame, under its prior (spread μ).
+    Fixed,
+    /// `μ_k` times the push along each frame's slide (see
+    /// [`crate::core::estimate::kinetic`]), the places expected to move
+    /// with the slides' velocities.
+    Kinetic(&'d Slides),
+    /// No tangential force, the places expected to move with the slides'
+    /// velocities: what kinetic friction is weighed against.
+    Drift(&'d Slides),
+    /// γ fixed in the link's frame while the press slips (a frame with a
+    /// slide direction), none while it sticks; the places expected to
+    /// move with the slides' velocities. Where the places are far off,
+    /// their velocities are too: this finds the slide's direction from
+    /// the torques alone, and kinetic friction starts from its places.
+    Gated(&'d Slides),
+}
+
+impl Drag<'_> {
+    /// The ratio's prior spread: μ for γ, [`KINETIC_SPREAD`] under the
+    /// slides' states.
+    fn spread(self, friction: f64) -> f64 {
+        match self {
+            Drag::Kinetic(_) | Drag::Gated(_) => KINETIC_SPREAD,
+            Drag::None | Drag::Fixed | Drag::Drift(_) => friction,
+        }
+    }
+
+    /// The move from frame `t - 1` to frame `t` (`dt_secs` apart) that
+    /// the slide term expects: along the slides' mean velocity, or none.
+    /// `None` where a frame has no slide.
+    fn expected_move(self, t: usize, dt_secs: f64) -> Option<DVec3> {
+        match self {
+            Drag::Kinetic(slides) | Drag::Drift(slides) | Drag::Gated(slides) => {
+                let v = slides.velocities_m_per_s.get(t)?;
+                let v_before = slides.velocities_m_per_s.get(t.checked_sub(1)?)?;
+                Some((*v + *v_before) * (0.5 * dt_secs))
+            }
+            Drag::None | Drag::Fixed => Some(DVec3::ZERO),
+        }
+    }
+
+    /// Whether the search moves a ratio (γ or `μ_k`).
+    fn is_free(self) -> bool {
+        matches!(self, Drag::Fixed | Drag::Kinetic(_) | Drag::Gated(_))
+    }
+}
+
 /// The press and its settings.
-struct Problem<'a> {
-    shape: &'a LinkShape,
+pub(super) struct Problem<'a> {
+    pub(super) shape: &'a LinkShape,
     link: LinkId,
-    frames: &'a [PressFrame<'a>],
+    pub(super) frames: &'a [PressFrame<'a>],
     settings: &'a PressSettings<'a>,
 }
 
 impl<'a> Problem<'a> {
     /// The press `frames` on `link`; `None` without frames or without a
     /// positive finite slide length (the slide prior divides by it).
-    fn new(
+    pub(super) fn new(
         shape: &'a LinkShape,
         link: LinkId,
         frames: &'a [PressFrame<'a>],
@@ -395,15 +344,15 @@ impl<'a> Problem<'a> {
 }
 
 /// The cost at a trajectory and its Gauss–Newton normal equations.
-struct Normal {
+pub(super) struct Normal {
     /// `-2 ln` posterior (up to a constant).
-    cost: f64,
+    pub(super) cost: f64,
     /// Each frame's surface.
-    surface: Vec<SurfaceFrame>,
+    pub(super) surface: Vec<SurfaceFrame>,
     /// Each frame's profiled push, N.
-    magnitudes: Vec<f64>,
+    pub(super) magnitudes: Vec<f64>,
     /// Each frame's `‖τ - f (u + C γ)‖²_W`.
-    residuals: Vec<f64>,
+    pub(super) residuals: Vec<f64>,
     /// Diagonal 2×2 blocks (a frame's two tangent coordinates).
     diagonal: Vec<DMat2>,
     /// `lower[t]`: the block coupling frame t to frame t-1 (`lower[0]`
@@ -420,12 +369,37 @@ struct Normal {
 }
 
 impl Normal {
+    /// The normal equations of the frames at `surface` before any frame
+    /// is added: the ratio's prior alone, where it is free (`spread`).
+    fn prior(surface: Vec<SurfaceFrame>, ratio: DVec3, spread: Option<f64>) -> Self {
+        let n = surface.len();
+        let mut normal = Normal {
+            cost: 0.0,
+            surface,
+            magnitudes: vec![0.0; n],
+            residuals: vec![0.0; n],
+            diagonal: vec![DMat2::ZERO; n],
+            lower: vec![DMat2::ZERO; n],
+            border: vec![[DVec2::ZERO; 3]; n],
+            corner: DMat3::ZERO,
+            rhs_places: vec![DVec2::ZERO; n],
+            rhs_ratio: DVec3::ZERO,
+        };
+        if let Some(spread) = spread {
+            normal.cost += ratio.length_squared() / (spread * spread);
+            normal.corner = DMat3::IDENTITY / (spread * spread);
+            normal.rhs_ratio = -ratio / (spread * spread);
+        }
+        normal
+    }
+
     /// Adds the slide from frame `t - 1` to frame `t`, `weight |p_t -
-    /// p_{t-1}|²` (`weight`: 1/(ℓ² Δt)), to the cost and the normal
+    /// p_{t-1} - e|²` (`weight`: 1/(ℓ² Δt); `e`: the move expected of a
+    /// slide, zero for a place at rest), to the cost and the normal
     /// equations.
-    fn add_slide(&mut self, t: usize, weight: f64) -> Option<()> {
+    fn add_slide(&mut self, t: usize, weight: f64, expected: DVec3) -> Option<()> {
         let (here, before) = (self.surface.get(t)?, self.surface.get(t.checked_sub(1)?)?);
-        let gap = here.point - before.point;
+        let gap = here.point - before.point - expected;
         let (tangents_here, tangents_before) = (here.tangents, before.tangents);
         self.cost += weight * gap.length_squared();
         *self.diagonal.get_mut(t)? += DMat2::IDENTITY * weight;
@@ -449,19 +423,32 @@ impl Normal {
 }
 
 /// The end of a search.
-struct Found {
-    locations: Vec<MeshPoint>,
-    ratio: DVec3,
-    normal: Normal,
+pub(super) struct Found {
+    pub(super) locations: Vec<MeshPoint>,
+    pub(super) ratio: DVec3,
+    pub(super) normal: Normal,
 }
 
 impl Problem<'_> {
     /// Gauss–Newton from `start` (γ = 0), moving γ only when
     /// `ratio_free`.
-    fn descend(&self, start: Vec<MeshPoint>, ratio_free: bool) -> Option<Found> {
+    pub(super) fn descend(&self, start: Vec<MeshPoint>, ratio_free: bool) -> Option<Found> {
+        self.descend_with(start, if ratio_free { Drag::Fixed } else { Drag::None })
+    }
+
+    /// Gauss–Newton from `start` (γ, or `μ_k`, = 0) under the tangential
+    /// model `drag`; `μ_k` stays at or above 0 (friction drags the arm
+    /// along the slide, never against it).
+    pub(super) fn descend_with(&self, start: Vec<MeshPoint>, drag: Drag) -> Option<Found> {
+        self.descend_from(start, DVec3::ZERO, drag)
+    }
+
+    /// [`Problem::descend_with`] from γ (or `μ_k`) = `ratio`.
+    pub(super) fn descend_from(&self, start: Vec<MeshPoint>, ratio: DVec3, drag: Drag) -> Option<Found> {
+        let ratio_free = drag.is_free();
         let mut locations = start;
-        let mut ratio = DVec3::ZERO;
-        let mut normal = self.normal_at(&locations, ratio, ratio_free)?;
+        let mut ratio = ratio;
+        let mut normal = self.normal_with(&locations, ratio, drag)?;
         for _ in 0..MAX_STEPS {
             let Some((places, ratio_step)) = step(&normal, ratio_free) else {
                 break;
@@ -479,8 +466,11 @@ impl Problem<'_> {
                         self.shape.walk(at, offset)
                     })
                     .collect();
-                let next_ratio = ratio + ratio_step * scale;
-                if let Some(next) = self.normal_at(&moved, next_ratio, ratio_free)
+                let mut next_ratio = ratio + ratio_step * scale;
+                if let Drag::Kinetic(_) = drag {
+                    next_ratio = DVec3::new(next_ratio.x.max(0.0), 0.0, 0.0);
+                }
+                if let Some(next) = self.normal_with(&moved, next_ratio, drag)
                     && next.cost < normal.cost
                 {
                     gained = normal.cost - next.cost;
@@ -507,44 +497,46 @@ impl Problem<'_> {
     /// matrix (the cost is `-2 ln` posterior and the matrix half its
     /// Hessian, so the inverse is the Laplace covariance) with γ
     /// marginalised where `ratio_free`. `None` where it is singular.
-    fn spreads(&self, locations: &[MeshPoint], ratio: DVec3, ratio_free: bool) -> Option<Vec<DMat2>> {
-        covariances(&self.normal_at(locations, ratio, ratio_free)?, ratio_free)
+    pub(super) fn spreads(&self, locations: &[MeshPoint], ratio: DVec3, ratio_free: bool) -> Option<Vec<DMat2>> {
+        let drag = if ratio_free { Drag::Fixed } else { Drag::None };
+        self.spreads_with(locations, ratio, drag)
+    }
+
+    /// [`Problem::spreads`] under the tangential model `drag`.
+    pub(super) fn spreads_with(&self, locations: &[MeshPoint], ratio: DVec3, drag: Drag) -> Option<Vec<DMat2>> {
+        covariances(&self.normal_with(locations, ratio, drag)?, drag.is_free())
     }
 
     /// The cost at `locations` with γ = `ratio`, and its normal equations
     /// (γ's rows only when `ratio_free`). `None` where the surface cannot
     /// be evaluated or a number is not finite.
+    #[cfg(test)]
     fn normal_at(&self, locations: &[MeshPoint], ratio: DVec3, ratio_free: bool) -> Option<Normal> {
+        self.normal_with(locations, ratio, if ratio_free { Drag::Fixed } else { Drag::None })
+    }
+
+    /// [`Problem::normal_at`] under the tangential model `drag`: with
+    /// [`Drag::Kinetic`], `ratio.x` is `μ_k` (its other axes unused, held
+    /// at 0 by their prior).
+    pub(super) fn normal_with(&self, locations: &[MeshPoint], ratio: DVec3, drag: Drag) -> Option<Normal> {
+        let ratio_free = drag.is_free();
         let settings = self.settings;
         let w = settings.weights;
         let joints = w.len();
         let (f_min, f_max) = settings.force_range_newtons;
-        let spread = settings.friction;
+        let spread = drag.spread(settings.friction);
         let slide = settings.slide_m_per_sqrt_s;
-        let n = self.frames.len();
         let surface: Vec<SurfaceFrame> = locations
             .iter()
             .map(|&at| self.shape.frame(at))
             .collect::<Option<_>>()?;
-        let mut normal = Normal {
-            cost: 0.0,
-            surface,
-            magnitudes: vec![0.0; n],
-            residuals: vec![0.0; n],
-            diagonal: vec![DMat2::ZERO; n],
-            lower: vec![DMat2::ZERO; n],
-            border: vec![[DVec2::ZERO; 3]; n],
-            corner: DMat3::ZERO,
-            rhs_places: vec![DVec2::ZERO; n],
-            rhs_ratio: DVec3::ZERO,
-        };
-        if ratio_free {
-            normal.cost += ratio.length_squared() / (spread * spread);
-            normal.corner = DMat3::IDENTITY / (spread * spread);
-            normal.rhs_ratio = -ratio / (spread * spread);
-        }
+        let mut normal = Normal::prior(surface, ratio, ratio_free.then_some(spread));
         // u, ∂u/∂s₁, ∂u/∂s₂, then the three axes' tangential columns.
         let mut columns = vec![vec![0.0; joints]; 6];
+        // With kinetic friction: the push along the frame's slide, and
+        // the two axes that carry nothing.
+        let mut along_slide = vec![0.0; joints];
+        let unused = vec![0.0; joints];
         let mut pushed = vec![0.0; joints];
         let mut residual = vec![0.0; joints];
         for (t, frame) in self.frames.iter().enumerate() {
@@ -554,8 +546,20 @@ impl Problem<'_> {
             let [u, d0, d1, c0, c1, c2] = columns.as_slice() else {
                 return None;
             };
+            let axes: [&[f64]; 3] = match drag {
+                Drag::Kinetic(slides) => {
+                    let d = *slides.directions.get(t)?;
+                    for (j, a) in along_slide.iter_mut().enumerate() {
+                        *a = d.x * c0.get(j)? + d.y * c1.get(j)? + d.z * c2.get(j)?;
+                    }
+                    [&along_slide, &unused, &unused]
+                }
+                Drag::Gated(slides) if slides.directions.get(t)?.length() == 0.0 => [&unused, &unused, &unused],
+                Drag::None | Drag::Fixed | Drag::Drift(_) | Drag::Gated(_) => [c0, c1, c2],
+            };
+            let [c0, c1, c2] = axes;
             for (j, p) in pushed.iter_mut().enumerate() {
-                *p = u[j] + ratio.x * c0[j] + ratio.y * c1[j] + ratio.z * c2[j];
+                *p = u.get(j)? + ratio.x * c0.get(j)? + ratio.y * c1.get(j)? + ratio.z * c2.get(j)?;
             }
             let lever = inner(w, &pushed, &pushed);
             let best = if lever > 0.0 {
@@ -584,7 +588,6 @@ impl Problem<'_> {
                 }
             };
             let places = [d0, d1];
-            let axes = [c0, c1, c2];
             let f2 = f * f;
             let block = normal.diagonal.get_mut(t)?;
             *block += DMat2::from_cols(
@@ -609,7 +612,7 @@ impl Problem<'_> {
             if t > 0 {
                 let earlier = self.frames.get(t - 1)?;
                 let dt_secs = (frame.t_secs - earlier.t_secs).max(MIN_DT_SECS);
-                normal.add_slide(t, 1.0 / (slide * slide * dt_secs))?;
+                normal.add_slide(t, 1.0 / (slide * slide * dt_secs), drag.expected_move(t, dt_secs)?)?;
             }
         }
         normal.cost.is_finite().then_some(normal)

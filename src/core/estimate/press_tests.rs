@@ -4,6 +4,7 @@
 #![allow(clippy::unwrap_used)]
 
 use super::*;
+use crate::core::estimate::explain::{explain_press, fit_press};
 use crate::core::eval::metrics::percentile;
 use crate::core::numerics::rng::Rng;
 use crate::core::robot::builtin;

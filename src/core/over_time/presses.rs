@@ -8,11 +8,10 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms, is_pressed};
+use crate::core::estimate::explain::{PressAnswer, explain_press};
 use crate::core::estimate::friction::friction_evidence;
 use crate::core::estimate::measurement::Measurement;
-use crate::core::estimate::press::{
-    FRICTION_GAIN, PressAnswer, PressFrame, PressSettings, explain_press, locate, press_spreads,
-};
+use crate::core::estimate::press::{FRICTION_GAIN, PressFrame, PressSettings, locate, press_spreads};
 use crate::core::estimate::summary::{ContactEstimate, PlacedContact, Summary};
 use crate::core::geometry::shell::MeshPoint;
 use crate::core::over_time::frame::SequenceFrame;

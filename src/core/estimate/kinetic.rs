@@ -1,0 +1,259 @@
+//! Kinetic friction over a press: while the place slides over the link,
+//! the object drags the arm along the slide with `μ_k` times the push;
+//! while it sticks, the model carries no tangential force.
+//!
+//! The slide's direction is the fitted track's own. Each frame's velocity
+//! over the surface is the slope of a line fitted through the places
+//! within [`WINDOW_SECS`] either side, along the surface; its share of
+//! sliding is `|v| / √(|v|² + v₀²)` (v₀ = [`STICK_M_PER_S`]): 0 at rest,
+//! where the press sticks, and close to 1 once the place moves faster
+//! than v₀. The tangential force is then `μ_k f_t v_t / √(|v_t|² + v₀²)`,
+//! one unknown `μ_k` for the whole press (a press is one object on one
+//! surface) under a half-normal prior of spread [`KINETIC_SPREAD`].
+//!
+//! The directions depend on the places that the search moves, so the
+//! search runs in rounds: the last round's directions held fixed through
+//! a Gauss–Newton search of the places and `μ_k` ([`super::press`]'s, with
+//! the slide's column in place of γ's three), then the directions of the
+//! places it found. A round's answer is scored at its own directions,
+//! the cost of its places with the velocities those places imply, and
+//! the best round is kept.
+
+use glam::DVec3;
+
+use crate::core::estimate::press::{Drag, Found, Problem, Slides, along_surface};
+use crate::core::geometry::shell::MeshPoint;
+
+/// The slowest a place moves over the surface in a frame that may slip,
+/// m/s: the track's own jitter (a fraction of a millimetre over the
+/// window) reads as less; the slides of interest run at 2–10 cm/s.
+const MOVING_M_PER_S: f64 = 0.005;
+
+/// `μ_k` that the first round's states are chosen at.
+const MU_START: f64 = 0.4;
+
+/// `-2 ln` of the chance that a press changes between sticking and
+/// slipping at a frame.
+const SWITCH_COST: f64 = 10.0;
+
+/// Half the window a frame's velocity is fitted over, s.
+const WINDOW_SECS: f64 = 0.05;
+
+/// Rounds of directions and search.
+const ROUNDS: usize = 3;
+
+/// A press fitted with kinetic friction.
+pub(super) struct Kinetic {
+    /// Places, `μ_k` (`ratio.x`) and the cost at `slides`.
+    pub(super) found: Found,
+    /// The slides of `found`'s places.
+    pub(super) slides: Slides,
+    /// Where the search started.
+    start: Vec<MeshPoint>,
+    /// How much lower `-2 ln L` is than without friction, the places
+    /// expected to move as they slide in both (see [`Kinetic::weighed`];
+    /// 0 until then).
+    pub(super) gain: f64,
+}
+
+impl Kinetic {
+    /// With its gain: the same search from the same start with `μ_k` held
+    /// at 0. `None` where the surface cannot be evaluated.
+    pub(super) fn weighed(mut self, problem: &Problem) -> Option<Self> {
+        let (still, _) = rounds(problem, self.start.clone(), false)?;
+        self.gain = still.normal.cost - self.found.normal.cost;
+        Some(self)
+    }
+}
+
+/// The press fitted with kinetic friction from `start` (see the module's
+/// documentation). `None` where the surface cannot be evaluated.
+pub(super) fn descend_kinetic(problem: &Problem, start: Vec<MeshPoint>) -> Option<Kinetic> {
+    let (found, slides) = rounds(problem, start.clone(), true)?;
+    Some(Kinetic {
+        found,
+        slides,
+        start,
+        gain: 0.0,
+    })
+}
+
+/// Rounds of slides and search from `start`, `μ_k` free or held at 0;
+/// the round whose places cost least at their own slides.
+fn rounds(problem: &Problem, start: Vec<MeshPoint>, free: bool) -> Option<(Found, Slides)> {
+    let slides_of = |locations: &[MeshPoint], mu: f64| {
+        let moving = slides_at(problem, locations)?;
+        if free {
+            slipping(problem, locations, moving, mu)
+        } else {
+            Some(moving)
+        }
+    };
+    let mut mu = MU_START;
+    let mut slides = slides_of(&start, mu)?;
+    let mut locations = start;
+    let mut best: Option<(Found, Slides)> = None;
+    for _ in 0..ROUNDS {
+        let found = problem.descend_with(locations, drag(&slides, free))?;
+        mu = found.ratio.x;
+        let next = slides_of(&found.locations, mu)?;
+        let normal = problem.normal_with(&found.locations, found.ratio, drag(&next, free))?;
+        let scored = Found {
+            locations: found.locations.clone(),
+            ratio: found.ratio,
+            normal,
+        };
+        if best.as_ref().is_none_or(|b| scored.normal.cost < b.0.normal.cost) {
+            best = Some((scored, next.clone()));
+        }
+        locations = found.locations;
+        slides = next;
+    }
+    best
+}
+
+/// `moving` with each frame's direction kept where the press slips and
+/// cleared where it sticks: the states that explain the frames at
+/// `locations` best with kinetic friction `μ_k` = `mu` while slipping and
+/// none while sticking (a frame that does not move cannot slip).
+fn slipping(problem: &Problem, locations: &[MeshPoint], moving: Slides, mu: f64) -> Option<Slides> {
+    let slip = problem
+        .normal_with(locations, DVec3::new(mu, 0.0, 0.0), Drag::Kinetic(&moving))?
+        .residuals;
+    let can_slip: Vec<bool> = moving.directions.iter().map(|d| d.length() > 0.0).collect();
+    states(problem, locations, moving, &slip, &can_slip)
+}
+
+/// `slides` with each frame's direction cleared where the press sticks:
+/// the sequence of states, sticking with no tangential force or slipping
+/// with each frame's `slip` residual (where `can_slip`), that costs
+/// least, [`SWITCH_COST`] a change. A frame without a direction that
+/// slips is given a unit one (the gated model reads only the state).
+fn states(
+    problem: &Problem,
+    locations: &[MeshPoint],
+    mut slides: Slides,
+    slip: &[f64],
+    can_slip: &[bool],
+) -> Option<Slides> {
+    let stick = problem.normal_with(locations, DVec3::ZERO, Drag::None)?.residuals;
+    let n = stick.len();
+    let mut from = vec![[0usize; 2]; n];
+    let mut cost = [0.0, f64::INFINITY];
+    for t in 0..n {
+        let slip_here = if *can_slip.get(t)? {
+            *slip.get(t)?
+        } else {
+            f64::INFINITY
+        };
+        let here = [*stick.get(t)?, slip_here];
+        let mut next = [0.0; 2];
+        for (state, slot) in next.iter_mut().enumerate() {
+            let stay = cost.get(state).copied().unwrap_or(f64::INFINITY);
+            let switch = cost.get(1 - state).copied().unwrap_or(f64::INFINITY) + SWITCH_COST;
+            let (best, came) = if stay <= switch {
+                (stay, state)
+            } else {
+                (switch, 1 - state)
+            };
+            *slot = best + here.get(state).copied().unwrap_or(f64::INFINITY);
+            if let Some(f) = from.get_mut(t).and_then(|f| f.get_mut(state)) {
+                *f = came;
+            }
+        }
+        cost = next;
+    }
+    let mut state = usize::from(cost[1] < cost[0]);
+    for t in (0..n).rev() {
+        if let Some(d) = slides.directions.get_mut(t) {
+            if state == 0 {
+                *d = DVec3::ZERO;
+            } else if d.length() == 0.0 {
+                *d = DVec3::X;
+            }
+        }
+        state = from.get(t)?.get(state).copied()?;
+    }
+    Some(slides)
+}
+
+/// The places of the press fitted with γ fixed in the link's frame while
+/// it slips and none while it sticks ([`Drag::Gated`]), from `start` and
+/// γ = `ratio` (a fixed γ's fit): the states chosen at the last round's
+/// places and γ, then a search, in rounds. `None` where the surface
+/// cannot be evaluated.
+pub(super) fn gated_places(problem: &Problem, start: Vec<MeshPoint>, ratio: DVec3) -> Option<Vec<MeshPoint>> {
+    let (mut locations, mut ratio) = (start, ratio);
+    for _ in 0..ROUNDS {
+        let moving = slides_at(problem, &locations)?;
+        let slip = problem.normal_with(&locations, ratio, Drag::Fixed)?.residuals;
+        let everywhere = vec![true; slip.len()];
+        let slides = states(problem, &locations, moving, &slip, &everywhere)?;
+        let found = problem.descend_from(locations, ratio, Drag::Gated(&slides))?;
+        locations = found.locations;
+        ratio = found.ratio;
+    }
+    Some(locations)
+}
+
+/// `μ_k` free along the slides, or held at 0 with the places still
+/// expected to move with them.
+fn drag(slides: &Slides, free: bool) -> Drag<'_> {
+    if free {
+        Drag::Kinetic(slides)
+    } else {
+        Drag::Drift(slides)
+    }
+}
+
+/// Each frame's slide (see the module's documentation) at `locations`.
+/// `None` where the surface cannot be evaluated.
+pub(super) fn slides_at(problem: &Problem, locations: &[MeshPoint]) -> Option<Slides> {
+    let surface: Vec<_> = locations
+        .iter()
+        .map(|&at| problem.shape.frame(at))
+        .collect::<Option<_>>()?;
+    let times: Vec<f64> = problem.frames.iter().map(|f| f.t_secs).collect();
+    let mut directions = Vec::with_capacity(surface.len());
+    let mut velocities_m_per_s = Vec::with_capacity(surface.len());
+    let (mut first, mut last) = (0, 0);
+    for (t, (here, &now)) in surface.iter().zip(&times).enumerate() {
+        while times.get(first).is_some_and(|&s| s < now - WINDOW_SECS) {
+            first += 1;
+        }
+        last = last.max(t);
+        while times.get(last + 1).is_some_and(|&s| s <= now + WINDOW_SECS) {
+            last += 1;
+        }
+        let span = first.min(t)..=last;
+        let frames = (last - first.min(t) + 1) as f64;
+        let mean_t = times.get(span.clone())?.iter().sum::<f64>() / frames;
+        let mean_p = surface.get(span.clone())?.iter().map(|s| s.point).sum::<DVec3>() / frames;
+        let (mut moved, mut spread) = (DVec3::ZERO, 0.0);
+        for (s, &time) in surface.get(span.clone())?.iter().zip(times.get(span)?) {
+            let dt = time - mean_t;
+            moved += (s.point - mean_p) * dt;
+            spread += dt * dt;
+        }
+        let velocity = if spread > 0.0 {
+            along_surface(moved / spread, here.inward_normal)
+        } else {
+            DVec3::ZERO
+        };
+        let velocity = if velocity.is_finite() { velocity } else { DVec3::ZERO };
+        directions.push(if velocity.length() > MOVING_M_PER_S {
+            velocity.normalize()
+        } else {
+            DVec3::ZERO
+        });
+        velocities_m_per_s.push(velocity);
+    }
+    Some(Slides {
+        directions,
+        velocities_m_per_s,
+    })
+}
+
+#[cfg(test)]
+#[path = "kinetic_tests.rs"]
+mod tests;

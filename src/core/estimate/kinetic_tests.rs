@@ -1,0 +1,200 @@
+//! Tests of [`super`]: `kinetic.rs`.
+
+// Test helpers may unwrap: a panic is a failed test with its message.
+#![allow(clippy::unwrap_used)]
+
+use glam::DVec3;
+
+use super::*;
+use crate::core::estimate::explain::explain_press;
+use crate::core::estimate::press::{PressFrame, PressSettings};
+use crate::core::eval::metrics::percentile;
+use crate::core::geometry::shell::SurfaceFrame;
+use crate::core::numerics::rng::Rng;
+use crate::core::robot::builtin;
+use crate::core::robot::kinematics::RobotPose;
+use crate::core::robot::model::LinkId;
+use crate::core::robot::torque::TorqueModel;
+use crate::core::surface::sampling::{Surface, SurfaceRequest};
+
+const RATE_HZ: f64 = 100.0;
+const WEIGHTS: [f64; 7] = [400.0; 7];
+
+/// A press on the LWR's link 5 at 100 Hz while every joint swings by up
+/// to 0.3 rad: it sticks for `stick` frames, slides `slide` frames at
+/// `speed` m/s along its first tangent with kinetic friction `mu` (the
+/// arm dragged along the slide), and sticks `stick` frames again; a
+/// push of 8–12 N, σ = 0.05 N·m.
+struct Slide {
+    surface: Surface,
+    link: LinkId,
+    times: Vec<f64>,
+    models: Vec<TorqueModel>,
+    taus: Vec<Vec<f64>>,
+    /// Each frame's true place and force (link frame).
+    truth: Vec<(SurfaceFrame, DVec3)>,
+    /// Each frame's true place, on the mesh.
+    places: Vec<MeshPoint>,
+}
+
+fn slide(link_name: &str, stick: usize, slide: usize, speed: f64, mu: f64, seed: u64) -> Slide {
+    let robot = builtin::lwr4plus_generated().unwrap();
+    let link = robot.link_id(link_name).unwrap();
+    let links = robot.default_candidate_links();
+    let request = SurfaceRequest {
+        links: links.clone(),
+        total_points: 2000,
+        seed: 0,
+    };
+    let surface = Surface::sample(&robot, &request).unwrap();
+    let shape = surface.shape(link).unwrap();
+    let k = (0..surface.len()).filter(|&k| surface.link[k] == link).nth(40).unwrap();
+    let mut at = surface.location[k];
+    let heading = shape.frame(at).unwrap().tangents[0];
+    let mut rng = Rng::new(seed);
+    let phases: Vec<f64> = (0..7).map(|_| rng.uniform_in(0.0, std::f64::consts::TAU)).collect();
+    let mut out = Slide {
+        surface: surface.clone(),
+        link,
+        times: Vec::new(),
+        models: Vec::new(),
+        taus: Vec::new(),
+        truth: Vec::new(),
+        places: Vec::new(),
+    };
+    for i in 0..(2 * stick + slide) {
+        let t = i as f64 / RATE_HZ;
+        let sliding = (stick..stick + slide).contains(&i);
+        let here = shape.frame(at).unwrap();
+        let along = (heading - heading.dot(here.inward_normal) * here.inward_normal).normalize();
+        let q: Vec<f64> = phases
+            .iter()
+            .enumerate()
+            .map(|(j, phase)| 0.4 - 0.1 * j as f64 + 0.3 * (std::f64::consts::TAU * 0.5 * t + phase).sin())
+            .collect();
+        let pose = RobotPose::new(&robot, &robot.joint_positions(&q, &[]).unwrap());
+        let model = TorqueModel::new(&robot, &pose, &links);
+        let push = 10.0 + 2.0 * (std::f64::consts::TAU * t).sin();
+        let tangential = if sliding { along * (mu * push) } else { DVec3::ZERO };
+        let force = here.inward_normal * push + tangential;
+        let tau = model
+            .torques(link, here.point, force)
+            .iter()
+            .map(|x| x + 0.05 * rng.normal())
+            .collect();
+        out.times.push(t);
+        out.models.push(model);
+        out.taus.push(tau);
+        out.truth.push((here, force));
+        out.places.push(at);
+        if sliding {
+            at = shape.walk(at, along * (speed / RATE_HZ));
+        }
+    }
+    out
+}
+
+fn settings(friction: f64) -> PressSettings<'static> {
+    PressSettings {
+        weights: &WEIGHTS,
+        force_range_newtons: (1.0, 30.0),
+        friction,
+        slide_m_per_sqrt_s: 0.003,
+    }
+}
+
+fn frames<'a>(s: &'a Slide, starts: &[MeshPoint]) -> Vec<PressFrame<'a>> {
+    (0..s.times.len())
+        .map(|i| PressFrame {
+            t_secs: s.times[i],
+            torque_model: &s.models[i],
+            tau: &s.taus[i],
+            start: starts[i],
+        })
+        .collect()
+}
+
+/// A slide's directions: along the slide (unit vectors) while the place
+/// moves at 8 cm/s, and none where it stands, a window away from the
+/// slide.
+#[test]
+fn directions_follow_the_slide_and_vanish_at_rest() {
+    let s = slide("lwr_5_link", 30, 40, 0.08, 0.5, 1);
+    let shape = s.surface.shape(s.link).unwrap();
+    let settings = settings(0.2);
+    let frames = frames(&s, &s.places);
+    let problem = Problem::new(shape, s.link, &frames, &settings).unwrap();
+    let directions = slides_at(&problem, &s.places).unwrap().directions;
+    for (i, (d, (here, _))) in directions.iter().zip(&s.truth).enumerate() {
+        if (40..60).contains(&i) {
+            // The move over the window, along the surface here.
+            let moved = s.truth[i + 5].0.point - s.truth[i - 5].0.point;
+            let along = (moved - moved.dot(here.inward_normal) * here.inward_normal).normalize();
+            assert!((d.length() - 1.0).abs() < 1e-9, "frame {i}: {d:?}");
+            assert!(d.normalize().dot(along) > 0.99, "frame {i}: {d:?} against {along:?}");
+        }
+        if !(20..90).contains(&i) {
+            assert!(d.length() < 1e-9, "frame {i}: {d:?}");
+        }
+    }
+}
+
+/// A press that sticks, slides 3.2 cm at 8 cm/s with `μ_k` = 0.5, and
+/// sticks again is explained by kinetic friction: found where it is at
+/// every frame, with `μ_k` and its force; the frictionless fit of the same
+/// press is centimetres off while it slides.
+#[test]
+fn a_sliding_press_is_found_with_its_kinetic_friction() {
+    for seed in 1..=3 {
+        let s = slide("lwr_5_link", 30, 40, 0.08, 0.5, seed);
+        let shape = s.surface.shape(s.link).unwrap();
+        let frames = frames(&s, &s.places);
+        let answer = explain_press(shape, s.link, &frames, &settings(0.2)).unwrap();
+        let plain = explain_press(shape, s.link, &frames, &settings(0.0)).unwrap();
+        let error = |contacts: &[crate::core::estimate::press::PressContact]| {
+            let place: Vec<f64> = contacts
+                .iter()
+                .zip(&s.truth)
+                .map(|(c, (here, _))| c.point_in_link.distance(here.point))
+                .collect();
+            let force: Vec<f64> = contacts
+                .iter()
+                .zip(&s.truth)
+                .map(|(c, (_, f))| (c.inward_normal_in_link * c.force_newtons + c.tangential_in_link).distance(*f))
+                .collect();
+            (
+                percentile(&place, 0.5),
+                percentile(&place, 0.9),
+                percentile(&force, 0.5),
+            )
+        };
+        let (place, place90, force) = error(&answer.contacts);
+        let (plain_place, plain90, plain_force) = error(&plain.contacts);
+        eprintln!(
+            "seed {seed}: μ_k {:?}, gain {:.0}; place {:.1}/{:.1} mm, force {force:.2} N; frictionless {:.1}/{:.1} mm, {plain_force:.2} N",
+            answer.kinetic_friction,
+            answer.gain,
+            place * 1e3,
+            place90 * 1e3,
+            plain_place * 1e3,
+            plain90 * 1e3
+        );
+        for (i, (c, (here, f))) in answer.contacts.iter().zip(&s.truth).enumerate().step_by(5) {
+            let p = plain.contacts[i].point_in_link.distance(here.point);
+            eprintln!(
+                "  {i}: {:.1} mm (plain {:.1}) f {:.2} {:.2} tang {:.2} true tang {:.2}",
+                c.point_in_link.distance(here.point) * 1e3,
+                p * 1e3,
+                c.force_newtons,
+                f.dot(here.inward_normal),
+                c.tangential_in_link.length(),
+                (*f - here.inward_normal * f.dot(here.inward_normal)).length()
+            );
+        }
+        let mu = answer.kinetic_friction.unwrap();
+        assert!((mu - 0.5).abs() < 0.1, "{mu}");
+        assert!(place90 < 5e-3, "{place90}");
+        assert!(force < 0.5, "{force}");
+        assert!(plain90 > 3.0 * place90, "{plain90}");
+    }
+}
