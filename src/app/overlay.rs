@@ -19,16 +19,21 @@ pub enum MarkerRole {
     Estimate,
     /// The estimate from the frames together (filtered or smoothed).
     OverTime,
+    /// The over-time estimate's tangential force (friction), at its
+    /// contact.
+    Tangential,
 }
 
 impl MarkerRole {
-    /// Its colour: none of them in either heat map (magenta, cyan, white).
+    /// Its colour: none of them in either heat map (magenta, cyan, white,
+    /// green).
     #[must_use]
     pub fn colour(self) -> egui::Color32 {
         match self {
             Self::Push => egui::Color32::from_rgb(255, 70, 210),
             Self::Estimate => egui::Color32::from_rgb(40, 225, 255),
             Self::OverTime => egui::Color32::from_rgb(245, 245, 245),
+            Self::Tangential => egui::Color32::from_rgb(90, 255, 90),
         }
     }
 
@@ -40,6 +45,7 @@ impl MarkerRole {
             (Self::Push, true) => "true contact",
             (Self::Estimate, _) => "most probable",
             (Self::OverTime, _) => "over time",
+            (Self::Tangential, _) => "its friction",
         }
     }
 }
@@ -53,6 +59,22 @@ pub struct Marker {
     pub point_world: DVec3,
     /// The force, world frame, N.
     pub force_world: DVec3,
+}
+
+/// The least tangential force drawn as its own arrow, N: below it the
+/// arrow would be shorter than its head (and a held press's estimate
+/// carries a few tenths of a newton of fitted drag).
+pub const TANGENTIAL_ARROW_MIN_NEWTONS: f64 = 0.5;
+
+/// The arrow of an over-time estimate's tangential force (`tangential_world`,
+/// N) at its contact, where it reaches [`TANGENTIAL_ARROW_MIN_NEWTONS`].
+#[must_use]
+pub fn tangential_marker(point_world: DVec3, tangential_world: DVec3) -> Option<Marker> {
+    (tangential_world.length() >= TANGENTIAL_ARROW_MIN_NEWTONS).then_some(Marker {
+        role: MarkerRole::Tangential,
+        point_world,
+        force_world: tangential_world,
+    })
 }
 
 /// Arrow length for a force: 5 cm at 1 N and below, growing with the
@@ -293,6 +315,19 @@ pub fn paint_readout(painter: &egui::Painter, rect: egui::Rect, text: &str) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A tangential force of half a newton or more gets its own arrow at
+    /// the contact, carrying that force; a smaller one none.
+    #[test]
+    fn friction_gets_its_own_arrow_where_it_reads() {
+        let at = DVec3::new(0.1, 0.2, 0.3);
+        let drag = DVec3::new(0.0, 3.0, -4.0);
+        let marker = tangential_marker(at, drag).unwrap();
+        assert_eq!(marker.role, MarkerRole::Tangential);
+        assert_eq!((marker.point_world, marker.force_world), (at, drag));
+        assert!(tangential_marker(at, DVec3::new(0.3, 0.3, 0.0)).is_none());
+        assert!(tangential_marker(at, DVec3::new(0.0, 0.0, TANGENTIAL_ARROW_MIN_NEWTONS)).is_some());
+    }
 
     #[test]
     fn arrows_grow_with_the_force_and_every_force_reads() {

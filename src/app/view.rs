@@ -216,8 +216,15 @@ impl ViewPart {
         let replay = shown.model.replay.is_some();
         let font = egui::FontId::proportional(13.0);
         let mut items: Vec<(Option<MarkerRole>, String)> = Vec::new();
-        for role in [MarkerRole::Push, MarkerRole::Estimate, MarkerRole::OverTime] {
-            if role == MarkerRole::OverTime && shown.over_time.is_none() {
+        for role in [
+            MarkerRole::Push,
+            MarkerRole::Estimate,
+            MarkerRole::OverTime,
+            MarkerRole::Tangential,
+        ] {
+            if role == MarkerRole::OverTime && shown.over_time.is_none()
+                || role == MarkerRole::Tangential && !markers.iter().any(|m| m.role == role)
+            {
                 continue;
             }
             items.push((Some(role), role.name(replay).to_owned()));
@@ -474,6 +481,7 @@ impl ViewPart {
                 point_world: e.point_world,
                 force_world: e.force_world,
             });
+            out.extend(overlay::tangential_marker(e.point_world, e.tangential_world));
         }
         out
     }

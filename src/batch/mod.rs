@@ -124,6 +124,8 @@ pub struct FrameEstimate {
     pub point_world: DVec3,
     /// Its force, world frame, N.
     pub force_world: DVec3,
+    /// The force's part along the surface (friction), world frame, N.
+    pub tangential_world: DVec3,
     /// Its posterior mass.
     pub probability: f64,
     /// Its heatmap value (the best particle's share in particle mode).
@@ -150,6 +152,7 @@ impl FrameEstimate {
             link: map.link,
             point_world: map.point_world,
             force_world: map.force_world,
+            tangential_world: map.force_world - map.inward_normal_world * map.inward_normal_world.dot(map.force_world),
             probability: map.probability,
             p_max: update.posterior.display.get(map.point).copied().unwrap_or(0.0),
             update_ms,

@@ -57,6 +57,18 @@ pub(super) struct Kinetic {
 }
 
 impl Kinetic {
+    /// The path the places take over the frames that slip, m.
+    pub(super) fn slid_m(&self) -> f64 {
+        let surface = &self.found.normal.surface;
+        surface
+            .iter()
+            .zip(surface.iter().skip(1))
+            .zip(self.slides.directions.iter().skip(1))
+            .filter(|(_, d)| d.length() > 0.0)
+            .map(|((before, here), _)| here.point.distance(before.point))
+            .sum()
+    }
+
     /// With its gain: the same search from the same start with `μ_k` held
     /// at 0. `None` where the surface cannot be evaluated.
     pub(super) fn weighed(mut self, problem: &Problem) -> Option<Self> {

@@ -1,7 +1,5 @@
-//! One frame: the contact model, the posterior over the samples (exact or
-//! particles, in phases), the refinement on the continuous surface, the
-//! friction model and a press's fit, the summary, regions, observability
-//! and the `Estimator` that runs them. Imports the rooms below it.
+//! One frame: the contact model, the posterior, the refinement, friction and a press's fit
+//! (kinetic friction included), the summary and the `Estimator`. Imports the rooms below it.
 
 pub mod contact;
 pub mod estimator;
