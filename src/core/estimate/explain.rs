@@ -142,15 +142,17 @@ pub fn explain_press(
         .flatten()
         .filter_map(|from| descend_kinetic(&problem, from))
         .min_by(|a, b| a.found.normal.cost.total_cmp(&b.found.normal.cost))
-        .and_then(|k| k.weighed(&problem))
+        // The tests that cost nothing first: the reference search with
+        // μ_k held at 0 runs only for a fit that passes them.
         .filter(|k| {
             let cost = k.found.normal.cost;
-            k.gain > KINETIC_GAIN
-                && cost < frictionless.normal.cost - KINETIC_GAIN
+            cost < frictionless.normal.cost - KINETIC_GAIN
                 && k.found.ratio.x <= RATIO_LIMIT_SPREADS * KINETIC_SPREAD
                 && k.slid_m() >= MIN_SLIDE_M
                 && kept.as_ref().is_none_or(|f| cost < f.normal.cost - KINETIC_GAIN)
         })
+        .and_then(|k| k.weighed(&problem))
+        .filter(|k| k.gain > KINETIC_GAIN)
     } else {
         None
     };
