@@ -152,7 +152,7 @@ impl FrameEstimate {
             link: map.link,
             point_world: map.point_world,
             force_world: map.force_world,
-            tangential_world: map.force_world - map.inward_normal_world * map.inward_normal_world.dot(map.force_world),
+            tangential_world: map.tangential_world(),
             probability: map.probability,
             p_max: update.posterior.display.get(map.point).copied().unwrap_or(0.0),
             update_ms,

@@ -35,10 +35,7 @@ pub fn frame_json(
             .then(|| update.pose.world_from_link.get(s.map.link))
             .flatten()
             .map(|w| w.inverse().transform_point3(s.map.point_world).to_array()),
-        "force_tangential": contact.then(|| {
-            let n = s.map.inward_normal_world;
-            (s.map.force_world - n * s.map.force_world.dot(n)).to_array()
-        }),
+        "force_tangential": contact.then(|| s.map.tangential_world().to_array()),
         "probability": s.map.probability,
         "contact_probability": s.contact_probability,
         "refined": s.refined,

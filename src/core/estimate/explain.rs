@@ -97,14 +97,13 @@ pub fn explain_press(
     let problem = Problem::new(shape, link, frames, settings)?;
     let start: Vec<MeshPoint> = frames.iter().map(|f| f.start).collect();
     let frictionless = problem.descend(start.clone(), false)?;
-    let start_kinetic = start.clone();
     let with_friction = settings.friction > 0.0 && settings.friction.is_finite();
     // From the recording's places; where that search ends above the
     // frictionless cost (in another valley: γ = 0 is the frictionless
     // answer, so the friction model's best is never worse), again from
     // where the frictionless search ended, which ends at or below it.
     let frictional = if with_friction {
-        match problem.descend(start, true) {
+        match problem.descend(start.clone(), true) {
             Some(cold) if cold.normal.cost <= frictionless.normal.cost => Some(cold),
             cold => problem.descend(frictionless.locations.clone(), true).or(cold),
         }
@@ -129,11 +128,11 @@ pub fn explain_press(
     // expected to move as they slide) and than a fixed γ, over a slide
     // of `MIN_SLIDE_M` or more.
     let spreads_out = |locations: &[MeshPoint]| extent_m(&problem, locations) >= MIN_SLIDE_M;
-    let moves = spreads_out(&start_kinetic) || fixed_start.as_deref().is_some_and(spreads_out);
+    let moves = spreads_out(&start) || fixed_start.as_deref().is_some_and(spreads_out);
     let kinetic = if with_friction && gain > KINETIC_GAIN && moves {
         let gated_start = fixed.and_then(|(locations, ratio)| gated_places(&problem, locations, ratio));
         [
-            Some(start_kinetic),
+            Some(start),
             Some(frictionless.locations.clone()),
             fixed_start,
             gated_start,

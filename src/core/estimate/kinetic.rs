@@ -2,22 +2,24 @@
 //! the object drags the arm along the slide with `μ_k` times the push;
 //! while it sticks, the model carries no tangential force.
 //!
-//! The slide's direction is the fitted track's own. Each frame's velocity
-//! over the surface is the slope of a line fitted through the places
-//! within [`WINDOW_SECS`] either side, along the surface; its share of
-//! sliding is `|v| / √(|v|² + v₀²)` (v₀ = [`STICK_M_PER_S`]): 0 at rest,
-//! where the press sticks, and close to 1 once the place moves faster
-//! than v₀. The tangential force is then `μ_k f_t v_t / √(|v_t|² + v₀²)`,
-//! one unknown `μ_k` for the whole press (a press is one object on one
-//! surface) under a half-normal prior of spread [`KINETIC_SPREAD`].
+//! The slide's direction is the fitted track's own: each frame's
+//! velocity over the surface is the slope of a line fitted through the
+//! places within 50 ms (`WINDOW_SECS`) either side, along the surface. A frame
+//! either sticks (no tangential force) or slips (`μ_k f_t` along its
+//! velocity); one that moves slower than 5 mm/s (`MOVING_M_PER_S`) cannot slip.
+//! `μ_k` is one unknown for the whole press (one object on one surface)
+//! under a half-normal prior of spread
+//! [`crate::core::estimate::press::KINETIC_SPREAD`]. The states are the
+//! cheapest sequence of the two (Viterbi, 10 a change, `SWITCH_COST`) at
+//! the last round's places and `μ_k`.
 //!
-//! The directions depend on the places that the search moves, so the
-//! search runs in rounds: the last round's directions held fixed through
-//! a Gauss–Newton search of the places and `μ_k` ([`super::press`]'s, with
-//! the slide's column in place of γ's three), then the directions of the
-//! places it found. A round's answer is scored at its own directions,
-//! the cost of its places with the velocities those places imply, and
-//! the best round is kept.
+//! The velocities and states depend on the places that the search
+//! moves, so the search runs in rounds: they are held fixed through a
+//! Gauss–Newton search of the places and `μ_k` ([`super::press`]'s, with
+//! the slide's column in place of γ's three, and each move expected
+//! along the velocity), then chosen again at the places it found. A
+//! round's answer is scored at its own velocities and states, and the
+//! best round is kept.
 
 use glam::DVec3;
 
@@ -139,7 +141,7 @@ fn slipping(problem: &Problem, locations: &[MeshPoint], moving: Slides, mu: f64)
 /// `slides` with each frame's direction cleared where the press sticks:
 /// the sequence of states, sticking with no tangential force or slipping
 /// with each frame's `slip` residual (where `can_slip`), that costs
-/// least, [`SWITCH_COST`] a change. A frame without a direction that
+/// least, 10 a change, `SWITCH_COST`. A frame without a direction that
 /// slips is given a unit one (the gated model reads only the state).
 fn states(
     problem: &Problem,

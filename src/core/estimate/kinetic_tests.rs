@@ -179,18 +179,6 @@ fn a_sliding_press_is_found_with_its_kinetic_friction() {
             plain_place * 1e3,
             plain90 * 1e3
         );
-        for (i, (c, (here, f))) in answer.contacts.iter().zip(&s.truth).enumerate().step_by(5) {
-            let p = plain.contacts[i].point_in_link.distance(here.point);
-            eprintln!(
-                "  {i}: {:.1} mm (plain {:.1}) f {:.2} {:.2} tang {:.2} true tang {:.2}",
-                c.point_in_link.distance(here.point) * 1e3,
-                p * 1e3,
-                c.force_newtons,
-                f.dot(here.inward_normal),
-                c.tangential_in_link.length(),
-                (*f - here.inward_normal * f.dot(here.inward_normal)).length()
-            );
-        }
         let mu = answer.kinetic_friction.unwrap();
         assert!((mu - 0.5).abs() < 0.1, "{mu}");
         assert!(place90 < 5e-3, "{place90}");

@@ -6,7 +6,7 @@ pub mod estimator;
 pub mod evidence;
 pub mod explain;
 pub mod friction;
-mod kinetic;
+pub mod kinetic;
 pub mod measurement;
 pub mod observability;
 pub mod pair;

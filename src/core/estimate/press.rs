@@ -257,8 +257,8 @@ pub(super) fn along_surface(v: DVec3, n: DVec3) -> DVec3 {
 /// Each frame's slide, from a track of places.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Slides {
-    /// The slide's direction times the frame's share of sliding, link
-    /// frame, along the surface: `v / √(|v|² + v₀²)`.
+    /// The unit direction of the frame's slide, link frame, along the
+    /// surface; zero where the press sticks or the place hardly moves.
     pub directions: Vec<DVec3>,
     /// The place's velocity over the surface, link frame, m/s.
     pub velocities_m_per_s: Vec<DVec3>,
@@ -515,9 +515,11 @@ impl Problem<'_> {
         self.normal_with(locations, ratio, if ratio_free { Drag::Fixed } else { Drag::None })
     }
 
-    /// [`Problem::normal_at`] under the tangential model `drag`: with
-    /// [`Drag::Kinetic`], `ratio.x` is `μ_k` (its other axes unused, held
-    /// at 0 by their prior).
+    /// The cost at `locations` with the ratio `ratio` under the
+    /// tangential model `drag`, and its normal equations (the ratio's rows
+    /// only where `drag` moves it). With [`Drag::Kinetic`], `ratio.x` is
+    /// `μ_k` (its other axes unused, held at 0 by their prior). `None`
+    /// where the surface cannot be evaluated or a number is not finite.
     pub(super) fn normal_with(&self, locations: &[MeshPoint], ratio: DVec3, drag: Drag) -> Option<Normal> {
         let ratio_free = drag.is_free();
         let settings = self.settings;

@@ -50,7 +50,8 @@ pub struct ContactEstimate {
     pub point_world: DVec3,
     /// Inward unit normal.
     pub inward_normal_world: DVec3,
-    /// Force on the robot, N: `f* n`.
+    /// Force on the robot, N: the push along the normal plus any
+    /// tangential force.
     pub force_world: DVec3,
     /// Its magnitude, N.
     pub force_newtons: f64,
@@ -138,6 +139,13 @@ pub struct Summary {
 }
 
 impl ContactEstimate {
+    /// The force's part along the surface (friction), world frame, N.
+    #[must_use]
+    pub fn tangential_world(&self) -> DVec3 {
+        let n = self.inward_normal_world;
+        self.force_world - n * self.force_world.dot(n)
+    }
+
     /// The first of its numbers that is not finite, by name.
     fn non_finite(&self) -> Option<&'static str> {
         if !self.point_world.is_finite() {

@@ -127,3 +127,22 @@ fn per_link_shares_add_up_their_points() {
     let all: f64 = summary.per_link.iter().map(|s| s.summed).sum();
     assert!((all - 1.0).abs() < 1e-12);
 }
+
+/// A contact's tangential force is its force less the part along its
+/// normal: a 3-4-12 N force on a surface facing −z pushes 12 N along the
+/// normal and drags 5 N along the surface.
+#[test]
+fn the_tangential_force_is_the_force_along_the_surface() {
+    let contact = ContactEstimate {
+        point: 0,
+        link: 0,
+        point_world: DVec3::ZERO,
+        inward_normal_world: DVec3::Z,
+        force_world: DVec3::new(3.0, 4.0, 12.0),
+        force_newtons: 13.0,
+        probability: 1.0,
+    };
+    let tangential = contact.tangential_world();
+    assert!(tangential.distance(DVec3::new(3.0, 4.0, 0.0)) < 1e-12, "{tangential:?}");
+    assert!((tangential.length() - 5.0).abs() < 1e-12);
+}

@@ -41,6 +41,19 @@ fn presses_come_and_go_hold_their_place_and_reproduce_per_seed() {
     assert!((rms - 0.05).abs() < 0.005, "{rms}");
 }
 
+/// Each step of a contact that stays on one link from a frame to the
+/// next, m; jumps of a centimetre or more (a new press) left out.
+fn slide_steps(frames: &[SynthFrame]) -> Vec<f64> {
+    frames
+        .windows(2)
+        .filter_map(|w| match (w[0].contact, w[1].contact) {
+            (Some(x), Some(y)) if x.link == y.link => Some(x.point_in_link.distance(y.point_in_link)),
+            _ => None,
+        })
+        .filter(|d| *d < 0.01)
+        .collect()
+}
+
 #[test]
 fn slides_move_the_contact_at_about_the_asked_speed() {
     let robot = builtin::lwr4plus_generated().unwrap();
@@ -50,14 +63,7 @@ fn slides_move_the_contact_at_about_the_asked_speed() {
         ..SynthSettings::default()
     };
     let a = synthesize(&robot, &links, &settings, 5).unwrap();
-    let steps: Vec<f64> = a
-        .windows(2)
-        .filter_map(|w| match (w[0].contact, w[1].contact) {
-            (Some(x), Some(y)) if x.link == y.link => Some(x.point_in_link.distance(y.point_in_link)),
-            _ => None,
-        })
-        .filter(|d| *d < 0.01)
-        .collect();
+    let steps = slide_steps(&a);
     let fastest = steps.iter().copied().fold(0.0, f64::max);
     assert!(fastest > 0.0 && fastest <= 0.04 / 200.0 * 1.01, "{fastest}");
 }
@@ -262,14 +268,7 @@ fn slides_are_at_least_the_slowest_speed_asked() {
         ..SynthSettings::default()
     };
     let frames = synthesize(&robot, &links, &settings, 5).unwrap();
-    let steps: Vec<f64> = frames
-        .windows(2)
-        .filter_map(|w| match (w[0].contact, w[1].contact) {
-            (Some(x), Some(y)) if x.link == y.link => Some(x.point_in_link.distance(y.point_in_link)),
-            _ => None,
-        })
-        .filter(|d| *d < 0.01)
-        .collect();
+    let steps = slide_steps(&frames);
     let slowest = steps.iter().copied().fold(f64::INFINITY, f64::min);
     // A step along a curved mesh is a chord of the walk: a little shorter.
     assert!(steps.len() > 100 && slowest >= 0.02 / 200.0 * 0.9, "{slowest}");
