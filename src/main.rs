@@ -59,6 +59,12 @@ enum Command {
         /// arrives, and the view follows the newest (see `stream`).
         #[arg(long)]
         live: Option<String>,
+        /// Also publish what the view shows to Foxglove over its WebSocket
+        /// protocol on this address (default 127.0.0.1:8765, loopback);
+        /// open it in Foxglove with Open connection → Foxglove WebSocket →
+        /// `ws://ADDR`.
+        #[arg(long, num_args = 0..=1, default_missing_value = proprioscope::io::foxglove::serve::DEFAULT_SERVE_ADDR)]
+        serve: Option<String>,
         /// The robot of a session (overrides the session's; a CSV session
         /// needs one): a built-in name or a URDF.
         #[arg(long)]
@@ -269,13 +275,14 @@ fn run(cli: Cli) -> Result<()> {
         Some(Command::View {
             target,
             live,
+            serve,
             robot,
             package_paths,
         }) => run_app(
             target.as_deref().or(robot.as_deref()),
             robot.as_deref(),
             &package_paths,
-            live,
+            (live, serve),
         ),
         Some(Command::Screenshot {
             target,
@@ -286,7 +293,7 @@ fn run(cli: Cli) -> Result<()> {
             height,
         }) => screenshot(target.as_deref(), robot.as_deref(), frame, &out, [width, height]),
         Some(Command::RecordDemo { out, rate, seconds }) => record_demo(&out, rate, seconds),
-        None => run_app(None, None, &[], None),
+        None => run_app(None, None, &[], (None, None)),
     }
 }
 
@@ -548,10 +555,16 @@ fn screenshot(
 
 #[cfg(feature = "gui")]
 /// Opens the app: on the built-in LWR with a push, or on `target`.
-fn run_app(target: Option<&str>, robot: Option<&str>, package_paths: &[PathBuf], live: Option<String>) -> Result<()> {
+fn run_app(
+    target: Option<&str>,
+    robot: Option<&str>,
+    package_paths: &[PathBuf],
+    (live, serve): (Option<String>, Option<String>),
+) -> Result<()> {
     use proprioscope::app::ProprioscopeApp;
     let mut start = proprioscope::app::open_target_with(target, robot, package_paths)?;
     start.live = live;
+    start.serve = serve;
     let options = eframe::NativeOptions {
         viewport: eframe::egui::ViewportBuilder::default()
             .with_inner_size([1400.0, 900.0])
@@ -645,7 +658,7 @@ fn screenshot(_: Option<&str>, _: Option<&str>, _: Option<usize>, _: &Path, _: [
 }
 
 #[cfg(not(feature = "gui"))]
-fn run_app(_: Option<&str>, _: Option<&str>, _: &[PathBuf], _: Option<String>) -> Result<()> {
+fn run_app(_: Option<&str>, _: Option<&str>, _: &[PathBuf], _: (Option<String>, Option<String>)) -> Result<()> {
     without_gui("view")
 }
 

@@ -11,7 +11,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 /// The rooms of `core`, bottom floor first, with their floor.
-const ROOMS: [(&str, usize); 8] = [
+const ROOMS: [(&str, usize); 9] = [
     ("core::numerics", 1),
     ("core::geometry", 2),
     ("core::robot", 3),
@@ -20,6 +20,7 @@ const ROOMS: [(&str, usize); 8] = [
     ("core::over_time", 6),
     ("core::config", 7),
     ("core::eval", 7),
+    ("core::paint", 7),
 ];
 
 /// The library's layers, bottom first.

@@ -7,6 +7,7 @@ pub mod calibration;
 mod commands;
 mod estimator_panel;
 pub mod files;
+mod foxglove;
 pub mod heat;
 mod inspect;
 pub mod live;
@@ -143,6 +144,8 @@ pub struct ProprioscopeApp {
     pub session: timeline::SessionPart,
     /// A live source and its filter.
     live: live::LivePart,
+    /// `--serve`: what the view shows, published to Foxglove.
+    foxglove: foxglove::FoxglovePart,
     /// Files: paths typed, package folders, the recorder.
     pub files: files::Files,
     /// Recordings' topics chosen and asked for.
@@ -186,6 +189,7 @@ impl ProprioscopeApp {
             robot_panel: robot_panel::RobotPanel::default(),
             session: timeline::SessionPart::spawn(&cc.egui_ctx),
             live: live::LivePart::default(),
+            foxglove: foxglove::FoxglovePart::default(),
             files: files::Files::default(),
             topics: topic_prompt::TopicPrompts::default(),
         };
@@ -207,6 +211,12 @@ impl ProprioscopeApp {
         }
         if let Some(address) = start.live {
             app.start_live(&address);
+        }
+        if let Some(address) = start.serve {
+            app.foxglove = foxglove::FoxglovePart::start(&address);
+            if let Some(e) = &app.foxglove.error {
+                app.error = Some(e.clone());
+            }
         }
         app
     }
@@ -439,6 +449,12 @@ impl ProprioscopeApp {
         }
     }
 
+    /// Where `--serve` publishes to Foxglove (with the port it was given).
+    #[must_use]
+    pub fn foxglove_address(&self) -> Option<std::net::SocketAddr> {
+        self.foxglove.address()
+    }
+
     /// The estimate shown: the latest one, if it was made for the current
     /// robot (anything drawn from an estimate reads it through here).
     #[must_use]
@@ -579,5 +595,8 @@ impl eframe::App for ProprioscopeApp {
         }
         let ctx = ui.ctx().clone();
         self.record_tick(&ctx);
+        let mut foxglove = std::mem::take(&mut self.foxglove);
+        foxglove.publish(&self.shown());
+        self.foxglove = foxglove;
     }
 }

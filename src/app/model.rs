@@ -111,10 +111,12 @@ pub struct ViewOptions {
 
 impl Default for ViewOptions {
     fn default() -> Self {
+        // The heat as Foxglove is sent it (`core::paint::heat::HeatStyle`).
+        let style = crate::core::paint::heat::HeatStyle::default();
         Self {
-            log_scale: true,
-            threshold: 0.0,
-            red_green: false,
+            log_scale: style.log_scale,
+            threshold: style.threshold,
+            red_green: style.red_green,
             show_points: false,
             show_axes: false,
             layer: super::heat::HeatLayer::Posterior,

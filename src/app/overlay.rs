@@ -6,6 +6,7 @@ use eframe::egui;
 use glam::{DVec3, Vec2};
 
 use super::heat::Legend;
+use crate::core::paint::colours::arrow_rgb;
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::surface::picking::Picker;
 use crate::render::camera::OrbitCamera;
@@ -29,12 +30,13 @@ impl MarkerRole {
     /// green).
     #[must_use]
     pub fn colour(self) -> egui::Color32 {
-        match self {
-            Self::Push => egui::Color32::from_rgb(255, 70, 210),
-            Self::Estimate => egui::Color32::from_rgb(40, 225, 255),
-            Self::OverTime => egui::Color32::from_rgb(245, 245, 245),
-            Self::Tangential => egui::Color32::from_rgb(90, 255, 90),
-        }
+        let [r, g, b] = match self {
+            Self::Push => arrow_rgb::PUSH,
+            Self::Estimate => arrow_rgb::ESTIMATE,
+            Self::OverTime => arrow_rgb::OVER_TIME,
+            Self::Tangential => arrow_rgb::TANGENTIAL,
+        };
+        egui::Color32::from_rgb(r, g, b)
     }
 
     /// Its name in the view's caption.
@@ -61,10 +63,7 @@ pub struct Marker {
     pub force_world: DVec3,
 }
 
-/// The least tangential force drawn as its own arrow, N: below it the
-/// arrow would be shorter than its head (and a held press's estimate
-/// carries a few tenths of a newton of fitted drag).
-pub const TANGENTIAL_ARROW_MIN_NEWTONS: f64 = 0.5;
+pub use crate::core::paint::colours::TANGENTIAL_ARROW_MIN_NEWTONS;
 
 /// The arrow of an over-time estimate's tangential force (`tangential_world`,
 /// N) at its contact, where it reaches [`TANGENTIAL_ARROW_MIN_NEWTONS`].
@@ -77,12 +76,7 @@ pub fn tangential_marker(point_world: DVec3, tangential_world: DVec3) -> Option<
     })
 }
 
-/// Arrow length for a force: 5 cm at 1 N and below, growing with the
-/// logarithm so that 1–30 N all read (1.6 N: 7 cm, 10 N: 17 cm, 30 N: 22 cm).
-#[must_use]
-pub fn arrow_length_m(force_newtons: f64) -> f64 {
-    0.05 * (1.0 + force_newtons.max(1.0).ln())
-}
+pub use crate::core::paint::colours::arrow_length_m;
 
 /// An arrow as drawn: its ends on the screen and whether the arm hides
 /// its tip.

@@ -51,6 +51,8 @@ pub struct AppStart {
     pub package_paths: Vec<std::path::PathBuf>,
     /// An address to listen on for a live session.
     pub live: Option<String>,
+    /// An address to serve Foxglove's WebSocket protocol on (`--serve`).
+    pub serve: Option<String>,
     /// The robot was named (a scene, URDF or built-in name), not the
     /// default: sessions that name no robot may be shown on it.
     pub robot_chosen: bool,
@@ -122,6 +124,7 @@ pub fn open_target_with(
                 live: None,
                 package_paths: package_paths.to_vec(),
                 robot_chosen: false,
+                serve: None,
             }
         }
         Some(t) if t.to_ascii_lowercase().ends_with(".json") => scene_start(Path::new(t), package_paths)?,
@@ -146,6 +149,7 @@ pub fn open_target_with(
                 live: None,
                 package_paths: package_paths.to_vec(),
                 robot_chosen: true,
+                serve: None,
             }
         }
     })
@@ -211,6 +215,7 @@ fn scene_start(path: &std::path::Path, package_paths: &[std::path::PathBuf]) -> 
         live: None,
         package_paths,
         robot_chosen: true,
+        serve: None,
     })
 }
 

@@ -3,6 +3,8 @@
 
 use std::fmt::Write as _;
 
+use crate::core::paint::vertices::vertex_colour;
+
 use super::{
     Command, DVec3, Frame, Heat, HeatLayer, Legend, LinkId, Marker, MarkerRole, OBSERVABILITY_PUSH_NEWTONS,
     OrbitCamera, PUSH_NEWTONS_PER_POINT, Picker, Push, ROBOT_GREY, Renderer, Robot, RobotPose, Vec2, Verdict, ViewKey,
@@ -388,19 +390,10 @@ impl ViewPart {
             let (Some(o), Some(h)) = (outcome, heat.as_ref()) else {
                 return ROBOT_GREY;
             };
-            match o.nearest.get(link).and_then(|v| v.get(vertex)) {
-                Some(weights) if !weights.is_empty() => {
-                    let mut c = [0.0f32; 4];
-                    for &(k, w) in weights {
-                        let sample = h.colours.get(k).copied().unwrap_or(ROBOT_GREY);
-                        for (ci, si) in c.iter_mut().zip(sample) {
-                            *ci += w as f32 * si;
-                        }
-                    }
-                    c
-                }
-                _ => ROBOT_GREY,
-            }
+            o.nearest
+                .get(link)
+                .and_then(|v| v.get(vertex))
+                .map_or(ROBOT_GREY, |weights| vertex_colour(weights, &h.colours))
         };
         robot_triangles(&shown.model.robot, &pose, &colour, &mut frame.triangles);
         grid_and_axes(1.0, 0.1, &mut frame.lines);

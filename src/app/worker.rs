@@ -156,6 +156,13 @@ fn failed(request: &Request, message: String) -> Outcome {
     }
 }
 
+/// The worker's answer to one request, on the caller's thread, with no
+/// surface kept for the next.
+#[cfg(test)]
+pub(crate) fn answer(request: &Request) -> Outcome {
+    serve(&mut None, request)
+}
+
 /// Answers one request, reusing the sampled surface in `cache` when the
 /// robot, links, resolution and phases are those it was made for. A
 /// panic leaves `cache` empty (it is rebuilt by the next request).

@@ -7,10 +7,10 @@ use std::time::Instant;
 use anyhow::{Context as _, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use proprioscope::batch::pairs::{FramePair, PairScore, SingleSeen, session_pairs};
-use proprioscope::batch::{FrameEstimate, credible_set_holds_truth, frame_outcome, session_robot};
+use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot};
 use proprioscope::core::config::estimator::{EstimatorConfig, Friction};
 use proprioscope::core::config::limits;
-use proprioscope::core::estimate::estimator::{Estimator, Update};
+use proprioscope::core::estimate::estimator::Estimator;
 use proprioscope::core::estimate::summary::Verdict;
 use proprioscope::core::eval::metrics::{
     FrameOutcome, Metrics, detection, metrics, metrics_by_sensing_joints, percentile,
@@ -21,11 +21,12 @@ use proprioscope::core::over_time::pairs::SecondContactChain;
 use proprioscope::core::over_time::sequence::{Temporal, automatic_temporal, estimate_sequence};
 use proprioscope::core::over_time::temporal::is_continuous_recording;
 use proprioscope::core::robot::model::Robot;
-use proprioscope::io::mcap_out::{EstimateMessage, EstimateWriter};
-use proprioscope::io::recording::{is_recording, read_bytes};
+use proprioscope::io::foxglove::{Arrow, ArrowRole};
+use proprioscope::io::mcap_out::EstimateMessage;
+use proprioscope::io::recording::is_recording;
 use proprioscope::io::session::{Session, kept_frame_numbers};
 
-use super::output::{SlideVelocity, frame_json};
+use super::estimate_out::{Out, json_line};
 use super::{EstimatorArgs, TemporalArg, TemporalArgs, TopicArgs, option_error};
 
 /// Options of `estimate`.
@@ -47,6 +48,17 @@ pub struct EstimateArgs {
     /// killed; a closed connection waits for the next; at least 1).
     #[arg(long, requires = "live", value_parser = super::counted(&limits::LIVE_FRAMES))]
     pub live_frames: Option<usize>,
+    /// With --live: also publish each estimate to Foxglove over its
+    /// WebSocket protocol on this address (default 127.0.0.1:8765,
+    /// loopback); open it in Foxglove with Open connection → Foxglove
+    /// WebSocket → `ws://ADDR`.
+    #[arg(long, requires = "live", num_args = 0..=1, default_missing_value = proprioscope::io::foxglove::serve::DEFAULT_SERVE_ADDR)]
+    pub serve: Option<String>,
+    /// With an MCAP --out or --serve: the most Foxglove transforms a
+    /// second of the recording, Hz (every frame at this rate or slower; 0:
+    /// every frame).
+    #[arg(long, default_value_t = proprioscope::io::foxglove::TRANSFORMS_HZ, value_parser = super::within(&limits::TRANSFORMS_HZ))]
+    pub tf_hz: f64,
     /// The robot (built-in name or URDF), overriding the session's.
     #[arg(long)]
     pub robot: Option<String>,
@@ -119,141 +131,6 @@ fn read_session(args: &EstimateArgs, path: &std::path::Path) -> Result<(Session,
         let all: Vec<usize> = (0..session.frames.len()).collect();
         (session, all, None)
     })
-}
-
-/// Where `--out` goes: JSON lines, or an MCAP file with the input's
-/// topics and the estimates.
-enum Out {
-    Json(std::io::BufWriter<std::fs::File>, SlideVelocity),
-    Mcap(Box<EstimateWriter>),
-}
-
-impl Out {
-    /// `.mcap` gets the input (a recording's messages, or a session's
-    /// frames as joint states and truth), then an estimate a frame.
-    fn create(
-        out_path: &std::path::Path,
-        input: &std::path::Path,
-        session: &Session,
-        robot: &Robot,
-        origin_ns: Option<i64>,
-    ) -> Result<Self> {
-        let is_mcap = out_path
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| e.eq_ignore_ascii_case("mcap"));
-        if !is_mcap {
-            let file = std::fs::File::create(out_path).with_context(|| format!("creating {}", out_path.display()))?;
-            return Ok(Self::Json(std::io::BufWriter::new(file), SlideVelocity::default()));
-        }
-        let world = robot.links.get(robot.root).map_or("world", |l| l.name.as_str());
-        let mut w = EstimateWriter::create(out_path, world)?;
-        if is_recording(input) {
-            w.copy_recording(input, &read_bytes(input)?)?;
-        } else {
-            let joints = session
-                .joints
-                .clone()
-                .unwrap_or_else(|| robot.sensed_names().into_iter().map(str::to_owned).collect());
-            w.write_frames(&joints, &session.frames, origin_ns.unwrap_or(0))?;
-        }
-        Ok(Self::Mcap(Box::new(w)))
-    }
-
-    /// One frame's estimate (`frame`: its number in the file, and it).
-    #[allow(clippy::too_many_arguments)] // what a line holds, each from its own place
-    fn write(
-        &mut self,
-        estimator: &Estimator,
-        robot: &Robot,
-        (number, frame): (usize, &proprioscope::io::session::Frame),
-        update: &Update,
-        ms: f64,
-        outcome: Option<&FrameOutcome>,
-        origin_ns: Option<i64>,
-    ) -> Result<()> {
-        match self {
-            Self::Json(w, slide) => {
-                let mut line = json_line(estimator, robot, (number, frame), update, ms, outcome);
-                slide.mark(&mut line);
-                writeln!(w, "{line}").context("writing --out")
-            }
-            Self::Mcap(w) => w
-                .write_estimate(&estimate_message(
-                    estimator,
-                    robot,
-                    update,
-                    origin_ns.unwrap_or(0),
-                    frame.t,
-                ))
-                .context("writing --out"),
-        }
-    }
-
-    /// Frames made elsewhere: their JSON lines, or their MCAP estimates.
-    fn write_made(&mut self, lines: &mut [serde_json::Value], messages: &[EstimateMessage]) -> Result<()> {
-        match self {
-            Self::Json(w, slide) => {
-                for line in lines {
-                    slide.mark(line);
-                    writeln!(w, "{line}").context("writing --out")?;
-                }
-            }
-            Self::Mcap(w) => {
-                for message in messages {
-                    w.write_estimate(message).context("writing --out")?;
-                }
-            }
-        }
-        Ok(())
-    }
-
-    /// Whether the estimates go to an MCAP.
-    fn is_mcap(&self) -> bool {
-        matches!(self, Self::Mcap(_))
-    }
-
-    /// Flushes JSON lines, or closes the MCAP with its summary.
-    fn finish(self) -> Result<()> {
-        match self {
-            Self::Json(mut w, _) => w.flush().context("writing --out"),
-            Self::Mcap(w) => Ok(w.finish()?),
-        }
-    }
-}
-
-/// A frame's estimate as the MCAP output holds it.
-fn estimate_message(estimator: &Estimator, robot: &Robot, update: &Update, origin_ns: i64, t: f64) -> EstimateMessage {
-    let s = &update.summary;
-    let contact = s.verdict != Verdict::NoContact;
-    let region = if contact {
-        s.credible90
-            .points
-            .iter()
-            .filter_map(|&i| {
-                let p = estimator.surface.point_world(&update.pose, i)?;
-                Some((
-                    p.to_array(),
-                    update.posterior.probability.get(i).copied().unwrap_or(0.0),
-                ))
-            })
-            .collect()
-    } else {
-        Vec::new()
-    };
-    EstimateMessage {
-        stamp_ns: origin_ns.saturating_add((t * 1e9).round() as i64),
-        contact_probability: s.contact_probability,
-        contact: contact.then(|| {
-            (
-                robot.links.get(s.map.link).map_or_else(String::new, |l| l.name.clone()),
-                s.map.point_world.to_array(),
-                s.map.force_world.to_array(),
-            )
-        }),
-        second_contact: None,
-        region,
-    }
 }
 
 /// Every frame's joint positions, in the robot's order.
@@ -396,6 +273,15 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
         ),
     };
     let positions = joint_positions(&robot, &session, &file_frames)?;
+    if let Some(out) = out.as_mut() {
+        let first_ns = session.frames.first().map_or(0, |f| (f.t * 1e9).round() as i64);
+        out.draw_for_foxglove(
+            &robot,
+            &estimator,
+            (temporal != Temporal::None, args.tf_hz),
+            origin_ns.unwrap_or(0).saturating_add(first_ns),
+        )?;
+    }
     let (taus, sigma) = frame_torques(args, &robot, &session, &estimator.settings.sigma, &config, temporal)?;
     estimator.settings.sigma = sigma;
     let sequence = frame_sequence(&session, &positions, &taus);
@@ -437,19 +323,23 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
                 if two_contacts {
                     // The frame's output waits for the session's second contacts.
                     singles.push(SingleSeen::of(&update));
-                    if out.as_ref().is_some_and(Out::is_mcap) {
-                        messages.push(estimate_message(
-                            &estimator,
-                            &robot,
-                            &update,
-                            origin_ns.unwrap_or(0),
-                            frame.t,
-                        ));
+                    if let Some(w) = out.as_mut().filter(|o| o.is_mcap()) {
+                        let q = positions.get(n).map_or(&[][..], Vec::as_slice);
+                        messages.push(w.message(&estimator, &robot, (frame, q), &update, origin_ns.unwrap_or(0)));
                     } else {
                         pending.push(json_line(&estimator, &robot, (i, frame), &update, ms, outcome.as_ref()));
                     }
                 } else if let (Some(w), Ok(())) = (out.as_mut(), &written) {
-                    written = w.write(&estimator, &robot, (i, frame), &update, ms, outcome.as_ref(), origin_ns);
+                    let q = positions.get(n).map_or(&[][..], Vec::as_slice);
+                    written = w.write(
+                        &estimator,
+                        &robot,
+                        (i, frame, q),
+                        &update,
+                        ms,
+                        outcome.as_ref(),
+                        origin_ns,
+                    );
                 }
                 bar.inc(1);
             },
@@ -531,6 +421,14 @@ fn write_with_second_contacts(
             let [a, b] = &p.pair.contacts;
             message.contact = Some(named(a));
             message.second_contact = Some(named(b));
+            if let Some(arrows) = message.foxglove.as_mut().and_then(|f| f.arrows.as_mut()) {
+                arrows.retain(|a| a.role == ArrowRole::Push);
+                arrows.extend([a, b].map(|c| Arrow {
+                    role: ArrowRole::Estimate,
+                    point_world: c.point_world,
+                    force_world: c.force_world,
+                }));
+            }
         }
     }
     if let Some(w) = out {
@@ -561,36 +459,6 @@ fn add_second_contacts(
         );
     }
     score
-}
-
-/// One frame's JSON line, its `contacts` the single contact's (or none).
-fn json_line(
-    estimator: &Estimator,
-    robot: &Robot,
-    (number, frame): (usize, &proprioscope::io::session::Frame),
-    update: &Update,
-    ms: f64,
-    outcome: Option<&FrameOutcome>,
-) -> serde_json::Value {
-    let held = credible_set_holds_truth(robot, &estimator.surface, update, &frame.truth);
-    let mut line = frame_json(robot, (number, frame.t), update, ms, &frame.truth, (outcome, held));
-    line["contacts"] = single_contact_json(robot, update);
-    line
-}
-
-/// A frame's `contacts` with one contact or none: the summary's.
-fn single_contact_json(robot: &Robot, update: &Update) -> serde_json::Value {
-    let s = &update.summary;
-    if s.verdict == Verdict::NoContact {
-        return serde_json::json!([]);
-    }
-    serde_json::json!([{
-        "link": robot.links.get(s.map.link).map(|l| l.name.clone()),
-        "point": s.map.point_world.to_array(),
-        "force": s.map.force_world.to_array(),
-        "probability": s.contact_probability.unwrap_or(1.0),
-        "credible90_radius_m": s.credible90.radius_m,
-    }])
 }
 
 /// A frame's `contacts` where two are called: each with its probability

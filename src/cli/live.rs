@@ -10,9 +10,11 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result, bail};
 use proprioscope::batch::{FrameEstimate, credible_set_holds_truth, frame_outcome, session_robot};
 use proprioscope::core::config::limits;
-use proprioscope::core::estimate::estimator::Estimator;
+use proprioscope::core::estimate::estimator::{Estimator, Update};
 use proprioscope::core::over_time::sequence::{SequenceError, StreamFilter, Temporal};
 use proprioscope::core::over_time::temporal::TemporalModel;
+use proprioscope::io::foxglove::serve::FoxgloveServer;
+use proprioscope::io::foxglove::{ArmScene, FoxglovePainter, frame_messages, opening};
 use proprioscope::io::live::{LiveEvent, LiveSource};
 use proprioscope::io::session::Session;
 
@@ -150,12 +152,22 @@ struct Live {
     model: Option<TemporalModel>,
     /// The belief and friction gate carried between frames.
     filter: StreamFilter,
+    /// With --serve: the arm's scene and what Foxglove is sent a frame.
+    foxglove: Option<(ArmScene, FoxglovePainter)>,
 }
 
 /// `estimate --live ADDR`.
 pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
     let source = LiveSource::listen(address, || {})?;
     log::info!("listening on {}", source.address);
+    let mut server = match &args.serve {
+        Some(addr) => {
+            let server = FoxgloveServer::start(addr, "proprioscope estimate --live")?;
+            log::info!("{}", server.open_hint());
+            Some(server)
+        }
+        None => None,
+    };
     let mut slide = SlideVelocity::default();
     let mut out: Box<dyn std::io::Write> = match &args.out {
         Some(path) => Box::new(std::io::BufWriter::new(
@@ -216,11 +228,19 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
             LiveEvent::Closed(why) => log::info!("{why} after {done} frames in all"),
             LiveEvent::Frame(frame) => {
                 if live.is_none() {
-                    live = Some(start(args, robot_name.as_deref(), temporal)?);
+                    let started = start(args, robot_name.as_deref(), temporal)?;
+                    if let (Some(server), Some((scene, _))) = (server.as_mut(), started.foxglove.as_ref()) {
+                        server.set_opening(opening(scene, seconds_ns(frame.t)))?;
+                    }
+                    live = Some(started);
                 }
                 let Some(l) = live.as_mut() else { continue };
                 match estimate_frame(l, done, &frame, temporal) {
-                    Ok(mut value) => {
+                    Ok((mut value, update, positions)) => {
+                        if let (Some(server), Some((scene, painter))) = (server.as_mut(), l.foxglove.as_mut()) {
+                            let drawn = painter.frame(&l.estimator, &update, &frame, &positions, seconds_ns(frame.t));
+                            server.publish(&frame_messages(scene, &drawn))?;
+                        }
                         slide.mark(&mut value);
                         writeln!(out, "{value}").context("writing an estimate")?;
                         out.flush().context("writing an estimate")?;
@@ -254,22 +274,32 @@ fn start(args: &EstimateArgs, robot: Option<&str>, temporal: Temporal) -> Result
         Temporal::None => None,
         _ => Some(config.temporal_model(&estimator.surface, estimator.uses_patches())?),
     };
+    let foxglove = args.serve.is_some().then(|| {
+        let painter = FoxglovePainter::new(&robot, &estimator, temporal != Temporal::None, args.tf_hz);
+        (ArmScene::new(&robot), painter)
+    });
     Ok(Live {
         robot,
         estimator,
         model,
         filter: StreamFilter::default(),
+        foxglove,
     })
 }
 
+/// A frame's time as nanoseconds.
+fn seconds_ns(t: f64) -> i64 {
+    (t * 1e9).round() as i64
+}
+
 /// One frame's estimate as a JSON line (with the contact probability when
-/// filtered).
+/// filtered), the estimate, and the joint positions in the robot's order.
 fn estimate_frame(
     live: &mut Live,
     number: usize,
     frame: &proprioscope::io::session::Frame,
     temporal: Temporal,
-) -> Result<serde_json::Value> {
+) -> Result<(serde_json::Value, Update, Vec<f64>)> {
     let positions = live.robot.joint_positions(&frame.q, &[])?;
     let t0 = Instant::now();
     let update = match (temporal, live.model.as_ref()) {
@@ -293,12 +323,13 @@ fn estimate_frame(
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     let outcome = frame_outcome(&live.robot, &FrameEstimate::of(&update, ms), &frame.truth);
     let held = credible_set_holds_truth(&live.robot, &live.estimator.surface, &update, &frame.truth);
-    Ok(frame_json(
+    let line = frame_json(
         &live.robot,
         (number, frame.t),
         &update,
         ms,
         &frame.truth,
         (outcome.as_ref(), held),
-    ))
+    );
+    Ok((line, update, positions))
 }

@@ -4,6 +4,7 @@ pub mod bench;
 pub mod bench_recording;
 pub mod calibrate;
 pub mod estimate;
+pub mod estimate_out;
 pub mod live;
 pub mod output;
 pub mod synth;

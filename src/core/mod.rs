@@ -17,3 +17,5 @@ pub mod over_time;
 pub mod config;
 
 pub mod eval;
+
+pub mod paint;

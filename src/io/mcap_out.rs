@@ -15,12 +15,14 @@
 //!   second (`/proprioscope/contact` then holds the first of the pair);
 //! - `/proprioscope/region` (`sensor_msgs/PointCloud2`, world frame): the
 //!   90 % credible set, fields `x y z` and `probability` (float32), empty
-//!   in frames without contact.
+//!   in frames without contact; at the times of the Foxglove scene
+//!   (`super::foxglove`'s arrows, at most 30 a second) where it is drawn.
 
 use std::collections::{BTreeMap, HashMap};
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
+use super::foxglove::{ArmScene, FoxgloveFrame, Outgoing, frame_messages, opening};
 use super::recording::{
     RecordingError, SECOND_TRUTH_POINT_TOPIC, SECOND_TRUTH_TOPIC, TRUTH_POINT_TOPIC, TRUTH_TOPIC, scan,
 };
@@ -56,8 +58,13 @@ pub struct EstimateMessage {
     /// The second contact where two are called (`contact` is then the
     /// first of the pair), as `contact`.
     pub second_contact: Option<(String, [f64; 3], [f64; 3])>,
-    /// The probable region: points (world, m) with their probability.
-    pub region: Vec<([f64; 3], f64)>,
+    /// The probable region: points (world, m) with their probability;
+    /// `None`: not written for this frame (it follows the Foxglove scene's
+    /// rate where there is one).
+    pub region: Option<Vec<([f64; 3], f64)>>,
+    /// What Foxglove shows of the frame, written where the writer has the
+    /// arm's scene ([`EstimateWriter::add_foxglove`]).
+    pub foxglove: Option<FoxgloveFrame>,
 }
 
 const HEADER_DEPS: &str = "================================================================================
@@ -98,50 +105,50 @@ fn schema_text(name: &str) -> String {
 }
 
 /// A little-endian CDR message under construction.
-struct Cdr(Vec<u8>);
+pub(crate) struct Cdr(pub(crate) Vec<u8>);
 
 impl Cdr {
-    fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Self(vec![0, 1, 0, 0])
     }
 
-    fn align(&mut self, size: usize) {
+    pub(crate) fn align(&mut self, size: usize) {
         while !(self.0.len() - 4).is_multiple_of(size) {
             self.0.push(0);
         }
     }
 
-    fn u8(&mut self, v: u8) -> &mut Self {
+    pub(crate) fn u8(&mut self, v: u8) -> &mut Self {
         self.0.push(v);
         self
     }
 
-    fn u32(&mut self, v: u32) -> &mut Self {
+    pub(crate) fn u32(&mut self, v: u32) -> &mut Self {
         self.align(4);
         self.0.extend(v.to_le_bytes());
         self
     }
 
-    fn i32(&mut self, v: i32) -> &mut Self {
+    pub(crate) fn i32(&mut self, v: i32) -> &mut Self {
         self.align(4);
         self.0.extend(v.to_le_bytes());
         self
     }
 
-    fn f64(&mut self, v: f64) -> &mut Self {
+    pub(crate) fn f64(&mut self, v: f64) -> &mut Self {
         self.align(8);
         self.0.extend(v.to_le_bytes());
         self
     }
 
-    fn string(&mut self, s: &str) -> &mut Self {
+    pub(crate) fn string(&mut self, s: &str) -> &mut Self {
         self.u32(s.len() as u32 + 1);
         self.0.extend(s.as_bytes());
         self.0.push(0);
         self
     }
 
-    fn header(&mut self, stamp_ns: i64, frame_id: &str) -> &mut Self {
+    pub(crate) fn header(&mut self, stamp_ns: i64, frame_id: &str) -> &mut Self {
         let sec = stamp_ns.div_euclid(1_000_000_000);
         let nanosec = stamp_ns.rem_euclid(1_000_000_000);
         self.i32(i32::try_from(sec).unwrap_or(i32::MAX))
@@ -149,11 +156,11 @@ impl Cdr {
             .string(frame_id)
     }
 
-    fn xyz(&mut self, v: [f64; 3]) -> &mut Self {
+    pub(crate) fn xyz(&mut self, v: [f64; 3]) -> &mut Self {
         self.f64(v[0]).f64(v[1]).f64(v[2])
     }
 
-    fn floats(&mut self, v: &[f64]) -> &mut Self {
+    pub(crate) fn floats(&mut self, v: &[f64]) -> &mut Self {
         self.u32(v.len() as u32);
         for &x in v {
             self.f64(x);
@@ -169,6 +176,10 @@ pub struct EstimateWriter {
     world_frame: String,
     /// Our channels by topic.
     channels: HashMap<&'static str, u16>,
+    /// The Foxglove messages' channels by topic.
+    foxglove_channels: HashMap<&'static str, u16>,
+    /// The arm's scene, where the estimates are drawn for Foxglove.
+    scene: Option<ArmScene>,
     sequence: u32,
 }
 
@@ -189,7 +200,11 @@ impl EstimateWriter {
             reason,
         };
         let file = std::fs::File::create(path).map_err(|e| fail(e.to_string()))?;
+        // Chunks of 4 MiB rather than 768 KiB: the heatmaps repeat their
+        // points and colours, and larger chunks let the compression find
+        // them (4 % smaller on a 1 kHz minute, docs/validation.md).
         let options = mcap::WriteOptions::new()
+            .chunk_size(Some(4 << 20))
             .profile("ros2")
             .library(concat!("proprioscope/", env!("CARGO_PKG_VERSION")));
         let writer = options.create(BufWriter::new(file)).map_err(|e| fail(e.to_string()))?;
@@ -198,6 +213,8 @@ impl EstimateWriter {
             writer,
             world_frame: world_frame.to_owned(),
             channels: HashMap::new(),
+            foxglove_channels: HashMap::new(),
+            scene: None,
             sequence: 0,
         };
         for (topic, schema) in OUT_TOPICS {
@@ -386,22 +403,60 @@ impl EstimateWriter {
             q.header(e.stamp_ns, &world).xyz(*p);
             self.write(point, e.stamp_ns, &q.0)?;
         }
-        let mut c = Cdr::new();
-        c.header(e.stamp_ns, &world).u32(1).u32(e.region.len() as u32);
-        c.u32(4);
-        for (k, name) in ["x", "y", "z", "probability"].iter().enumerate() {
-            // FLOAT32 = 7, one each.
-            c.string(name).u32(4 * k as u32).u8(7).u32(1);
-        }
-        c.u8(0).u32(16).u32(16 * e.region.len() as u32);
-        c.u32(16 * e.region.len() as u32);
-        for (p, probability) in &e.region {
-            for v in [p[0], p[1], p[2], *probability] {
-                c.0.extend((v as f32).to_le_bytes());
+        if let Some(points) = &e.region {
+            let mut c = Cdr::new();
+            c.header(e.stamp_ns, &world).u32(1).u32(points.len() as u32);
+            c.u32(4);
+            for (k, name) in ["x", "y", "z", "probability"].iter().enumerate() {
+                // FLOAT32 = 7, one each.
+                c.string(name).u32(4 * k as u32).u8(7).u32(1);
             }
+            c.u8(0).u32(16).u32(16 * points.len() as u32);
+            c.u32(16 * points.len() as u32);
+            for (p, probability) in points {
+                for v in [p[0], p[1], p[2], *probability] {
+                    c.0.extend((v as f32).to_le_bytes());
+                }
+            }
+            c.u8(1);
+            self.write(region, e.stamp_ns, &c.0)?;
         }
-        c.u8(1);
-        self.write(region, e.stamp_ns, &c.0)
+        if let (Some(scene), Some(frame)) = (&self.scene, &e.foxglove) {
+            let messages = frame_messages(scene, frame);
+            self.write_outgoing(&messages)?;
+        }
+        Ok(())
+    }
+
+    /// From now on, draws each estimate for Foxglove on `scene`'s arm
+    /// (`super::foxglove`): its meshes and URDF are written at `stamp_ns`.
+    pub fn add_foxglove(&mut self, scene: ArmScene, stamp_ns: i64) -> Result<(), McapOutError> {
+        self.write_outgoing(&opening(&scene, stamp_ns))?;
+        self.scene = Some(scene);
+        Ok(())
+    }
+
+    /// Writes Foxglove's messages (`super::foxglove`), each topic's channel
+    /// made with its schema the first time it comes.
+    pub fn write_outgoing(&mut self, messages: &[Outgoing]) -> Result<(), McapOutError> {
+        for m in messages {
+            let channel = if let Some(&id) = self.foxglove_channels.get(m.topic) {
+                id
+            } else {
+                let schema = self
+                    .writer
+                    .add_schema(&m.schema_name, m.schema_encoding, &m.schema_data)
+                    .map_err(|e| self.fail(e))?;
+                let id = self
+                    .writer
+                    .add_channel(schema, m.topic, m.message_encoding, &BTreeMap::new())
+                    .map_err(|e| self.fail(e))?;
+                self.foxglove_channels.insert(m.topic, id);
+                id
+            };
+            self.write(channel, m.stamp_ns, &m.data)?;
+        }
+        Ok(())
     }
 
     /// Writes the summary and closes the file.
@@ -466,7 +521,8 @@ mod tests {
                 contact_probability: Some(0.25 * k as f64),
                 contact: (k == 2).then(|| ("l2".to_owned(), [0.1, 0.2, 0.3], [0.0, -4.0, 0.0])),
                 second_contact: (k == 2).then(|| ("l3".to_owned(), [0.4, 0.2, 0.3], [0.0, 0.0, 5.0])),
-                region: vec![([0.1, 0.2, 0.3], 0.5), ([0.0, 0.0, 1.0], 0.25)],
+                region: Some(vec![([0.1, 0.2, 0.3], 0.5), ([0.0, 0.0, 1.0], 0.25)]),
+                foxglove: None,
             })
             .unwrap();
         }

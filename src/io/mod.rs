@@ -1,10 +1,11 @@
 //! Loading and saving: URDF and mesh files, the built-in robots' assets,
-//! scenes, sessions and robot recordings, live sources, MCAP out. Each
+//! scenes, sessions and robot recordings, live sources, MCAP out and Foxglove. Each
 //! reader has its own error type naming the file and element.
 
 pub mod bag;
 pub mod builtin;
 pub mod calibration;
+pub mod foxglove;
 pub mod guard;
 pub mod inflate;
 pub mod live;

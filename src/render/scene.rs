@@ -5,88 +5,10 @@ use glam::{DVec3, Vec3};
 
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::{LinkId, Robot};
-use crate::core::surface::sampling::Surface;
 use crate::render::renderer::{LineVertex, MeshVertex};
 
-/// Grey of the robot where no heat is shown.
-pub const ROBOT_GREY: [f32; 4] = [0.72, 0.73, 0.75, 1.0];
-
-/// The viridis colour map (gamma-encoded), `t` in [0, 1], by linear
-/// interpolation between nine of its anchors.
-#[must_use]
-pub fn viridis(t: f32) -> [f32; 4] {
-    const ANCHORS: [[f32; 3]; 9] = [
-        [0.267, 0.005, 0.329],
-        [0.283, 0.141, 0.458],
-        [0.254, 0.265, 0.530],
-        [0.207, 0.372, 0.553],
-        [0.164, 0.471, 0.558],
-        [0.128, 0.567, 0.551],
-        [0.135, 0.659, 0.518],
-        [0.478, 0.821, 0.317],
-        [0.993, 0.906, 0.144],
-    ];
-    let x = t.clamp(0.0, 1.0) * (ANCHORS.len() - 1) as f32;
-    let i = (x.floor() as usize).min(ANCHORS.len() - 2);
-    let f = x - i as f32;
-    let (a, b) = (ANCHORS[i], ANCHORS[i + 1]);
-    [
-        a[0] + (b[0] - a[0]) * f,
-        a[1] + (b[1] - a[1]) * f,
-        a[2] + (b[2] - a[2]) * f,
-        1.0,
-    ]
-}
-
-/// The thesis' map: red (improbable) through yellow to green (probable),
-/// `t` in [0, 1].
-#[must_use]
-pub fn red_green(t: f32) -> [f32; 4] {
-    let t = t.clamp(0.0, 1.0);
-    [(2.0 * (1.0 - t)).min(1.0) * 0.9, (2.0 * t).min(1.0) * 0.85, 0.15, 1.0]
-}
-
-/// Per vertex, the candidates it takes its heat from and their weights.
-pub type VertexSamples = Vec<(usize, f64)>;
-
-/// For every link and mesh vertex, the three nearest surface samples on
-/// that link (in the link frame) with inverse-distance weights summing to
-/// 1, so that per-sample values paint the mesh smoothly.
-#[must_use]
-pub fn nearest_samples(robot: &Robot, surface: &Surface) -> Vec<Vec<VertexSamples>> {
-    const NEIGHBOURS: usize = 3;
-    robot
-        .links
-        .iter()
-        .enumerate()
-        .map(|(link, l)| {
-            let samples: Vec<usize> = (0..surface.len()).filter(|&k| surface.link[k] == link).collect();
-            l.mesh
-                .positions
-                .iter()
-                .map(|v| {
-                    let mut best: Vec<(f64, usize)> = Vec::with_capacity(NEIGHBOURS + 1);
-                    for &k in &samples {
-                        let d = surface.point_in_link[k].distance(*v);
-                        if best.len() < NEIGHBOURS || d < best[best.len() - 1].0 {
-                            let at = best.partition_point(|(bd, _)| *bd <= d);
-                            best.insert(at, (d, k));
-                            best.truncate(NEIGHBOURS);
-                        }
-                    }
-                    // A vertex on a sample takes its value alone.
-                    if let Some(&(d, k)) = best.first()
-                        && d < 1e-9
-                    {
-                        return vec![(k, 1.0)];
-                    }
-                    let total: f64 = best.iter().map(|(d, _)| 1.0 / d).sum();
-                    best.iter().map(|(d, k)| (*k, 1.0 / d / total)).collect()
-                })
-                .collect()
-        })
-        .collect()
-}
+pub use crate::core::paint::colours::{ROBOT_GREY, red_green, viridis};
+pub use crate::core::paint::vertices::{VertexSamples, nearest_samples};
 
 /// The posed robot as lit triangles; `color(link, vertex)` colours each
 /// mesh vertex.
@@ -175,7 +97,7 @@ pub fn line(out: &mut Vec<LineVertex>, a: Vec3, b: Vec3, color: [f32; 4]) {
 mod tests {
     use super::*;
     use crate::core::robot::builtin;
-    use crate::core::surface::sampling::SurfaceRequest;
+    use crate::core::surface::sampling::{Surface, SurfaceRequest};
 
     #[test]
     fn viridis_runs_from_purple_to_yellow() {

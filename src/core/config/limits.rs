@@ -266,6 +266,9 @@ pub const SLIDE_SPEED: Range = Range::closed("slide speed", "m/s", 0.0, 1.0);
 /// How much faster than its times a session is sent (`stream --rate`).
 pub const SPEED: Range = Range::above("playback speed", "× real time", 0.0, 1e3);
 
+/// The most Foxglove transforms a second (`estimate --tf-hz`; 0: every frame).
+pub const TRANSFORMS_HZ: Range = Range::closed("transforms rate", "Hz", 0.0, 1e6);
+
 /// How long to wait for a listener, s.
 pub const WAIT_SECONDS: Range = Range::closed("wait", "s", 0.0, 3600.0);
 

@@ -1,0 +1,193 @@
+//! What Foxglove is sent of an estimated frame (`estimate --out est.mcap`,
+//! `estimate --live … --serve`): the heat painted as the app paints it by
+//! default ([`HeatStyle::default`]), the arrows and the numbers to plot,
+//! each at its rate and only when it changed.
+
+use super::{
+    Arrow, ArrowRole, ByteBudget, Clock, FoxgloveFrame, FrameNumbers, HEAT_BUDGET, HEAT_HZ, PAINT_VISIBLE, Paint,
+    SCENE_HZ, heat_bytes, painted,
+};
+use crate::core::estimate::estimator::{Estimator, Update};
+use crate::core::estimate::summary::Verdict;
+use crate::core::paint::colours::TANGENTIAL_ARROW_MIN_NEWTONS;
+use crate::core::paint::heat::HeatStyle;
+use crate::core::paint::heat::posterior_heat;
+use crate::core::paint::vertices::{VertexSamples, nearest_samples, vertex_colour};
+use crate::core::robot::model::Robot;
+use crate::io::session::{ContactTruth, Frame};
+use glam::DVec3;
+
+/// How far an arrow moves, m, or its force changes, N, before the arrows
+/// are sent again.
+const ARROW_MOVED: (f64, f64) = (0.002, 0.2);
+
+/// The per-frame state of what Foxglove is sent: which surface samples
+/// paint each mesh vertex, when the transforms, the heat and the arrows
+/// are next due, and what was last sent.
+pub struct FoxglovePainter {
+    nearest: Vec<Vec<VertexSamples>>,
+    transforms: Clock,
+    heat: Clock,
+    heat_budget: ByteBudget,
+    arrows: Clock,
+    over_time: bool,
+    /// Whether the last frame called a contact.
+    contact: Option<bool>,
+    /// The heat and the arrows last sent.
+    sent: (Option<Paint>, Option<Vec<Arrow>>),
+}
+
+/// Whether two heatmaps look the same: the same vertices painted, each
+/// within [`PAINT_VISIBLE`].
+fn same_paint(a: &Paint, b: &Paint) -> bool {
+    a.len() == b.len()
+        && a.iter().zip(b).all(|(x, y)| {
+            x.len() == y.len()
+                && x.iter().zip(y).all(|((vx, cx), (vy, cy))| {
+                    vx == vy && cx.iter().zip(cy).all(|(p, q)| (p - q).abs() <= PAINT_VISIBLE)
+                })
+        })
+}
+
+/// Whether two sets of arrows look the same: each within [`ARROW_MOVED`].
+fn same_arrows(a: &[Arrow], b: &[Arrow]) -> bool {
+    a.len() == b.len()
+        && a.iter().zip(b).all(|(x, y)| {
+            x.role == y.role
+                && x.point_world.distance(y.point_world) <= ARROW_MOVED.0
+                && x.force_world.distance(y.force_world) <= ARROW_MOVED.1
+        })
+}
+
+/// A verdict as [`FrameNumbers::verdict`] numbers it.
+fn verdict_code(verdict: Verdict) -> u8 {
+    match verdict {
+        Verdict::NoContact => 0,
+        Verdict::Contact => 1,
+        Verdict::PoorFit => 2,
+    }
+}
+
+impl FoxglovePainter {
+    /// For `estimator`'s surface on `robot`; `over_time`: the estimates
+    /// come from the frames together (drawn in the over-time colour).
+    /// `transforms_hz`: the most transforms a second (0: every frame).
+    #[must_use]
+    pub fn new(robot: &Robot, estimator: &Estimator, over_time: bool, transforms_hz: f64) -> Self {
+        Self {
+            nearest: nearest_samples(robot, &estimator.surface),
+            transforms: Clock::every(transforms_hz),
+            heat: Clock::every(HEAT_HZ),
+            heat_budget: ByteBudget::new(HEAT_BUDGET),
+            arrows: Clock::every(SCENE_HZ),
+            over_time,
+            contact: None,
+            sent: (None, None),
+        }
+    }
+
+    /// The frame's Foxglove part: `joint_positions` in the robot's order;
+    /// the transforms, the heat and the arrows only when due and changed.
+    pub fn frame(
+        &mut self,
+        estimator: &Estimator,
+        update: &Update,
+        frame: &Frame,
+        joint_positions: &[f64],
+        stamp_ns: i64,
+    ) -> FoxgloveFrame {
+        let s = &update.summary;
+        let contact = s.verdict != Verdict::NoContact;
+        let truths = frame.true_contacts();
+        let first_truth = truths.first();
+        let (position_error_m, force_error_newtons) = match (contact, first_truth) {
+            (true, Some(t)) => (
+                s.map.point_world.distance(DVec3::from_array(t.point)),
+                s.map.force_world.distance(DVec3::from_array(t.force)),
+            ),
+            _ => (f64::NAN, f64::NAN),
+        };
+        let numbers = FrameNumbers {
+            contact_probability: s.contact_probability.unwrap_or(if contact { 1.0 } else { 0.0 }),
+            force_newtons: if contact { s.map.force_newtons } else { 0.0 },
+            verdict: verdict_code(s.verdict),
+            position_error_m,
+            force_error_newtons,
+        };
+        let changed = self.contact.is_some_and(|was| was != contact);
+        self.contact = Some(contact);
+        let mut heat = None;
+        if self.heat.due(stamp_ns, changed) {
+            let style = HeatStyle::default();
+            let h = posterior_heat(
+                update,
+                &estimator.surface,
+                style.log_scale,
+                style.threshold,
+                style.red_green,
+            );
+            let colours: Vec<Vec<[f32; 4]>> = self
+                .nearest
+                .iter()
+                .map(|link| link.iter().map(|w| vertex_colour(w, &h.colours)).collect())
+                .collect();
+            let paint = painted(&colours);
+            let bytes = heat_bytes(paint.iter().map(Vec::len).sum());
+            if (changed || !self.sent.0.as_ref().is_some_and(|last| same_paint(last, &paint)))
+                && self.heat_budget.take(stamp_ns, bytes)
+            {
+                heat = Some(paint.clone());
+                self.sent.0 = Some(paint);
+            }
+        }
+        let mut arrows = None;
+        if self.arrows.due(stamp_ns, changed) {
+            let now = self.arrows(update, &truths);
+            if changed || !self.sent.1.as_ref().is_some_and(|last| same_arrows(last, &now)) {
+                arrows = Some(now.clone());
+                self.sent.1 = Some(now);
+            }
+        }
+        FoxgloveFrame {
+            stamp_ns,
+            joint_positions: self.transforms.due(stamp_ns, false).then(|| joint_positions.to_vec()),
+            numbers,
+            heat,
+            arrows,
+        }
+    }
+
+    /// The frame's arrows: the true contacts, the estimate and, over time,
+    /// its friction where it reads.
+    fn arrows(&self, update: &Update, truths: &[ContactTruth]) -> Vec<Arrow> {
+        let s = &update.summary;
+        let mut arrows: Vec<Arrow> = truths
+            .iter()
+            .map(|t| Arrow {
+                role: ArrowRole::Push,
+                point_world: DVec3::from_array(t.point),
+                force_world: DVec3::from_array(t.force),
+            })
+            .collect();
+        if s.verdict != Verdict::NoContact {
+            arrows.push(Arrow {
+                role: if self.over_time {
+                    ArrowRole::OverTime
+                } else {
+                    ArrowRole::Estimate
+                },
+                point_world: s.map.point_world,
+                force_world: s.map.force_world,
+            });
+            let tangential = s.map.tangential_world();
+            if self.over_time && tangential.length() >= TANGENTIAL_ARROW_MIN_NEWTONS {
+                arrows.push(Arrow {
+                    role: ArrowRole::Tangential,
+                    point_world: s.map.point_world,
+                    force_world: tangential,
+                });
+            }
+        }
+        arrows
+    }
+}

@@ -1,0 +1,246 @@
+//! What Foxglove is given: `estimate --out est.mcap` read back (every
+//! frame's transforms, the arm, the URDF, the heatmap, the arrows and the
+//! numbers), and the live WebSocket server answering a client on loopback.
+
+// Test helpers may unwrap: a panic is a failed test with its message.
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::net::TcpStream;
+use std::time::{Duration, Instant};
+
+use foxglove::Decode as _;
+use foxglove::messages::{FrameTransforms, SceneUpdate};
+use proprioscope::io::builtin::load_robot;
+use proprioscope::io::foxglove::serve::FoxgloveServer;
+use proprioscope::io::foxglove::{ArmScene, FoxgloveFrame, FrameNumbers, TRANSFORMS_TOPIC, frame_messages, opening};
+use proprioscope::io::urdf::{UrdfOptions, read_urdf};
+
+/// A MCAP's messages: per topic, (log time, bytes), in file order.
+type Topics = BTreeMap<String, Vec<(u64, Vec<u8>)>>;
+
+/// The messages of an MCAP file's bytes.
+fn messages_by_topic(bytes: &[u8]) -> Topics {
+    let mut out: Topics = BTreeMap::new();
+    for message in mcap::MessageStream::new(bytes).unwrap() {
+        let message = message.unwrap();
+        out.entry(message.channel.topic.clone())
+            .or_default()
+            .push((message.log_time, message.data.into_owned()));
+    }
+    out
+}
+
+/// A synthetic session of presses on link 4, 1 s at 200 Hz, estimated to
+/// an MCAP with `extra` options; its messages and the frames' count.
+fn estimated(name: &str, extra: &[&str]) -> (Topics, usize) {
+    let dir = std::env::temp_dir().join(format!("proprioscope-foxglove-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let session = dir.join("s.json");
+    let out = dir.join("est.mcap");
+    let (s, p) = (session.to_str().unwrap(), out.to_str().unwrap());
+    let (ok, _, err) = common::run_out(&[
+        "synth",
+        s,
+        "--seconds",
+        "1.5",
+        "--rate",
+        "200",
+        "--seed",
+        "2",
+        "--links",
+        "lwr_4_link",
+    ]);
+    assert!(ok, "{err}");
+    let mut args = vec!["estimate", s, "--out", p];
+    args.extend(extra);
+    let (ok, _, err) = common::run_out(&args);
+    assert!(ok, "{err}");
+    let bytes = std::fs::read(&out).unwrap();
+    let frames = std::fs::read_to_string(&session).unwrap().matches("\"tau\"").count();
+    std::fs::remove_dir_all(&dir).unwrap();
+    (messages_by_topic(&bytes), frames)
+}
+
+#[test]
+fn every_frame_moves_every_link_and_the_arm_is_there_once() {
+    let (topics, frames) = estimated("tf", &["--tf-hz", "0"]);
+    let robot = load_robot("lwr4plus", std::path::Path::new("."), &UrdfOptions::default()).unwrap();
+    let children: BTreeSet<&str> = robot
+        .links
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| *k != robot.root)
+        .map(|(_, l)| l.name.as_str())
+        .collect();
+    let states: Vec<u64> = topics["/joint_states"].iter().map(|(t, _)| *t).collect();
+    let transforms = &topics[TRANSFORMS_TOPIC];
+    assert_eq!(states.len(), frames);
+    assert_eq!(transforms.len(), frames, "a transform message a frame");
+    for ((t, data), state_t) in transforms.iter().zip(&states) {
+        assert_eq!(t, state_t, "at the frame's time");
+        let tf = FrameTransforms::decode(data.as_slice()).unwrap();
+        let got: BTreeSet<&str> = tf.transforms.iter().map(|t| t.child_frame_id.as_str()).collect();
+        assert_eq!(got, children, "every link at {t}");
+    }
+    // The arm once, a link a mesh, each following its frame.
+    let arm = &topics["/proprioscope/arm"];
+    assert_eq!(arm.len(), 1);
+    let arm = SceneUpdate::decode(arm[0].1.as_slice()).unwrap();
+    let with_mesh = robot.links.iter().filter(|l| !l.mesh.triangles.is_empty()).count();
+    assert_eq!(arm.entities.len(), with_mesh);
+    assert!(arm.entities.iter().all(
+        |e| e.frame_locked && children.contains(e.frame_id.as_str()) || e.frame_id == robot.links[robot.root].name
+    ));
+    // The URDF reads back as the robot's joints.
+    let description = &topics["/robot_description"];
+    let data = &description[0].1;
+    let length = u32::from_le_bytes(data[4..8].try_into().unwrap()) as usize;
+    let text = std::str::from_utf8(&data[8..8 + length - 1]).unwrap();
+    let back = read_urdf(text, std::path::Path::new("robot_description"), &UrdfOptions::default()).unwrap();
+    assert_eq!(back.joints.len(), robot.joints.len());
+}
+
+#[test]
+fn the_heatmap_arrows_and_numbers_follow_the_estimate() {
+    let (topics, frames) = estimated("scene", &[]);
+    // 200 Hz frames, transforms at most 100 a second: every other frame.
+    let transforms = topics[TRANSFORMS_TOPIC].len();
+    assert!(
+        (frames / 2..=frames / 2 + 1).contains(&transforms),
+        "{transforms} of {frames}"
+    );
+    // The numbers every frame, the verdict one of three.
+    let numbers = &topics["/proprioscope/numbers"];
+    assert_eq!(numbers.len(), frames);
+    let verdicts: Vec<u8> = numbers.iter().map(|(_, d)| d[20]).collect();
+    assert!(verdicts.iter().all(|v| *v <= 2) && verdicts.contains(&1) && verdicts.contains(&0));
+    // Heatmaps: painted where a contact is called, in 8-bit colours, at
+    // most 15 a second plus the changes of verdict.
+    let heat = &topics["/proprioscope/heatmap"];
+    let changes = verdicts.windows(2).filter(|w| (w[0] == 0) != (w[1] == 0)).count();
+    assert!(heat.len() <= frames * 15 / 200 + changes + 1, "{} heatmaps", heat.len());
+    let mut painted = 0;
+    for (_, data) in heat {
+        let update = SceneUpdate::decode(data.as_slice()).unwrap();
+        assert_eq!(update.deletions.len(), 1, "each heatmap replaces the last");
+        for entity in &update.entities {
+            let t = &entity.triangles[0];
+            assert_eq!(t.points.len(), t.colors.len());
+            assert!(t.indices.iter().all(|&i| (i as usize) < t.points.len()));
+            for c in &t.colors {
+                for x in [c.r, c.g, c.b] {
+                    assert!(
+                        ((x * 255.0) as f32 - (x * 255.0).round() as f32).abs() < 1e-3,
+                        "{x} is not 8-bit"
+                    );
+                }
+            }
+            painted += t.points.len();
+        }
+    }
+    assert!(painted > 0, "some heat is painted");
+    // Arrows: the true contact's (magenta) wherever one presses, and the
+    // estimate's at the place `/proprioscope/contact_point` gives.
+    let arrows = &topics["/proprioscope/arrows"];
+    assert!(!arrows.is_empty());
+    let roles: BTreeSet<String> = arrows
+        .iter()
+        .flat_map(|(_, d)| SceneUpdate::decode(d.as_slice()).unwrap().entities)
+        .flat_map(|e| e.metadata.into_iter().map(|kv| kv.value))
+        .collect();
+    assert!(
+        roles.contains("true contact") && roles.contains("over time"),
+        "{roles:?}"
+    );
+}
+
+/// The bytes of one WebSocket message, waiting at most `within`.
+fn next_message(socket: &mut tungstenite::WebSocket<TcpStream>, within: Duration) -> Option<tungstenite::Message> {
+    let deadline = Instant::now() + within;
+    while Instant::now() < deadline {
+        match socket.read() {
+            Ok(m) => return Some(m),
+            Err(tungstenite::Error::Io(e))
+                if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+            Err(e) => panic!("{e}"),
+        }
+    }
+    None
+}
+
+#[test]
+fn a_client_on_loopback_subscribes_and_receives_the_arm_s_transforms() {
+    let robot = load_robot("lwr4plus", std::path::Path::new("."), &UrdfOptions::default()).unwrap();
+    let scene = ArmScene::new(&robot);
+    let mut server = FoxgloveServer::start("127.0.0.1:0", "test").unwrap();
+    server.set_opening(opening(&scene, 0)).unwrap();
+    let address = server.address();
+
+    let stream = TcpStream::connect(address).unwrap();
+    stream.set_read_timeout(Some(Duration::from_millis(100))).unwrap();
+    let mut request = tungstenite::client::IntoClientRequest::into_client_request(format!("ws://{address}")).unwrap();
+    request
+        .headers_mut()
+        .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
+    let (mut socket, _) = tungstenite::client(request, stream).unwrap();
+
+    // The server says who it is and what it has; publish until the
+    // transforms' channel is advertised.
+    let q = vec![0.1; robot.joints.len()];
+    let frame = |k: i64| FoxgloveFrame {
+        stamp_ns: 1_000_000 * k,
+        joint_positions: Some(q.clone()),
+        numbers: FrameNumbers {
+            contact_probability: 0.5,
+            force_newtons: 1.0,
+            verdict: 1,
+            position_error_m: f64::NAN,
+            force_error_newtons: f64::NAN,
+        },
+        heat: None,
+        arrows: None,
+    };
+    let mut channel = None;
+    let mut k = 0;
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while channel.is_none() && Instant::now() < deadline {
+        server.publish(&frame_messages(&scene, &frame(k))).unwrap();
+        k += 1;
+        if let Some(tungstenite::Message::Text(text)) = next_message(&mut socket, Duration::from_millis(200)) {
+            let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+            if json["op"] == "advertise" {
+                channel = json["channels"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .find(|c| c["topic"] == TRANSFORMS_TOPIC)
+                    .map(|c| c["id"].as_u64().unwrap());
+            }
+        }
+    }
+    let channel = channel.expect("the transforms' channel is advertised");
+    let subscribe = serde_json::json!({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": channel}]});
+    socket
+        .send(tungstenite::Message::Text(subscribe.to_string().into()))
+        .unwrap();
+
+    // Frames published from now on arrive as message data on subscription 7.
+    let mut received = 0;
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while received < 3 && Instant::now() < deadline {
+        server.publish(&frame_messages(&scene, &frame(k))).unwrap();
+        k += 1;
+        if let Some(tungstenite::Message::Binary(data)) = next_message(&mut socket, Duration::from_millis(100)) {
+            assert_eq!(data[0], 1, "message data");
+            assert_eq!(u32::from_le_bytes(data[1..5].try_into().unwrap()), 7);
+            let tf = FrameTransforms::decode(&data[13..]).unwrap();
+            assert_eq!(tf.transforms.len(), robot.joints.len());
+            received += 1;
+        }
+    }
+    assert_eq!(received, 3, "three frames' transforms received");
+    assert_eq!(server.clients(), 1);
+}
