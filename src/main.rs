@@ -146,8 +146,9 @@ enum Command {
         #[arg(long, value_parser = cli::within(&limits::SECONDS))]
         seconds: Option<f64>,
     },
-    /// Regenerates the shipped assets (`assets/lwr4plus.glb`) from the
-    /// built-in robot's primitives.
+    /// Regenerates the shipped assets: `assets/lwr4plus.glb` from the
+    /// built-in robot's primitives, and the Foxglove layout
+    /// `assets/foxglove-layout.json`.
     ExportAssets {
         /// Repository root to write under.
         #[arg(long, default_value = ".")]
@@ -587,6 +588,10 @@ fn export_assets(root: &Path) -> Result<()> {
     }
     std::fs::write(&path, &bytes).with_context(|| format!("writing {}", path.display()))?;
     outln!("wrote {} ({} bytes)", path.display(), bytes.len());
+    let layout = root.join(proprioscope::io::foxglove::layout::LAYOUT_PATH);
+    let text = proprioscope::io::foxglove::layout::layout_text();
+    std::fs::write(&layout, &text).with_context(|| format!("writing {}", layout.display()))?;
+    outln!("wrote {} ({} bytes)", layout.display(), text.len());
     Ok(())
 }
 

@@ -21,6 +21,7 @@
 //!   truth, every frame, for Foxglove's plots.
 
 pub mod description;
+pub mod layout;
 pub mod painter;
 pub mod scene;
 pub mod serve;
