@@ -95,6 +95,25 @@ enum Command {
         #[arg(long, default_value_t = 900, value_parser = clap::value_parser!(u32).range(16..=16_384))]
         height: u32,
     },
+    /// Draws what an MCAP written by `estimate --out` holds for Foxglove at
+    /// a time (the arm posed by its transforms, the heatmap, the arrows),
+    /// from the file's messages alone, with the program's renderer.
+    PreviewMcap {
+        /// The MCAP.
+        mcap: PathBuf,
+        /// The time to show, s after the file's first message.
+        #[arg(long, default_value_t = 0.0)]
+        at: f64,
+        /// The PNG to write.
+        #[arg(long)]
+        out: PathBuf,
+        /// Width, pixels (valid: 16 to 16384).
+        #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(16..=16_384))]
+        width: u32,
+        /// Height, pixels (valid: 16 to 16384).
+        #[arg(long, default_value_t = 800, value_parser = clap::value_parser!(u32).range(16..=16_384))]
+        height: u32,
+    },
     /// Estimates the contact in every frame of a recorded session.
     Estimate(cli::estimate::EstimateArgs),
     /// Learns what a robot's torques carry besides contacts (observer lag,
@@ -294,6 +313,13 @@ fn run(cli: Cli) -> Result<()> {
             height,
         }) => screenshot(target.as_deref(), robot.as_deref(), frame, &out, [width, height]),
         Some(Command::RecordDemo { out, rate, seconds }) => record_demo(&out, rate, seconds),
+        Some(Command::PreviewMcap {
+            mcap,
+            at,
+            out,
+            width,
+            height,
+        }) => preview_mcap(&mcap, at, &out, [width, height]),
         None => run_app(None, None, &[], (None, None)),
     }
 }
@@ -555,6 +581,17 @@ fn screenshot(
 }
 
 #[cfg(feature = "gui")]
+/// Draws what `mcap` holds for Foxglove at `at` s into the PNG `out`.
+fn preview_mcap(mcap: &Path, at: f64, out: &Path, size: [u32; 2]) -> Result<()> {
+    let bytes = std::fs::read(mcap).with_context(|| format!("reading {}", mcap.display()))?;
+    let image = proprioscope::app::mcap_preview::render_mcap_headless(&bytes, at, [size[0] as f32, size[1] as f32])
+        .map_err(|e| anyhow::anyhow!("{}: {e}", mcap.display()))?;
+    image.save(out).with_context(|| format!("writing {}", out.display()))?;
+    outln!("wrote {} ({}×{})", out.display(), image.width(), image.height());
+    Ok(())
+}
+
+#[cfg(feature = "gui")]
 /// Opens the app: on the built-in LWR with a push, or on `target`.
 fn run_app(
     target: Option<&str>,
@@ -665,6 +702,11 @@ fn screenshot(_: Option<&str>, _: Option<&str>, _: Option<usize>, _: &Path, _: [
 #[cfg(not(feature = "gui"))]
 fn run_app(_: Option<&str>, _: Option<&str>, _: &[PathBuf], _: (Option<String>, Option<String>)) -> Result<()> {
     without_gui("view")
+}
+
+#[cfg(not(feature = "gui"))]
+fn preview_mcap(_: &Path, _: f64, _: &Path, _: [u32; 2]) -> Result<()> {
+    without_gui("preview-mcap")
 }
 
 #[cfg(not(feature = "gui"))]

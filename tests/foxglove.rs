@@ -104,6 +104,67 @@ fn every_frame_moves_every_link_and_the_arm_is_there_once() {
 }
 
 #[test]
+fn the_file_alone_draws_the_arm_with_its_heat_and_arrows() {
+    let dir = std::env::temp_dir().join(format!("proprioscope-foxglove-{}-preview", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (session, out, png) = (dir.join("s.json"), dir.join("est.mcap"), dir.join("p.png"));
+    let (s, o) = (session.to_str().unwrap(), out.to_str().unwrap());
+    let synth = [
+        "synth",
+        s,
+        "--seconds",
+        "1.5",
+        "--rate",
+        "200",
+        "--seed",
+        "2",
+        "--links",
+        "lwr_4_link",
+    ];
+    assert!(common::run_out(&synth).0);
+    assert!(common::run_out(&["estimate", s, "--out", o]).0);
+    let bytes = std::fs::read(&out).unwrap();
+    // Some time with heat and arrows: the last heatmap that paints.
+    let heat_times: Vec<u64> = messages_by_topic(&bytes)["/proprioscope/heatmap"]
+        .iter()
+        .filter(|(_, d)| !SceneUpdate::decode(d.as_slice()).unwrap().entities.is_empty())
+        .map(|(t, _)| *t)
+        .collect();
+    let first = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .log_time;
+    let at = (heat_times.last().unwrap() - first) as f64 * 1e-9;
+    let scene = proprioscope::app::mcap_preview::McapScene::read(&bytes, at).unwrap();
+    let robot = load_robot("lwr4plus", std::path::Path::new("."), &UrdfOptions::default()).unwrap();
+    let arm_triangles: usize = robot.links.iter().map(|l| l.mesh.triangles.len()).sum();
+    let (triangles, lines) = scene.counts();
+    assert!(
+        triangles > arm_triangles,
+        "the arm and its heat: {triangles} of {arm_triangles}"
+    );
+    assert!(lines > 0);
+    assert!(scene.caption().contains("8 link meshes"), "{}", scene.caption());
+    let (ok, _, err) = common::run_out(&[
+        "preview-mcap",
+        o,
+        "--at",
+        &at.to_string(),
+        "--out",
+        png.to_str().unwrap(),
+        "--width",
+        "320",
+        "--height",
+        "240",
+    ]);
+    assert!(ok, "{err}");
+    assert!(png.is_file());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn the_heatmap_arrows_and_numbers_follow_the_estimate() {
     let (topics, frames) = estimated("scene", &[]);
     // 200 Hz frames, transforms at most 100 a second: every other frame.

@@ -11,6 +11,7 @@ mod foxglove;
 pub mod heat;
 mod inspect;
 pub mod live;
+pub mod mcap_preview;
 mod menus;
 mod model;
 pub mod overlay;
