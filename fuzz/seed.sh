@@ -25,6 +25,7 @@ seed scene ../scenes/*.json
 seed session_json "$shared"/sessions/*.json
 seed session_csv "$shared"/sessions/*.csv
 seed ros_recording "$shared"/recordings/*.mcap "$shared"/recordings/*.bag
+seed foxglove_readback "$shared"/recordings/*.mcap
 mkdir -p corpus/settings corpus/mesh_surface corpus/calibration
 # A calibration as `calibrate --out` writes it.
 cat > corpus/calibration/lwr.calib.json <<'JSON'

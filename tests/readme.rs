@@ -138,6 +138,13 @@ fn run_documented(tmp: &Path, at: &str, args: Vec<String>) -> usize {
             let name = Path::new(&args[i + 1]).file_name().unwrap().to_owned();
             args[i + 1] = tmp.join(name).display().to_string();
         }
+        // A file an earlier command wrote (`preview-mcap est.mcap`) is read
+        // from where that command wrote it.
+        for a in args.iter_mut().skip(1) {
+            if a.starts_with("est") && !a.contains('/') && tmp.join(a.as_str()).is_file() {
+                *a = tmp.join(a.as_str()).display().to_string();
+            }
+        }
         let out = Command::new(env!("CARGO_BIN_EXE_proprioscope"))
             .args(&args)
             .current_dir(env!("CARGO_MANIFEST_DIR"))

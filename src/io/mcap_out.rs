@@ -22,6 +22,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
+use super::cdr::Cdr;
 use super::foxglove::{ArmScene, FoxgloveFrame, Outgoing, frame_messages, opening};
 use super::recording::{
     RecordingError, SECOND_TRUTH_POINT_TOPIC, SECOND_TRUTH_TOPIC, TRUTH_POINT_TOPIC, TRUTH_TOPIC, scan,
@@ -101,71 +102,6 @@ fn schema_text(name: &str) -> String {
             "std_msgs/Header header\nuint32 height\nuint32 width\nsensor_msgs/PointField[] fields\nbool is_bigendian\nuint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense\n{HEADER_DEPS}================================================================================\nMSG: sensor_msgs/PointField\nuint8 INT8=1\nuint8 UINT8=2\nuint8 INT16=3\nuint8 UINT16=4\nuint8 INT32=5\nuint8 UINT32=6\nuint8 FLOAT32=7\nuint8 FLOAT64=8\nstring name\nuint32 offset\nuint8 datatype\nuint32 count\n"
         ),
         _ => String::new(),
-    }
-}
-
-/// A little-endian CDR message under construction.
-pub(crate) struct Cdr(pub(crate) Vec<u8>);
-
-impl Cdr {
-    pub(crate) fn new() -> Self {
-        Self(vec![0, 1, 0, 0])
-    }
-
-    pub(crate) fn align(&mut self, size: usize) {
-        while !(self.0.len() - 4).is_multiple_of(size) {
-            self.0.push(0);
-        }
-    }
-
-    pub(crate) fn u8(&mut self, v: u8) -> &mut Self {
-        self.0.push(v);
-        self
-    }
-
-    pub(crate) fn u32(&mut self, v: u32) -> &mut Self {
-        self.align(4);
-        self.0.extend(v.to_le_bytes());
-        self
-    }
-
-    pub(crate) fn i32(&mut self, v: i32) -> &mut Self {
-        self.align(4);
-        self.0.extend(v.to_le_bytes());
-        self
-    }
-
-    pub(crate) fn f64(&mut self, v: f64) -> &mut Self {
-        self.align(8);
-        self.0.extend(v.to_le_bytes());
-        self
-    }
-
-    pub(crate) fn string(&mut self, s: &str) -> &mut Self {
-        self.u32(s.len() as u32 + 1);
-        self.0.extend(s.as_bytes());
-        self.0.push(0);
-        self
-    }
-
-    pub(crate) fn header(&mut self, stamp_ns: i64, frame_id: &str) -> &mut Self {
-        let sec = stamp_ns.div_euclid(1_000_000_000);
-        let nanosec = stamp_ns.rem_euclid(1_000_000_000);
-        self.i32(i32::try_from(sec).unwrap_or(i32::MAX))
-            .u32(nanosec as u32)
-            .string(frame_id)
-    }
-
-    pub(crate) fn xyz(&mut self, v: [f64; 3]) -> &mut Self {
-        self.f64(v[0]).f64(v[1]).f64(v[2])
-    }
-
-    pub(crate) fn floats(&mut self, v: &[f64]) -> &mut Self {
-        self.u32(v.len() as u32);
-        for &x in v {
-            self.f64(x);
-        }
-        self
     }
 }
 

@@ -5,6 +5,7 @@
 pub mod bag;
 pub mod builtin;
 pub mod calibration;
+pub mod cdr;
 pub mod foxglove;
 pub mod guard;
 pub mod inflate;

@@ -23,12 +23,13 @@
 pub mod description;
 pub mod layout;
 pub mod painter;
+pub mod readback;
 pub mod scene;
 pub mod serve;
 
 use foxglove::Encode;
 
-use super::mcap_out::Cdr;
+use super::cdr::Cdr;
 
 pub use painter::FoxglovePainter;
 pub use scene::{ArmScene, Arrow, ArrowRole};
