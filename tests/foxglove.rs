@@ -305,3 +305,111 @@ fn a_client_on_loopback_subscribes_and_receives_the_arm_s_transforms() {
     assert_eq!(received, 3, "three frames' transforms received");
     assert_eq!(server.clients(), 1);
 }
+
+/// A WebSocket client of the Foxglove server at `address` (retried while
+/// it starts).
+fn foxglove_client(address: &str) -> tungstenite::WebSocket<TcpStream> {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        if let Ok(stream) = TcpStream::connect(address) {
+            stream.set_read_timeout(Some(Duration::from_millis(50))).unwrap();
+            let mut request =
+                tungstenite::client::IntoClientRequest::into_client_request(format!("ws://{address}")).unwrap();
+            request
+                .headers_mut()
+                .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
+            return tungstenite::client(request, stream).unwrap().0;
+        }
+        assert!(Instant::now() < deadline, "no Foxglove server on {address}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// `estimate --live … --serve`: a viewer subscribed to the numbers gets
+/// each frame's as the frames arrive.
+#[test]
+fn a_live_estimate_is_served_to_a_foxglove_client() {
+    use std::io::Write as _;
+    let free = || {
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        listener.local_addr().unwrap().to_string()
+    };
+    let (live, serve) = (free(), free());
+    let frames = 400;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "estimate",
+            "--live",
+            &live,
+            "--serve",
+            &serve,
+            "--live-frames",
+            &frames.to_string(),
+        ])
+        .args(["--points", "1000", "--sigma", "0.01", "--temporal", "none", "--out"])
+        .arg(std::env::temp_dir().join(format!("proprioscope-served-{}.jsonl", std::process::id())))
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut socket = foxglove_client(&serve);
+    let mut sender = (0..200)
+        .find_map(|_| {
+            TcpStream::connect(&live).ok().or_else(|| {
+                std::thread::sleep(Duration::from_millis(25));
+                None
+            })
+        })
+        .unwrap();
+    writeln!(
+        sender,
+        r#"{{"format": "contact-session", "version": 1, "robot": "lwr4plus"}}"#
+    )
+    .unwrap();
+    let frame = |k: usize| {
+        format!(
+            r#"{{"t": {}, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.09516, -0.53783, 0.09516, 0.01017, 0, 0, 0]}}"#,
+            0.01 * k as f64
+        )
+    };
+    let (mut sent, mut subscribed, mut received) = (0, false, 0);
+    while sent < frames {
+        writeln!(sender, "{}", frame(sent)).unwrap();
+        sent += 1;
+        while let Some(message) = next_message(&mut socket, Duration::from_millis(20)) {
+            match message {
+                tungstenite::Message::Text(text) if !subscribed => {
+                    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+                    let numbers = json["channels"]
+                        .as_array()
+                        .and_then(|c| c.iter().find(|c| c["topic"] == "/proprioscope/numbers"));
+                    if let Some(channel) = numbers {
+                        let subscribe = serde_json::json!({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channel["id"]}]});
+                        socket
+                            .send(tungstenite::Message::Text(subscribe.to_string().into()))
+                            .unwrap();
+                        subscribed = true;
+                    }
+                }
+                tungstenite::Message::Binary(data) if data[0] == 1 => {
+                    // The numbers: a contact called on the thesis' push.
+                    assert_eq!(data[13..17], [0, 1, 0, 0], "CDR");
+                    assert_eq!(data[13 + 20], 1, "verdict: contact");
+                    received += 1;
+                }
+                _ => {}
+            }
+        }
+        if received >= 3 {
+            break;
+        }
+    }
+    drop(sender);
+    let _ = child.kill();
+    let output = child.wait_with_output().unwrap();
+    assert!(
+        received >= 3,
+        "{received} frames' numbers received of {sent} sent\n{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+}
