@@ -4,17 +4,19 @@
 //! fuzz target feeds it any bytes.
 
 use std::collections::{HashMap, HashSet};
+use std::path::Path;
 
 use foxglove::messages::{FrameTransforms, Pose, SceneEntity, SceneUpdate};
 use glam::{DAffine3, DQuat, DVec3};
 
 use super::{ARM_TOPIC, ARROWS_TOPIC, HEATMAP_TOPIC, TRANSFORMS_TOPIC};
+use crate::io::recording::scan;
 
 /// Why the file could not be read back.
 #[derive(Debug, thiserror::Error)]
 pub enum ReadbackError {
     /// Not an MCAP, or a broken one.
-    #[error("not a readable MCAP: {reason}")]
+    #[error("{reason}")]
     Mcap {
         /// What the reader said.
         reason: String,
@@ -126,8 +128,6 @@ fn decode<T: foxglove::Decode>(topic: &str, data: &[u8]) -> Result<T, ReadbackEr
 impl Snapshot {
     /// What the MCAP `bytes` shows `at_secs` after its first message.
     pub fn read(bytes: &[u8], at_secs: f64) -> Result<Self, ReadbackError> {
-        let mcap_error = |e: mcap::McapError| ReadbackError::Mcap { reason: e.to_string() };
-        let stream = mcap::MessageStream::new(bytes).map_err(mcap_error)?;
         let (mut start, mut arm, mut heat, mut arrows) = (None, None, None, None);
         let mut parents: HashMap<String, (String, DAffine3)> = HashMap::new();
         let mut out = Self::default();
@@ -136,30 +136,43 @@ impl Snapshot {
         } else {
             0
         };
-        for message in stream {
-            let message = message.map_err(mcap_error)?;
-            let t0 = *start.get_or_insert(message.log_time);
-            let topic = message.channel.topic.as_str();
-            if message.log_time > t0.saturating_add(offset_ns) && topic != ARM_TOPIC {
-                continue;
+        let mut failure = None;
+        // Our own reader of the container: every length checked against
+        // the bytes there are (the `mcap` crate's reader allocates what a
+        // chunk claims).
+        scan(Path::new("MCAP"), bytes, &mut |message| {
+            if failure.is_some() {
+                return;
             }
-            let data = message.data.as_ref();
-            match topic {
-                ARM_TOPIC => arm = Some(decode::<SceneUpdate>(topic, data)?),
-                HEATMAP_TOPIC => heat = Some(decode::<SceneUpdate>(topic, data)?),
-                ARROWS_TOPIC => arrows = Some(decode::<SceneUpdate>(topic, data)?),
-                TRANSFORMS_TOPIC => {
+            let t0 = *start.get_or_insert(message.log_ns);
+            let topic = message.topic;
+            if message.log_ns > t0.saturating_add(offset_ns) && topic != ARM_TOPIC {
+                return;
+            }
+            let data = message.data;
+            let decoded = match topic {
+                ARM_TOPIC => decode::<SceneUpdate>(topic, data).map(|u| arm = Some(u)),
+                HEATMAP_TOPIC => decode::<SceneUpdate>(topic, data).map(|u| heat = Some(u)),
+                ARROWS_TOPIC => decode::<SceneUpdate>(topic, data).map(|u| arrows = Some(u)),
+                TRANSFORMS_TOPIC => decode::<FrameTransforms>(topic, data).map(|tfs| {
                     out.transform_messages += 1;
-                    for tf in decode::<FrameTransforms>(topic, data)?.transforms {
+                    for tf in tfs.transforms {
                         let pose = Pose {
                             position: tf.translation,
                             orientation: tf.rotation,
                         };
                         parents.insert(tf.child_frame_id, (tf.parent_frame_id, pose_affine(Some(&pose))));
                     }
-                }
-                _ => {}
+                }),
+                _ => Ok(()),
+            };
+            if let Err(e) = decoded {
+                failure = Some(e);
             }
+        })
+        .map_err(|e| ReadbackError::Mcap { reason: e.to_string() })?;
+        if let Some(e) = failure {
+            return Err(e);
         }
         let arm = arm.ok_or(ReadbackError::NoArm)?;
         let world = world_poses(&parents);
@@ -234,6 +247,33 @@ mod tests {
         assert_eq!(world["c"].translation, DVec3::new(3.0, 0.0, 0.0));
         assert_eq!(world["root"], DAffine3::IDENTITY);
         assert!(!world.contains_key("x") && !world.contains_key("y"));
+    }
+
+    /// Found by fuzzing: a chunk claiming 3.6 GB uncompressed made the
+    /// `mcap` crate's reader allocate that much; our reader refuses it.
+    #[test]
+    fn a_chunk_claiming_gigabytes_is_an_error_not_an_allocation() {
+        let mut file = crate::io::recording::MCAP_MAGIC.to_vec();
+        let record = |op: u8, body: &[u8]| {
+            let mut r = vec![op];
+            r.extend((body.len() as u64).to_le_bytes());
+            r.extend(body);
+            r
+        };
+        file.extend(record(0x01, &[0; 8]));
+        let compressed = [0x28, 0xb5, 0x2f, 0xfd, 0, 0, 0, 0];
+        let mut chunk = Vec::new();
+        chunk.extend(0u64.to_le_bytes());
+        chunk.extend(0u64.to_le_bytes());
+        chunk.extend(3_659_655_580u64.to_le_bytes());
+        chunk.extend(0u32.to_le_bytes());
+        chunk.extend(4u32.to_le_bytes());
+        chunk.extend(b"zstd");
+        chunk.extend((compressed.len() as u64).to_le_bytes());
+        chunk.extend(compressed);
+        file.extend(record(0x06, &chunk));
+        let result = Snapshot::read(&file, 0.0);
+        assert!(matches!(result, Err(ReadbackError::Mcap { .. })), "{result:?}");
     }
 
     #[test]

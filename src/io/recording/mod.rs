@@ -36,7 +36,7 @@ pub const SECOND_TRUTH_TOPIC: &str = "/contact/truth_2";
 pub const SECOND_TRUTH_POINT_TOPIC: &str = "/contact/truth_point_2";
 
 /// The first bytes of an MCAP file.
-const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
+pub(crate) const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
 /// Why a recording could not be read.
 #[derive(Debug, thiserror::Error)]
