@@ -413,3 +413,45 @@ fn a_live_estimate_is_served_to_a_foxglove_client() {
         String::from_utf8_lossy(&output.stderr)
     );
 }
+
+/// With `--contacts 2`, a frame called two shows both contacts' arrows.
+#[test]
+fn a_frame_called_two_shows_both_arrows() {
+    let dir = std::env::temp_dir().join(format!("proprioscope-foxglove-{}-two", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (session, out) = (dir.join("s.json"), dir.join("est.mcap"));
+    let (s, o) = (session.to_str().unwrap(), out.to_str().unwrap());
+    let synth = [
+        "synth",
+        s,
+        "--seconds",
+        "4",
+        "--rate",
+        "100",
+        "--seed",
+        "1",
+        "--contacts",
+        "2",
+    ];
+    let (ok, _, err) = common::run_out(&synth);
+    assert!(ok, "{err}");
+    let (ok, _, err) = common::run_out(&["estimate", s, "--contacts", "2", "--out", o]);
+    assert!(ok, "{err}");
+    let topics = messages_by_topic(&std::fs::read(&out).unwrap());
+    let pairs = topics["/proprioscope/second_contact"].len();
+    let with_two = topics["/proprioscope/arrows"]
+        .iter()
+        .filter(|(_, d)| {
+            let update = SceneUpdate::decode(d.as_slice()).unwrap();
+            let roles: Vec<String> = update
+                .entities
+                .into_iter()
+                .flat_map(|e| e.metadata.into_iter().map(|kv| kv.value))
+                .collect();
+            roles.iter().filter(|r| *r == "estimate").count() == 2
+        })
+        .count();
+    assert!(pairs > 0, "the session has frames called two");
+    assert_eq!(with_two, pairs, "every frame called two draws both");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

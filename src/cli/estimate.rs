@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context as _, Result};
+use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use proprioscope::batch::pairs::{FramePair, PairScore, SingleSeen, session_pairs};
 use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot};
@@ -416,20 +417,49 @@ fn write_with_second_contacts(
             c.force_world.to_array(),
         )
     };
-    for (message, pair) in messages.iter_mut().zip(pairs) {
-        if let Some(p) = pair.as_ref().filter(|p| p.has_two()) {
+    // Foxglove's arrows: every frame called two shows the pair; the frame
+    // after a pair shows the single contact again.
+    let (mut was_two, mut single_role) = (false, ArrowRole::Estimate);
+    for ((message, pair), frame) in messages.iter_mut().zip(pairs).zip(&session.frames) {
+        let two = pair.as_ref().filter(|p| p.has_two());
+        if let Some(p) = two {
             let [a, b] = &p.pair.contacts;
             message.contact = Some(named(a));
             message.second_contact = Some(named(b));
-            if let Some(arrows) = message.foxglove.as_mut().and_then(|f| f.arrows.as_mut()) {
-                arrows.retain(|a| a.role == ArrowRole::Push);
-                arrows.extend([a, b].map(|c| Arrow {
+        }
+        let contact = message.contact.clone();
+        if let Some(drawn) = message.foxglove.as_mut() {
+            if let (None, Some(arrows)) = (two, &drawn.arrows)
+                && let Some(single) = arrows.iter().find(|a| a.role != ArrowRole::Push)
+            {
+                single_role = single.role;
+            }
+            let mut arrows: Vec<Arrow> = frame
+                .true_contacts()
+                .iter()
+                .map(|t| Arrow {
+                    role: ArrowRole::Push,
+                    point_world: DVec3::from_array(t.point),
+                    force_world: DVec3::from_array(t.force),
+                })
+                .collect();
+            if let Some(p) = two {
+                arrows.extend(p.pair.contacts.each_ref().map(|c| Arrow {
                     role: ArrowRole::Estimate,
                     point_world: c.point_world,
                     force_world: c.force_world,
                 }));
+                drawn.arrows = Some(arrows);
+            } else if was_two && drawn.arrows.is_none() {
+                arrows.extend(contact.map(|(_, point, force)| Arrow {
+                    role: single_role,
+                    point_world: DVec3::from_array(point),
+                    force_world: DVec3::from_array(force),
+                }));
+                drawn.arrows = Some(arrows);
             }
         }
+        was_two = two.is_some();
     }
     if let Some(w) = out {
         w.write_made(lines, messages)?;
