@@ -6,7 +6,7 @@
 use std::sync::Arc;
 
 use super::view::{Shown, ViewPart};
-use super::{MarkerRole, Robot, Verdict};
+use super::{MarkerRole, Robot};
 use crate::core::paint::vertices::vertex_colour;
 use crate::io::foxglove::serve::FoxgloveServer;
 use crate::io::foxglove::{ArmScene, Arrow, ArrowRole, FoxgloveFrame, FrameNumbers, frame_messages, opening, painted};
@@ -99,38 +99,13 @@ impl FoxglovePart {
                 force_world: m.force_world,
             })
             .collect();
-        let update = shown.outcome.and_then(|o| o.update.as_ref().ok());
-        let numbers = update.map_or(
-            FrameNumbers {
-                contact_probability: f64::NAN,
-                force_newtons: f64::NAN,
-                verdict: 0,
-                position_error_m: f64::NAN,
-                force_error_newtons: f64::NAN,
-            },
-            |u| {
-                let s = &u.summary;
-                let contact = s.verdict != Verdict::NoContact;
-                let push = shown.model.push_world(&pose);
-                let (position_error_m, force_error_newtons) = match (contact, push) {
-                    (true, Some((_, point, force))) => {
-                        (s.map.point_world.distance(point), s.map.force_world.distance(force))
-                    }
-                    _ => (f64::NAN, f64::NAN),
-                };
-                FrameNumbers {
-                    contact_probability: s.contact_probability.unwrap_or(if contact { 1.0 } else { 0.0 }),
-                    force_newtons: if contact { s.map.force_newtons } else { 0.0 },
-                    verdict: match s.verdict {
-                        Verdict::NoContact => 0,
-                        Verdict::Contact => 1,
-                        Verdict::PoorFit => 2,
-                    },
-                    position_error_m,
-                    force_error_newtons,
-                }
-            },
-        );
+        let numbers = shown
+            .outcome
+            .and_then(|o| o.update.as_ref().ok())
+            .map_or(FrameNumbers::NONE, |u| {
+                let push = shown.model.push_world(&pose).map(|(_, point, force)| (point, force));
+                FrameNumbers::of(u, push)
+            });
         let frame = FoxgloveFrame {
             stamp_ns: stamp,
             joint_positions: Some(positions.clone()),

@@ -28,8 +28,11 @@ pub mod scene;
 pub mod serve;
 
 use foxglove::Encode;
+use glam::DVec3;
 
 use super::cdr::Cdr;
+use crate::core::estimate::estimator::Update;
+use crate::core::estimate::summary::Verdict;
 
 pub use painter::FoxglovePainter;
 pub use scene::{ArmScene, Arrow, ArrowRole};
@@ -141,6 +144,38 @@ pub struct FrameNumbers {
 }
 
 impl FrameNumbers {
+    /// No estimate: every number NaN, the verdict "no contact".
+    pub const NONE: Self = Self {
+        contact_probability: f64::NAN,
+        force_newtons: f64::NAN,
+        verdict: 0,
+        position_error_m: f64::NAN,
+        force_error_newtons: f64::NAN,
+    };
+
+    /// A frame's numbers from its estimate and, where known, the true
+    /// contact's point and force (world, m and N).
+    #[must_use]
+    pub fn of(update: &Update, truth: Option<(DVec3, DVec3)>) -> Self {
+        let s = &update.summary;
+        let contact = s.verdict != Verdict::NoContact;
+        let (position_error_m, force_error_newtons) = match (contact, truth) {
+            (true, Some((point, force))) => (s.map.point_world.distance(point), s.map.force_world.distance(force)),
+            _ => (f64::NAN, f64::NAN),
+        };
+        Self {
+            contact_probability: s.contact_probability.unwrap_or(if contact { 1.0 } else { 0.0 }),
+            force_newtons: if contact { s.map.force_newtons } else { 0.0 },
+            verdict: match s.verdict {
+                Verdict::NoContact => 0,
+                Verdict::Contact => 1,
+                Verdict::PoorFit => 2,
+            },
+            position_error_m,
+            force_error_newtons,
+        }
+    }
+
     fn outgoing(&self, stamp_ns: i64) -> Outgoing {
         let mut m = Cdr::new();
         m.f64(self.contact_probability)

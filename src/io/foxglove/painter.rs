@@ -59,15 +59,6 @@ fn same_arrows(a: &[Arrow], b: &[Arrow]) -> bool {
         })
 }
 
-/// A verdict as [`FrameNumbers::verdict`] numbers it.
-fn verdict_code(verdict: Verdict) -> u8 {
-    match verdict {
-        Verdict::NoContact => 0,
-        Verdict::Contact => 1,
-        Verdict::PoorFit => 2,
-    }
-}
-
 impl FoxglovePainter {
     /// For `estimator`'s surface on `robot`; `over_time`: the estimates
     /// come from the frames together (drawn in the over-time colour).
@@ -96,24 +87,12 @@ impl FoxglovePainter {
         joint_positions: &[f64],
         stamp_ns: i64,
     ) -> FoxgloveFrame {
-        let s = &update.summary;
-        let contact = s.verdict != Verdict::NoContact;
+        let contact = update.summary.verdict != Verdict::NoContact;
         let truths = frame.true_contacts();
-        let first_truth = truths.first();
-        let (position_error_m, force_error_newtons) = match (contact, first_truth) {
-            (true, Some(t)) => (
-                s.map.point_world.distance(DVec3::from_array(t.point)),
-                s.map.force_world.distance(DVec3::from_array(t.force)),
-            ),
-            _ => (f64::NAN, f64::NAN),
-        };
-        let numbers = FrameNumbers {
-            contact_probability: s.contact_probability.unwrap_or(if contact { 1.0 } else { 0.0 }),
-            force_newtons: if contact { s.map.force_newtons } else { 0.0 },
-            verdict: verdict_code(s.verdict),
-            position_error_m,
-            force_error_newtons,
-        };
+        let truth = truths
+            .first()
+            .map(|t| (DVec3::from_array(t.point), DVec3::from_array(t.force)));
+        let numbers = FrameNumbers::of(update, truth);
         let changed = self.contact.is_some_and(|was| was != contact);
         self.contact = Some(contact);
         let mut heat = None;
