@@ -33,15 +33,15 @@ fn messages_by_topic(bytes: &[u8]) -> Topics {
     out
 }
 
-/// A synthetic session of presses on link 4, 1 s at 200 Hz, estimated to
-/// an MCAP with `extra` options; its messages and the frames' count.
-fn estimated(name: &str, extra: &[&str]) -> (Topics, usize) {
+/// A synthetic session of presses on link 4, 1.5 s at 200 Hz, in its own
+/// folder `name`, estimated to `est.mcap` there with `extra` options: the
+/// folder, the MCAP and the frames' count.
+fn synth_and_estimate(name: &str, extra: &[&str]) -> (std::path::PathBuf, std::path::PathBuf, usize) {
     let dir = std::env::temp_dir().join(format!("proprioscope-foxglove-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let session = dir.join("s.json");
-    let out = dir.join("est.mcap");
+    let (session, out) = (dir.join("s.json"), dir.join("est.mcap"));
     let (s, p) = (session.to_str().unwrap(), out.to_str().unwrap());
-    let (ok, _, err) = common::run_out(&[
+    let synth = [
         "synth",
         s,
         "--seconds",
@@ -52,14 +52,21 @@ fn estimated(name: &str, extra: &[&str]) -> (Topics, usize) {
         "2",
         "--links",
         "lwr_4_link",
-    ]);
+    ];
+    let (ok, _, err) = common::run_out(&synth);
     assert!(ok, "{err}");
     let mut args = vec!["estimate", s, "--out", p];
     args.extend(extra);
     let (ok, _, err) = common::run_out(&args);
     assert!(ok, "{err}");
-    let bytes = std::fs::read(&out).unwrap();
     let frames = std::fs::read_to_string(&session).unwrap().matches("\"tau\"").count();
+    (dir, out, frames)
+}
+
+/// [`synth_and_estimate`]'s MCAP, its messages by topic, and the frames' count.
+fn estimated(name: &str, extra: &[&str]) -> (Topics, usize) {
+    let (dir, out, frames) = synth_and_estimate(name, extra);
+    let bytes = std::fs::read(&out).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
     (messages_by_topic(&bytes), frames)
 }
@@ -105,24 +112,8 @@ fn every_frame_moves_every_link_and_the_arm_is_there_once() {
 
 #[test]
 fn the_file_alone_draws_the_arm_with_its_heat_and_arrows() {
-    let dir = std::env::temp_dir().join(format!("proprioscope-foxglove-{}-preview", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let (session, out, png) = (dir.join("s.json"), dir.join("est.mcap"), dir.join("p.png"));
-    let (s, o) = (session.to_str().unwrap(), out.to_str().unwrap());
-    let synth = [
-        "synth",
-        s,
-        "--seconds",
-        "1.5",
-        "--rate",
-        "200",
-        "--seed",
-        "2",
-        "--links",
-        "lwr_4_link",
-    ];
-    assert!(common::run_out(&synth).0);
-    assert!(common::run_out(&["estimate", s, "--out", o]).0);
+    let (dir, out, _) = synth_and_estimate("preview", &[]);
+    let (o, png) = (out.to_str().unwrap(), dir.join("p.png"));
     let bytes = std::fs::read(&out).unwrap();
     // Some time with heat and arrows: the last heatmap that paints.
     let heat_times: Vec<u64> = messages_by_topic(&bytes)["/proprioscope/heatmap"]

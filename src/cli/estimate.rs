@@ -434,15 +434,7 @@ fn write_with_second_contacts(
             {
                 single_role = single.role;
             }
-            let mut arrows: Vec<Arrow> = frame
-                .true_contacts()
-                .iter()
-                .map(|t| Arrow {
-                    role: ArrowRole::Push,
-                    point_world: DVec3::from_array(t.point),
-                    force_world: DVec3::from_array(t.force),
-                })
-                .collect();
+            let mut arrows = Arrow::truths(&frame.true_contacts());
             if let Some(p) = two {
                 arrows.extend(p.pair.contacts.each_ref().map(|c| Arrow {
                     role: ArrowRole::Estimate,

@@ -140,14 +140,7 @@ impl FoxglovePainter {
     /// its friction where it reads.
     fn arrows(&self, update: &Update, truths: &[ContactTruth]) -> Vec<Arrow> {
         let s = &update.summary;
-        let mut arrows: Vec<Arrow> = truths
-            .iter()
-            .map(|t| Arrow {
-                role: ArrowRole::Push,
-                point_world: DVec3::from_array(t.point),
-                force_world: DVec3::from_array(t.force),
-            })
-            .collect();
+        let mut arrows = Arrow::truths(truths);
         if s.verdict != Verdict::NoContact {
             arrows.push(Arrow {
                 role: if self.over_time {

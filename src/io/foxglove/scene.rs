@@ -63,6 +63,21 @@ pub struct Arrow {
     pub force_world: DVec3,
 }
 
+impl Arrow {
+    /// A recording's true contacts as push arrows.
+    #[must_use]
+    pub fn truths(truths: &[crate::io::session::ContactTruth]) -> Vec<Self> {
+        truths
+            .iter()
+            .map(|t| Self {
+                role: ArrowRole::Push,
+                point_world: DVec3::from_array(t.point),
+                force_world: DVec3::from_array(t.force),
+            })
+            .collect()
+    }
+}
+
 /// A link's mesh as the scene draws it.
 #[derive(Debug, Clone)]
 struct LinkMesh {
