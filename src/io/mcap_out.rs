@@ -138,7 +138,7 @@ impl EstimateWriter {
         let file = std::fs::File::create(path).map_err(|e| fail(e.to_string()))?;
         // Chunks of 4 MiB rather than 768 KiB: the heatmaps repeat their
         // points and colours, and larger chunks let the compression find
-        // them (4 % smaller on a 1 kHz minute, docs/validation.md).
+        // them (4 % smaller on a 1 kHz minute: docs/decisions.md, *Foxglove*).
         let options = mcap::WriteOptions::new()
             .chunk_size(Some(4 << 20))
             .profile("ros2")
