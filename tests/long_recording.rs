@@ -55,7 +55,7 @@ fn in_stretches(
     let mut out = Vec::new();
     let mut pieces = 0;
     for (t, l) in times.iter().zip(likelihoods) {
-        if let Some(piece) = smoother.push(*t, l).unwrap() {
+        if let Some(piece) = smoother.push(*t, l.clone()).unwrap() {
             pieces += 1;
             let stretch = piece.smooth(model);
             assert_eq!(stretch.first, out.len());
@@ -63,8 +63,10 @@ fn in_stretches(
         }
         assert!(smoother.held_bytes() <= limit_bytes);
     }
-    let stretch = smoother.finish().smooth(model);
-    out.extend((0..stretch.len()).map(|i| stretch.belief(i).unwrap()));
+    for piece in smoother.finish().unwrap() {
+        let stretch = piece.smooth(model);
+        out.extend((0..stretch.len()).map(|i| stretch.belief(i).unwrap()));
+    }
     (out, pieces)
 }
 
@@ -98,7 +100,7 @@ fn stretches_give_the_whole_recordings_beliefs() {
     for (t, l) in times.iter().zip(&likelihoods) {
         whole.push(*t, l).unwrap();
     }
-    let whole = whole.finish();
+    let whole = whole.finish().unwrap();
     let pressed = whole.iter().filter(|b| b.contact_probability() > 0.5).count();
     assert!(pressed > 500, "{pressed} pressed frames");
 

@@ -67,12 +67,16 @@ libfuzzer_sys::fuzz_target!(|data: &[u8]| {
             points: frame[2..].to_vec(),
             patch: Vec::new(),
         };
-        match smoother.push(t, &likelihood) {
+        match smoother.push(t, likelihood) {
             Ok(Some(piece)) => check(&piece.smooth(model)),
             Ok(None) => {}
             Err(_) => return,
         }
         assert!(smoother.held_bytes() <= limit_bytes);
     }
-    check(&smoother.finish().smooth(model));
+    if let Ok(pieces) = smoother.finish() {
+        for piece in pieces {
+            check(&piece.smooth(model));
+        }
+    }
 });

@@ -197,6 +197,11 @@ pub struct TemporalArgs {
     /// Rate at which a contact jumps to an unrelated place, 1/s (valid: [0, 1000]).
     #[arg(long, default_value_t = TemporalSettings::default().jump_per_s, value_parser = within(&limits::EVENT_RATE))]
     pub jump_rate: f64,
+    /// The smoother's time step, s: frames closer together than this
+    /// share one state, their evidence multiplied (0: a step per frame;
+    /// valid: [0, 1]).
+    #[arg(long, default_value_t = TemporalSettings::default().step_secs, value_parser = within(&limits::TIME_STEP))]
+    pub time_step: f64,
 }
 
 impl TemporalArgs {
@@ -207,6 +212,7 @@ impl TemporalArgs {
             release_per_s: self.release_rate,
             slide_m_per_sqrt_s: self.slide,
             jump_per_s: self.jump_rate,
+            step_secs: self.time_step,
         }
     }
 }

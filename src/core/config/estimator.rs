@@ -202,6 +202,8 @@ pub enum ConfigField {
     Slide,
     /// [`TemporalSettings::jump_per_s`].
     JumpRate,
+    /// [`TemporalSettings::step_secs`].
+    TimeStep,
     /// The observer gain of [`TorqueModel::calibration`].
     ObserverGain,
     /// [`EstimatorConfig::memory_mib`].
@@ -230,6 +232,7 @@ impl ConfigField {
             Self::ReleaseRate => "temporal.release_per_s",
             Self::Slide => "temporal.slide_m_per_sqrt_s",
             Self::JumpRate => "temporal.jump_per_s",
+            Self::TimeStep => "temporal.step_secs",
             Self::ObserverGain => "torques.observer_gain_per_s",
             Self::Memory => "memory_mib",
             Self::ContactsAtOnce => "estimator.contacts",
@@ -254,6 +257,7 @@ impl ConfigField {
             Self::ReleaseRate => "--release-rate",
             Self::Slide => "--slide",
             Self::JumpRate => "--jump-rate",
+            Self::TimeStep => "--time-step",
             Self::ObserverGain => "--observer-gain",
             Self::Memory => "--memory",
             Self::ContactsAtOnce => "--contacts",
@@ -382,6 +386,7 @@ impl EstimatorConfig {
         in_range(F::ReleaseRate, &limits::EVENT_RATE, t.release_per_s)?;
         in_range(F::Slide, &limits::SLIDE, t.slide_m_per_sqrt_s)?;
         in_range(F::JumpRate, &limits::EVENT_RATE, t.jump_per_s)?;
+        in_range(F::TimeStep, &limits::TIME_STEP, t.step_secs)?;
         counted(F::Memory, &limits::MEMORY_MIB, self.memory_mib)?;
         counted(F::ContactsAtOnce, &limits::CONTACTS_AT_ONCE, self.contacts_at_once)?;
         in_range(F::PriorTwo, &limits::PRIOR_TWO, self.pair.prior_two)?;

@@ -238,6 +238,9 @@ pub const EVENT_RATE: Range = Range::closed("event rate", "1/s", 0.0, 1e3);
 /// How far a contact slides, RMS per surface direction after a second, m/√s.
 pub const SLIDE: Range = Range::closed("slide", "m/√s", 0.0, 1.0);
 
+/// The smoother's time step, s.
+pub const TIME_STEP: Range = Range::closed("time step", "s", 0.0, 1.0);
+
 /// The window over which a torque bias is estimated, s.
 pub const BIAS_WINDOW: Range = Range::closed("bias window", "s", 0.1, 86_400.0);
 
@@ -307,7 +310,7 @@ pub const CONTACTS_AT_ONCE: CountRange = CountRange::new("contacts at once", 1, 
 pub const CONTACTS: CountRange = CountRange::new("contacts", 1, 1_000_000);
 
 /// Every range above, for the documentation's table (and its test).
-pub const RANGES: [&Range; 25] = [
+pub const RANGES: [&Range; 26] = [
     &SIGMA,
     &NOISE,
     &TORQUE,
@@ -321,6 +324,7 @@ pub const RANGES: [&Range; 25] = [
     &ALPHA,
     &EVENT_RATE,
     &SLIDE,
+    &TIME_STEP,
     &BIAS_WINDOW,
     &BIAS,
     &SECONDS,

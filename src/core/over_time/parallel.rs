@@ -20,7 +20,7 @@ use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Summary;
 use crate::core::over_time::frame::SequenceFrame;
 use crate::core::over_time::offsets::FrameLikelihood;
-use crate::core::over_time::presses::{FrictionGate, PressQueue};
+use crate::core::over_time::presses::{FrictionGate, Offered, PressJob, PressQueue};
 use crate::core::over_time::smoother::FilterState;
 use crate::core::over_time::stretches::{Piece, Stretch, StretchSmoother};
 use crate::core::over_time::temporal::{Belief, TemporalError, TemporalModel};
@@ -228,9 +228,12 @@ pub(crate) fn smooth(
         Ok(update) => (calls.each)(i, update, ms),
         Err(source) => refused.push((i, source)),
     };
-    let mut presses = PressQueue::new(estimator, robot, frames, model.settings().slide_m_per_sqrt_s);
     let settled = rayon::in_place_scope(|scope| -> Result<bool, SequenceError> {
         let (done_tx, done_rx) = std::sync::mpsc::channel::<(usize, Stretch, f64, usize)>();
+        let (press_tx, press_rx) = std::sync::mpsc::channel::<(usize, Vec<(usize, Update, f64)>)>();
+        let fit_press = press_fitter(scope, press_tx);
+        let queue = PressQueue::new(estimator, robot, frames, model.settings().slide_m_per_sqrt_s);
+        let mut out = InOrder::new(queue, &fit_press, press_rx);
         let mut smoother = StretchSmoother::new(model, model.store_limit_bytes());
         let mut pieces = Pieces::default();
         // Smooths a piece beside the filter.
@@ -261,6 +264,7 @@ pub(crate) fn smooth(
         let mut start = 0;
         let mut done = likelihoods(estimator, robot, frames, start);
         let limit = model.store_limit_bytes();
+        let threads = rayon::current_num_threads();
         while !done.is_empty() {
             if !(calls.keep_going)() {
                 return Ok(false);
@@ -273,7 +277,7 @@ pub(crate) fn smooth(
                     for (i, (pending, likelihood), ms) in ready {
                         let t0 = Instant::now();
                         let t_secs = frames.get(i).map_or(f64::NAN, |f| f.t_secs);
-                        cut.extend(smoother.push(t_secs, &likelihood)?);
+                        cut.extend(smoother.push(t_secs, likelihood)?);
                         waiting.push(i, ms + elapsed_ms(t0), pending);
                     }
                     Ok(cut)
@@ -284,41 +288,186 @@ pub(crate) fn smooth(
             for piece in cut? {
                 spawn(piece, &mut pieces);
             }
-            // Settle what is smoothed; while the pieces in flight and the
-            // store hold more than the limit, help smooth them.
-            let room = |pieces: &Pieces, waiting: &Waiting| {
+            // Settle what is smoothed; while the pieces and presses in
+            // flight and the store hold more than the limit, help them.
+            let room = |pieces: &Pieces, waiting: &Waiting, out: &InOrder| {
                 let in_flight = pieces.spawned - pieces.settled;
-                in_flight == 0
-                    || (smoother.held_bytes() + pieces.bytes_in_flight + waiting.bytes <= limit
-                        && in_flight <= rayon::current_num_threads())
+                (in_flight == 0
+                    || (smoother.held_bytes() + pieces.bytes_in_flight + waiting.bytes + out.bytes <= limit
+                        && in_flight <= threads))
+                    && out.presses_in_flight <= threads
             };
             if !pieces.settle_until(
                 &done_rx,
                 room,
                 (estimator, robot, frames),
-                (&mut waiting, &mut presses),
+                (&mut waiting, &mut out),
                 (&mut calls.keep_going, &mut each, &mut calls.failed),
             )? {
                 return Ok(false);
             }
         }
-        spawn(smoother.finish(), &mut pieces);
-        pieces.settle_until(
+        for piece in smoother.finish()? {
+            spawn(piece, &mut pieces);
+        }
+        if !pieces.settle_until(
             &done_rx,
-            |pieces, _| pieces.settled == pieces.spawned,
+            |pieces, _, _| pieces.settled == pieces.spawned,
             (estimator, robot, frames),
-            (&mut waiting, &mut presses),
+            (&mut waiting, &mut out),
             (&mut calls.keep_going, &mut each, &mut calls.failed),
-        )
+        )? {
+            return Ok(false);
+        }
+        out.finish(&mut each);
+        Ok(true)
     })?;
     if !settled {
         return Ok(false);
     }
-    presses.settle(&mut each);
     if let Some((frame, source)) = refused.into_iter().find(|(i, e)| !(calls.failed)(*i, e)) {
         return Err(SequenceError::Frame { frame, source });
     }
     Ok(true)
+}
+
+/// A frame settled by its press's fit or on its own.
+type Settled = (usize, Update, f64);
+
+/// Fits a press as a task of `scope` that answers through `fitted`; or
+/// now, where nothing runs beside this thread.
+fn press_fitter<'a: 'scope, 'scope>(
+    scope: &rayon::Scope<'scope>,
+    fitted: std::sync::mpsc::Sender<(usize, Vec<Settled>)>,
+) -> impl Fn(PressJob<'a>, usize) -> Option<Vec<Settled>> {
+    move |job, slot| {
+        if rayon::current_num_threads() <= 1 {
+            return Some(job.fit());
+        }
+        let fitted = fitted.clone();
+        scope.spawn(move |_| {
+            // The receiver outlives every task (the scope ends first).
+            let _ = fitted.send((slot, job.fit()));
+        });
+        None
+    }
+}
+
+/// Settled frames on their way out in frame order: a press that ends is
+/// fitted as a task beside the filter (a fit is a fifth of a smoothed
+/// recording's work, and depends on its own frames only), and the frames
+/// after it wait for its fit.
+struct InOrder<'a, 's> {
+    presses: PressQueue<'a>,
+    /// Fits a press as a task (answering later, through `fitted`), or now.
+    fit: &'s dyn Fn(PressJob<'a>, usize) -> Option<Vec<Settled>>,
+    fitted: std::sync::mpsc::Receiver<(usize, Vec<Settled>)>,
+    /// From slot `front` on: frames ready to leave, or a press in flight.
+    slots: VecDeque<Option<Vec<Settled>>>,
+    front: usize,
+    presses_in_flight: usize,
+    /// Bytes the frames of the presses in flight hold.
+    bytes: usize,
+    /// Each press in flight's bytes, by slot.
+    press_bytes: std::collections::BTreeMap<usize, usize>,
+}
+
+impl<'a, 's> InOrder<'a, 's> {
+    fn new(
+        presses: PressQueue<'a>,
+        fit: &'s dyn Fn(PressJob<'a>, usize) -> Option<Vec<Settled>>,
+        fitted: std::sync::mpsc::Receiver<(usize, Vec<Settled>)>,
+    ) -> Self {
+        Self {
+            presses,
+            fit,
+            fitted,
+            slots: VecDeque::new(),
+            front: 0,
+            presses_in_flight: 0,
+            bytes: 0,
+            press_bytes: std::collections::BTreeMap::new(),
+        }
+    }
+
+    /// What the press queue hands on: a frame joins the last slot (or a
+    /// new one after a press); a press takes a slot and is fitted.
+    fn take(&mut self, offered: Offered<'a>) {
+        match offered {
+            Offered::Frame(i, update, ms) => match self.slots.back_mut() {
+                Some(Some(frames)) => frames.push((i, update, ms)),
+                _ => self.slots.push_back(Some(vec![(i, update, ms)])),
+            },
+            Offered::Press(job) => {
+                let slot = self.front + self.slots.len();
+                let bytes = job.bytes();
+                if let Some(frames) = (self.fit)(job, slot) {
+                    self.slots.push_back(Some(frames));
+                } else {
+                    self.slots.push_back(None);
+                    self.presses_in_flight += 1;
+                    self.bytes += bytes;
+                    self.press_bytes.insert(slot, bytes);
+                }
+                // Frames after the press start a slot of their own.
+                self.slots.push_back(Some(Vec::new()));
+            }
+        }
+    }
+
+    /// Frame `i`, smoothed, through the presses.
+    fn offer(&mut self, i: usize, settled: (Update, Option<Summary>), ms: f64) {
+        let mut offered = Vec::new();
+        self.presses.offer(i, settled, ms, &mut |o| offered.push(o));
+        for o in offered {
+            self.take(o);
+        }
+    }
+
+    /// Takes in the presses fitted, then hands on every frame whose turn
+    /// has come.
+    fn emit(&mut self, each: &mut impl FnMut(usize, Update, f64)) {
+        for (slot, frames) in self.fitted.try_iter() {
+            if let Some(place) = slot.checked_sub(self.front).and_then(|k| self.slots.get_mut(k)) {
+                *place = Some(frames);
+            }
+            self.presses_in_flight = self.presses_in_flight.saturating_sub(1);
+            let bytes = self.press_bytes.remove(&slot).unwrap_or(0);
+            self.bytes = self.bytes.saturating_sub(bytes);
+        }
+        // The last slot may still grow: it leaves only once a later one exists.
+        while self.slots.len() > 1 && matches!(self.slots.front(), Some(Some(_))) {
+            if let Some(Some(frames)) = self.slots.pop_front() {
+                for (i, update, ms) in frames {
+                    each(i, update, ms);
+                }
+            }
+            self.front += 1;
+        }
+        if let [Some(frames)] = self.slots.make_contiguous() {
+            for (i, update, ms) in frames.drain(..) {
+                each(i, update, ms);
+            }
+        }
+    }
+
+    /// Hands on the last press and every frame, helping the fits in
+    /// flight (or waiting) until they are done.
+    fn finish(&mut self, each: &mut impl FnMut(usize, Update, f64)) {
+        let mut offered = Vec::new();
+        self.presses.settle(&mut |o| offered.push(o));
+        for o in offered {
+            self.take(o);
+        }
+        loop {
+            self.emit(each);
+            if self.presses_in_flight == 0 {
+                break;
+            }
+            help_or_wait();
+        }
+        self.emit(each);
+    }
 }
 
 /// The frames filtered and not yet settled, in order: number, what each
@@ -381,9 +530,9 @@ impl Pieces {
     fn settle_until(
         &mut self,
         done: &std::sync::mpsc::Receiver<(usize, Stretch, f64, usize)>,
-        enough: impl Fn(&Self, &Waiting) -> bool,
+        enough: impl Fn(&Self, &Waiting, &InOrder) -> bool,
         sequence: (&Estimator, &Robot, &[SequenceFrame]),
-        (waiting, presses): (&mut Waiting, &mut PressQueue<'_>),
+        (waiting, out): (&mut Waiting, &mut InOrder),
         (keep_going, each, failed): (
             &mut impl FnMut() -> bool,
             &mut impl FnMut(usize, Update, f64),
@@ -392,10 +541,11 @@ impl Pieces {
     ) -> Result<bool, SequenceError> {
         loop {
             self.receive(done);
-            if !self.settle_ready(sequence, waiting, presses, (&mut *keep_going, &mut *each, &mut *failed))? {
+            if !self.settle_ready(sequence, waiting, out, (&mut *keep_going, &mut *each, &mut *failed))? {
                 return Ok(false);
             }
-            if enough(self, waiting) {
+            out.emit(each);
+            if enough(self, waiting, out) {
                 return Ok(true);
             }
             help_or_wait();
@@ -414,7 +564,7 @@ impl Pieces {
         &mut self,
         sequence: (&Estimator, &Robot, &[SequenceFrame]),
         waiting: &mut Waiting,
-        presses: &mut PressQueue<'_>,
+        out: &mut InOrder,
         calls: (
             &mut impl FnMut() -> bool,
             &mut impl FnMut(usize, Update, f64),
@@ -428,7 +578,7 @@ impl Pieces {
                 sequence,
                 (&stretch, backward_ms),
                 waiting,
-                presses,
+                out,
                 (keep_going, each, failed),
             )?;
             self.bytes_in_flight = self.bytes_in_flight.saturating_sub(bytes);
@@ -448,7 +598,7 @@ fn settle_stretch(
     (estimator, robot, frames): (&Estimator, &Robot, &[SequenceFrame]),
     (stretch, backward_ms): (&Stretch, f64),
     waiting: &mut Waiting,
-    presses: &mut PressQueue<'_>,
+    out: &mut InOrder,
     (keep_going, each, failed): (
         &mut impl FnMut() -> bool,
         &mut impl FnMut(usize, Update, f64),
@@ -478,8 +628,9 @@ fn settle_stretch(
             .collect();
         c += 1;
         for (i, settled, ms) in succeeded(done, failed)? {
-            presses.offer(i, settled, ms, each);
+            out.offer(i, settled, ms);
         }
+        out.emit(each);
     }
     Ok(true)
 }

@@ -408,16 +408,17 @@ impl<'a> PressQueue<'a> {
     }
 
     /// Frame `i`'s `update`: handed on to `each` at once, or held while it
-    /// continues a press (one link, consecutive frames).
+    /// continues a press (one link, consecutive frames); a press that
+    /// ends is handed on as a [`PressJob`] to fit.
     pub(crate) fn offer(
         &mut self,
         i: usize,
         (update, alone): (Update, Option<Summary>),
         cost_ms: f64,
-        each: &mut impl FnMut(usize, Update, f64),
+        each: &mut impl FnMut(Offered<'a>),
     ) {
         if !self.estimator.uses_patches() {
-            each(i, update, cost_ms);
+            each(Offered::Frame(i, update, cost_ms));
             return;
         }
         let in_press = is_pressed(&update);
@@ -434,20 +435,79 @@ impl<'a> PressQueue<'a> {
             self.held.push((i, update, cost_ms));
             self.alone.push(alone);
         } else {
-            each(i, update, cost_ms);
+            each(Offered::Frame(i, update, cost_ms));
         }
     }
 
-    /// Fits the press held and hands its frames on.
-    pub(crate) fn settle(&mut self, each: &mut impl FnMut(usize, Update, f64)) {
+    /// Hands on the press held, if any, as a [`PressJob`].
+    pub(crate) fn settle(&mut self, each: &mut impl FnMut(Offered<'a>)) {
+        if self.held.is_empty() {
+            self.alone.clear();
+            return;
+        }
+        each(Offered::Press(PressJob {
+            estimator: self.estimator,
+            robot: self.robot,
+            frames: self.frames,
+            slide_m_per_sqrt_s: self.slide_m_per_sqrt_s,
+            held: std::mem::take(&mut self.held),
+            alone: std::mem::take(&mut self.alone),
+        }));
+    }
+}
+
+/// What a [`PressQueue`] hands on, in frame order: a frame settled now,
+/// or a press to fit (on any thread), whose frames come out of its fit.
+// Handed straight to a closure and taken apart there, never stored: a
+// frame's update moves as it is, without a box of its own.
+#[allow(clippy::large_enum_variant)]
+pub(crate) enum Offered<'a> {
+    /// Frame number, its update, milliseconds it cost.
+    Frame(usize, Update, f64),
+    /// A press's frames, to fit as a whole.
+    Press(PressJob<'a>),
+}
+
+/// A press's frames waiting for their fit ([`Estimator::settle_press`]):
+/// it depends on nothing but its own frames, so it runs beside the rest.
+pub(crate) struct PressJob<'a> {
+    estimator: &'a Estimator,
+    robot: &'a Robot,
+    frames: &'a [SequenceFrame<'a>],
+    slide_m_per_sqrt_s: f64,
+    held: Vec<(usize, Update, f64)>,
+    alone: Vec<Option<Summary>>,
+}
+
+impl PressJob<'_> {
+    /// Bytes its frames' posteriors hold.
+    pub(crate) fn bytes(&self) -> usize {
+        self.held
+            .iter()
+            .map(|(_, update, _)| {
+                let p = &update.posterior;
+                size_of::<Update>()
+                    + (p.probability.len() + p.display.len() + p.log_likelihood.len() + p.force_newtons.len())
+                        * size_of::<f64>()
+                    + p.phase_flags.len()
+                    + p.support.len() * size_of::<usize>()
+            })
+            .sum()
+    }
+
+    /// Fits the press: its frames in order, each with its update and
+    /// milliseconds (its share of the fit included).
+    pub(crate) fn fit(mut self) -> Vec<(usize, Update, f64)> {
+        let mut out = Vec::with_capacity(self.held.len());
         self.estimator.settle_press(
             self.robot,
             self.frames,
             self.slide_m_per_sqrt_s,
             &mut self.held,
             &mut self.alone,
-            each,
+            &mut |i, update, ms| out.push((i, update, ms)),
         );
+        out
     }
 }
 

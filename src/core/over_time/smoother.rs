@@ -81,6 +81,109 @@ pub struct Smoother<'a> {
     times: Vec<f64>,
     frames: Vec<StoredFrame>,
     filtered: Vec<StoredBelief>,
+    /// Frames in each stored step.
+    counts: Vec<usize>,
+    open: StepJoiner,
+}
+
+/// Frames that share one step of the model
+/// ([`TemporalSettings::step_secs`](crate::core::over_time::temporal::TemporalSettings::step_secs)):
+/// the state is the step's for each of them, so their log-likelihoods add,
+/// and so do their patches' Gaussian terms (each frame's `ln L(s)` is a
+/// quadratic in the offset); the step takes its first frame's time.
+#[derive(Debug, Clone)]
+pub(crate) struct OpenStep {
+    pub(crate) t_secs: f64,
+    last_t_secs: f64,
+    pub(crate) likelihood: FrameLikelihood,
+    pub(crate) frames: usize,
+}
+
+impl OpenStep {
+    /// Whether `likelihood` can join the step: the same samples, with or
+    /// without their patches as the step's.
+    fn joins(&self, likelihood: &FrameLikelihood) -> bool {
+        self.likelihood.points.len() == likelihood.points.len() && self.likelihood.patch.len() == likelihood.patch.len()
+    }
+
+    /// Adds the evidence of a frame at `t_secs`.
+    fn add(&mut self, t_secs: f64, likelihood: &FrameLikelihood) {
+        let sum = &mut self.likelihood;
+        sum.no_contact += likelihood.no_contact;
+        for (a, b) in sum.points.iter_mut().zip(&likelihood.points) {
+            *a += b;
+        }
+        for (a, b) in sum.patch.iter_mut().zip(&likelihood.patch) {
+            a.point += b.point;
+            for (x, y) in a.information.iter_mut().zip(b.information) {
+                *x += y;
+            }
+            for (x, y) in a.shift.iter_mut().zip(b.shift) {
+                *x += y;
+            }
+        }
+        self.last_t_secs = t_secs;
+        self.frames += 1;
+    }
+}
+
+/// Frames this much short of a step's length after its first frame
+/// still start the next step, s: a recording's stamps at a steady rate
+/// carry rounding (1 ns, below any stamp's resolution).
+const STEP_TOLERANCE_SECS: f64 = 1e-9;
+
+/// Gathers frames into the model's steps: a frame joins the open step
+/// while it is less than the step's length after the step's first frame.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct StepJoiner {
+    open: Option<OpenStep>,
+    /// Frames taken so far.
+    frames: usize,
+}
+
+impl StepJoiner {
+    /// Takes the frame at `t_secs`; hands back the step it closes.
+    ///
+    /// # Errors
+    /// [`TemporalError::BadTime`]: the time is not finite or goes back.
+    pub(crate) fn push(
+        &mut self,
+        step_secs: f64,
+        t_secs: f64,
+        likelihood: FrameLikelihood,
+    ) -> Result<Option<OpenStep>, TemporalError> {
+        let previous = self.open.as_ref().map(|o| o.last_t_secs);
+        interval(self.frames, previous, t_secs)?;
+        self.frames += 1;
+        if let Some(open) = &mut self.open
+            && t_secs - open.t_secs < step_secs - STEP_TOLERANCE_SECS
+            && open.joins(&likelihood)
+        {
+            open.add(t_secs, &likelihood);
+            return Ok(None);
+        }
+        let step = OpenStep {
+            t_secs,
+            last_t_secs: t_secs,
+            likelihood,
+            frames: 1,
+        };
+        // Without a step's length no frame joins another: close it now.
+        if step_secs <= STEP_TOLERANCE_SECS && self.open.is_none() {
+            return Ok(Some(step));
+        }
+        Ok(self.open.replace(step))
+    }
+
+    /// The open step, closed.
+    pub(crate) fn finish(&mut self) -> Option<OpenStep> {
+        self.open.take()
+    }
+
+    /// Frames in the open step.
+    pub(crate) fn held(&self) -> usize {
+        self.open.as_ref().map_or(0, |o| o.frames)
+    }
 }
 
 /// A frame's likelihoods in f32 (relative to `top`).
@@ -210,14 +313,27 @@ impl<'a> Smoother<'a> {
             times: Vec::new(),
             frames: Vec::new(),
             filtered: Vec::new(),
+            counts: Vec::new(),
+            open: StepJoiner::default(),
         }
     }
 
-    /// Takes the next frame; returns its filtered belief.
+    /// Takes the next frame (filtered with the frames that share its
+    /// step, once the step is closed).
     ///
     /// # Errors
     /// As [`Filter::step`], and [`TemporalError::TooLarge`] past the store's limit.
-    pub fn push(&mut self, t_secs: f64, likelihood: &FrameLikelihood) -> Result<&Belief, TemporalError> {
+    pub fn push(&mut self, t_secs: f64, likelihood: &FrameLikelihood) -> Result<(), TemporalError> {
+        let step_secs = self.filter.model.settings().step_secs;
+        match self.open.push(step_secs, t_secs, likelihood.clone())? {
+            Some(step) => self.store(&step),
+            None => Ok(()),
+        }
+    }
+
+    /// Filters a closed step and stores it.
+    fn store(&mut self, step: &OpenStep) -> Result<(), TemporalError> {
+        let likelihood = &step.likelihood;
         let points = likelihood.points.len();
         let bytes = smoother_bytes(self.times.len() + 1, points, !likelihood.patch.is_empty());
         if bytes > MAX_SMOOTHER_BYTES {
@@ -227,38 +343,49 @@ impl<'a> Smoother<'a> {
                 limit_bytes: MAX_SMOOTHER_BYTES,
             });
         }
-        let belief = self.filter.step(t_secs, likelihood)?;
-        self.times.push(t_secs);
-        self.frames.push(StoredFrame::of(likelihood));
+        let belief = self.filter.step(step.t_secs, likelihood)?;
         self.filtered.push(StoredBelief::of(belief));
-        Ok(belief)
+        self.times.push(step.t_secs);
+        self.frames.push(StoredFrame::of(likelihood));
+        self.counts.push(step.frames);
+        Ok(())
     }
 
     /// Frames pushed so far.
     #[must_use]
     pub fn len(&self) -> usize {
-        self.times.len()
+        self.counts.iter().sum::<usize>() + self.open.held()
     }
 
     /// True before the first frame.
     #[must_use]
     pub fn is_empty(&self) -> bool {
-        self.times.is_empty()
+        self.len() == 0
     }
 
-    /// Every frame's belief given all frames, in order.
-    #[must_use]
-    pub fn finish(self) -> Vec<Belief> {
+    /// Every frame's belief given all frames, in order (the frames of a
+    /// step share its belief).
+    ///
+    /// # Errors
+    /// As [`Smoother::push`], for the last step.
+    pub fn finish(mut self) -> Result<Vec<Belief>, TemporalError> {
+        if let Some(step) = self.open.finish() {
+            self.store(&step)?;
+        }
         let n = self.times.len();
-        let mut out: Vec<Belief> = Vec::with_capacity(n);
+        let mut steps: Vec<Belief> = Vec::with_capacity(n);
         backward_pass(
             self.filter.model,
             (&self.times, &self.frames, &self.filtered),
             n,
-            |_, belief| out.push(belief),
+            |_, belief| steps.push(belief),
         );
-        out.reverse();
-        out
+        steps.reverse();
+        let mut out = Vec::with_capacity(self.counts.iter().sum());
+        for (belief, &count) in steps.into_iter().zip(&self.counts) {
+            out.extend(std::iter::repeat_n(belief, count));
+        }
+        Ok(out)
     }
 }
 

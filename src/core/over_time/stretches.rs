@@ -16,10 +16,15 @@
 //! The smoothed beliefs come out per stretch, as soon as it is cut, in the
 //! store the stretch's filtered beliefs held: the peak memory is the
 //! store's limit, whatever the length of the recording.
+//!
+//! The store holds the model's steps: frames closer together than
+//! [`TemporalSettings::step_secs`](crate::core::over_time::temporal::TemporalSettings::step_secs)
+//! share one ([`crate::core::over_time::smoother`]), and a stretch gives
+//! each of its frames its step's belief. The lengths below count steps.
 
 use crate::core::over_time::offsets::FrameLikelihood;
 use crate::core::over_time::smoother::{
-    FilterState, StoredBelief, StoredFrame, backward_pass, packed_offset, unpacked_offset,
+    FilterState, OpenStep, StepJoiner, StoredBelief, StoredFrame, backward_pass, packed_offset, unpacked_offset,
 };
 use crate::core::over_time::temporal::{Belief, TemporalError, TemporalModel};
 
@@ -85,26 +90,30 @@ impl SmoothedBelief {
 pub struct Stretch {
     /// Number (in the order pushed, from 0) of its first frame.
     pub first: usize,
+    /// One per step of the model.
     beliefs: Vec<SmoothedBelief>,
+    /// Frames up to the end of each step (from the stretch's first).
+    ends: Vec<usize>,
 }
 
 impl Stretch {
     /// Frames in the stretch.
     #[must_use]
     pub fn len(&self) -> usize {
-        self.beliefs.len()
+        self.ends.last().copied().unwrap_or(0)
     }
 
     /// True when it holds no frame.
     #[must_use]
     pub fn is_empty(&self) -> bool {
-        self.beliefs.is_empty()
+        self.len() == 0
     }
 
-    /// The belief of its `i`-th frame (frame `first + i`).
+    /// The belief of its `i`-th frame (frame `first + i`): its step's.
     #[must_use]
     pub fn belief(&self, i: usize) -> Option<Belief> {
-        self.beliefs.get(i).map(SmoothedBelief::belief)
+        let step = self.ends.partition_point(|&end| end <= i);
+        self.beliefs.get(step).map(SmoothedBelief::belief)
     }
 }
 
@@ -124,9 +133,13 @@ pub struct StretchSmoother<'a> {
     frames: Vec<StoredFrame>,
     filtered: Vec<StoredBelief>,
     bytes: usize,
+    /// Frames in each stored step.
+    counts: Vec<usize>,
     /// Index in the store where the filter last became sure of "no
     /// contact" (`None` while it is not).
     quiet_from: Option<usize>,
+    /// The step that the latest frames share, not yet filtered.
+    open: StepJoiner,
 }
 
 impl<'a> StretchSmoother<'a> {
@@ -142,7 +155,9 @@ impl<'a> StretchSmoother<'a> {
             frames: Vec::new(),
             filtered: Vec::new(),
             bytes: 0,
+            counts: Vec::new(),
             quiet_from: None,
+            open: StepJoiner::default(),
         }
     }
 
@@ -150,9 +165,26 @@ impl<'a> StretchSmoother<'a> {
     /// before it that are settled, to be smoothed, when a stretch ends here.
     ///
     /// # Errors
-    /// As [`FilterState::step`]; [`TemporalError::TooLarge`] when the limit
-    /// cannot hold [`MIN_STORE_FRAMES`] frames.
-    pub fn push(&mut self, t_secs: f64, likelihood: &FrameLikelihood) -> Result<Option<Piece>, TemporalError> {
+    /// As [`FilterState::step`] (a frame's time checked as it comes);
+    /// [`TemporalError::TooLarge`] when the limit cannot hold
+    /// [`MIN_STORE_FRAMES`] frames.
+    pub fn push(&mut self, t_secs: f64, likelihood: FrameLikelihood) -> Result<Option<Piece>, TemporalError> {
+        match self.open.push(self.model.settings().step_secs, t_secs, likelihood)? {
+            Some(step) => self.filter_step(step),
+            None => Ok(None),
+        }
+    }
+
+    /// Filters a step and stores it; hands back a piece when a stretch
+    /// ends there.
+    fn filter_step(&mut self, step: OpenStep) -> Result<Option<Piece>, TemporalError> {
+        let OpenStep {
+            t_secs,
+            likelihood,
+            frames,
+            ..
+        } = step;
+        let likelihood = &likelihood;
         let belief = StoredBelief::of(self.state.step(self.model, t_secs, likelihood)?);
         let frame = StoredFrame::of(likelihood);
         let frame_bytes = belief.bytes() + frame.bytes() + size_of::<f64>();
@@ -168,6 +200,7 @@ impl<'a> StretchSmoother<'a> {
         self.times.push(t_secs);
         self.frames.push(frame);
         self.filtered.push(belief);
+        self.counts.push(frames);
         let last = self.times.len() - 1;
         self.quiet_from = if quiet { self.quiet_from.or(Some(last)) } else { None };
         // A quiet cut: the quiet has lasted twice QUIET_SECS, and the
@@ -193,7 +226,7 @@ impl<'a> StretchSmoother<'a> {
     /// Frames pushed and not yet handed back.
     #[must_use]
     pub fn held(&self) -> usize {
-        self.times.len()
+        self.counts.iter().sum::<usize>() + self.open.held()
     }
 
     /// Bytes held.
@@ -202,11 +235,21 @@ impl<'a> StretchSmoother<'a> {
         self.bytes
     }
 
-    /// The last piece: every frame not yet handed back.
-    #[must_use]
-    pub fn finish(mut self) -> Piece {
+    /// The last pieces: every frame not yet handed back (the last step
+    /// filtered may end a stretch of its own before them).
+    ///
+    /// # Errors
+    /// As [`StretchSmoother::push`].
+    pub fn finish(mut self) -> Result<Vec<Piece>, TemporalError> {
+        let mut pieces = Vec::new();
+        if let Some(step) = self.open.finish() {
+            pieces.extend(self.filter_step(step)?);
+        }
         let all = self.times.len();
-        self.cut(all)
+        if all > 0 {
+            pieces.push(self.cut(all));
+        }
+        Ok(pieces)
     }
 
     /// Hands back the store's first `keep` frames, with copies of the
@@ -219,9 +262,12 @@ impl<'a> StretchSmoother<'a> {
         let mut filtered = std::mem::replace(&mut self.filtered, later.1);
         frames.extend(self.frames.iter().cloned());
         filtered.extend(self.filtered.iter().cloned());
+        let counts: Vec<usize> = self.counts.drain(..keep).collect();
+        let kept_frames = counts.iter().sum::<usize>();
         let piece = Piece {
             first: self.first,
             keep,
+            counts,
             times: self.times.clone(),
             frames,
             filtered,
@@ -233,7 +279,7 @@ impl<'a> StretchSmoother<'a> {
         // A quiet run that began before the cut goes on from the store's
         // first frame.
         self.quiet_from = self.quiet_from.map(|q| q.saturating_sub(keep));
-        self.first += keep;
+        self.first += kept_frames;
         piece
     }
 }
@@ -244,7 +290,10 @@ impl<'a> StretchSmoother<'a> {
 #[derive(Debug, Clone)]
 pub struct Piece {
     first: usize,
+    /// Steps it settles.
     keep: usize,
+    /// Frames in each step it settles.
+    counts: Vec<usize>,
     times: Vec<f64>,
     frames: Vec<StoredFrame>,
     filtered: Vec<StoredBelief>,
@@ -254,7 +303,7 @@ impl Piece {
     /// Frames it settles.
     #[must_use]
     pub fn len(&self) -> usize {
-        self.keep
+        self.counts.iter().sum()
     }
 
     /// True when it settles no frame.
@@ -289,9 +338,18 @@ impl Piece {
             .zip(&self.filtered)
             .map(|(smoothed, filtered)| smoothed.unwrap_or_else(|| SmoothedBelief::of(&filtered.belief())))
             .collect();
+        let ends = self
+            .counts
+            .iter()
+            .scan(0, |end, &n| {
+                *end += n;
+                Some(*end)
+            })
+            .collect();
         Stretch {
             first: self.first,
             beliefs,
+            ends,
         }
     }
 }

@@ -69,6 +69,11 @@ pub struct TemporalSettings {
     pub slide_m_per_sqrt_s: f64,
     /// A contact jumps to an unrelated place at this rate, 1/s.
     pub jump_per_s: f64,
+    /// The smoother's time step, s: consecutive frames closer together
+    /// than this share one state (their evidence multiplied), so that a
+    /// recording at a robot's rate costs what one at `1/step_secs` would.
+    /// 0: a step per frame.
+    pub step_secs: f64,
 }
 
 impl Default for TemporalSettings {
@@ -80,6 +85,7 @@ impl Default for TemporalSettings {
             release_per_s: 2.0,
             slide_m_per_sqrt_s: 0.01,
             jump_per_s: 0.2,
+            step_secs: 0.002,
         }
     }
 }
@@ -140,6 +146,7 @@ impl TemporalSettings {
             ("release rate", self.release_per_s),
             ("slide", self.slide_m_per_sqrt_s),
             ("jump rate", self.jump_per_s),
+            ("time step", self.step_secs),
         ] {
             if !value.is_finite() || value < 0.0 {
                 return Err(TemporalError::BadSetting { name, value });

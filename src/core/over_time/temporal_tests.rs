@@ -317,6 +317,7 @@ fn the_smoother_matches_summing_over_every_path() {
         release_per_s: 5.0,
         slide_m_per_sqrt_s: 0.03,
         jump_per_s: 2.0,
+        step_secs: 0.0,
     };
     let m = model(4, settings);
     let (times, frames) = frames();
@@ -325,7 +326,7 @@ fn the_smoother_matches_summing_over_every_path() {
     for (t, f) in times.iter().zip(&frames) {
         smoother.push(*t, f).unwrap();
     }
-    let smoothed = smoother.finish();
+    let smoothed = smoother.finish().unwrap();
     for (t, (b, e)) in smoothed.iter().zip(&exact).enumerate() {
         let got: Vec<f64> = std::iter::once(b.no_contact).chain(b.points.iter().copied()).collect();
         for (g, x) in got.iter().zip(e) {
@@ -626,12 +627,14 @@ fn smoothed_in_stretches(
         out.extend((0..stretch.len()).map(|i| stretch.belief(i).unwrap()));
     };
     for (t, f) in times.iter().zip(frames) {
-        if let Some(piece) = smoother.push(*t, f).unwrap() {
+        if let Some(piece) = smoother.push(*t, f.clone()).unwrap() {
             take(piece.smooth(m), &mut out);
         }
         assert!(smoother.held_bytes() <= limit_bytes);
     }
-    take(smoother.finish().smooth(m), &mut out);
+    for piece in smoother.finish().unwrap() {
+        take(piece.smooth(m), &mut out);
+    }
     (out, firsts)
 }
 
@@ -641,13 +644,19 @@ fn smoothed_in_stretches(
 /// contact probability by little, and the store never passes its limit.
 #[test]
 fn stretches_match_the_whole_recordings_smoother() {
-    let m = model(4, TemporalSettings::default());
+    let m = model(
+        4,
+        TemporalSettings {
+            step_secs: 0.0,
+            ..TemporalSettings::default()
+        },
+    );
     let (times, frames) = long_recording(6000, 5);
     let mut whole = Smoother::new(&m);
     for (t, f) in times.iter().zip(&frames) {
         whole.push(*t, f).unwrap();
     }
-    let whole = whole.finish();
+    let whole = whole.finish().unwrap();
     let worst = |got: &[Belief]| {
         assert_eq!(got.len(), whole.len());
         got.iter()
@@ -675,7 +684,134 @@ fn stretches_match_the_whole_recordings_smoother() {
     // A limit that cannot hold a few frames is refused.
     let mut tiny = crate::core::over_time::stretches::StretchSmoother::new(&m, 100);
     assert!(matches!(
-        tiny.push(0.0, &frames[0]),
+        tiny.push(0.0, frames[0].clone()),
         Err(TemporalError::TooLarge { .. })
     ));
+}
+
+/// Frames closer together than the model's step share one state: the
+/// smoother (whole, and in stretches) gives each frame the belief that
+/// the model with a step per frame gives the pair's summed evidence.
+#[test]
+fn frames_within_a_step_share_its_state() {
+    let (times, frames) = long_recording(3001, 7);
+    let with_step = |step_secs: f64| {
+        model(
+            4,
+            TemporalSettings {
+                step_secs,
+                ..TemporalSettings::default()
+            },
+        )
+    };
+    let (stepped, plain) = (with_step(0.002), with_step(0.0));
+    let mut pair_times = Vec::new();
+    let mut pairs = Vec::new();
+    for (t, f) in times.chunks(2).zip(frames.chunks(2)) {
+        let mut sum = f[0].clone();
+        if let Some(second) = f.get(1) {
+            sum.no_contact += second.no_contact;
+            for (a, b) in sum.points.iter_mut().zip(&second.points) {
+                *a += b;
+            }
+        }
+        pair_times.push(t[0]);
+        pairs.push(sum);
+    }
+    let whole = |m: &TemporalModel, times: &[f64], frames: &[FrameLikelihood]| {
+        let mut s = Smoother::new(m);
+        for (t, f) in times.iter().zip(frames) {
+            s.push(*t, f).unwrap();
+        }
+        s.finish().unwrap()
+    };
+    let expected = whole(&plain, &pair_times, &pairs);
+    let same = |got: &[Belief], what: &str| {
+        assert_eq!(got.len(), times.len(), "{what}");
+        for (i, b) in got.iter().enumerate() {
+            let e = &expected[i / 2];
+            assert!((b.no_contact - e.no_contact).abs() < 1e-12, "{what}, frame {i}");
+            for (x, y) in b.points.iter().zip(&e.points) {
+                assert!((x - y).abs() < 1e-12, "{what}, frame {i}: {b:?} vs {e:?}");
+            }
+        }
+    };
+    same(&whole(&stepped, &times, &frames), "whole");
+    let (quiet, firsts) = smoothed_in_stretches(&stepped, (&times, &frames), 1 << 30);
+    let (quiet_pairs, pair_firsts) = smoothed_in_stretches(&plain, (&pair_times, &pairs), 1 << 30);
+    assert!(firsts.len() >= 2, "{firsts:?}");
+    assert_eq!(firsts.iter().map(|f| f / 2).collect::<Vec<_>>(), pair_firsts);
+    for (i, b) in quiet.iter().enumerate() {
+        assert_eq!(b, &quiet_pairs[i / 2], "stretches, frame {i}");
+    }
+    // A frame whose time goes back is named, step or not.
+    let mut s = Smoother::new(&stepped);
+    s.push(0.0, &frames[0]).unwrap();
+    s.push(0.001, &frames[1]).unwrap();
+    assert!(matches!(
+        s.push(0.0005, &frames[2]),
+        Err(TemporalError::BadTime { frame: 2, .. })
+    ));
+}
+
+/// A contact that cannot move, begin or end: two frames filtered one by
+/// one and their patches' terms added into one step give the same
+/// belief and offsets (the Gaussian terms telescope, the charge beyond
+/// the patch's reach included).
+#[test]
+fn a_step_adds_the_patches_terms_exactly() {
+    use crate::core::numerics::rng::Rng;
+    let still = TemporalSettings {
+        onset_per_s: 0.0,
+        release_per_s: 0.0,
+        slide_m_per_sqrt_s: 0.0,
+        jump_per_s: 0.0,
+        step_secs: 0.0,
+    };
+    let mut m = model(4, still);
+    m.window_m = vec![0.01; 4];
+    let mut rng = Rng::new(5);
+    let frame = |rng: &mut Rng| {
+        let patch: Vec<PatchInformation> = (0..4)
+            .map(|_| {
+                let (m11, m22) = (rng.uniform_in(1e3, 1e6), rng.uniform_in(1e3, 1e6));
+                let m12 = rng.uniform_in(-0.9, 0.9) * (m11 * m22).sqrt();
+                // Means up to three windows out: some beyond the reach.
+                let (y1, y2) = (rng.uniform_in(-0.03, 0.03), rng.uniform_in(-0.03, 0.03));
+                PatchInformation {
+                    point: rng.uniform_in(-20.0, 0.0),
+                    information: [m11, m12, m22],
+                    shift: [m11 * y1 + m12 * y2, m12 * y1 + m22 * y2],
+                }
+            })
+            .collect();
+        FrameLikelihood {
+            no_contact: rng.uniform_in(-20.0, 0.0),
+            points: patch.iter().map(|p| p.point).collect(),
+            patch,
+        }
+    };
+    for _ in 0..20 {
+        let (a, b) = (frame(&mut rng), frame(&mut rng));
+        let mut one_by_one = Filter::new(&m);
+        one_by_one.step(0.0, &a).unwrap();
+        let apart = one_by_one.step(0.001, &b).unwrap().clone();
+        let mut joined = StepJoiner::default();
+        assert!(joined.push(0.002, 0.0, a).unwrap().is_none());
+        assert!(joined.push(0.002, 0.001, b).unwrap().is_none());
+        let step = joined.finish().unwrap();
+        assert_eq!(step.frames, 2);
+        let together = Filter::new(&m).step(step.t_secs, &step.likelihood).unwrap().clone();
+        assert!((apart.no_contact - together.no_contact).abs() < 1e-9);
+        for k in 0..4 {
+            assert!(
+                (apart.points[k] - together.points[k]).abs() < 1e-9,
+                "{apart:?} vs {together:?}"
+            );
+            let (x, y) = (apart.offsets[k], together.offsets[k]);
+            for (p, q) in x.precision.iter().zip(y.precision).chain(x.shift.iter().zip(y.shift)) {
+                assert!((p - q).abs() <= 1e-9 * p.abs().max(1.0), "{x:?} vs {y:?}");
+            }
+        }
+    }
 }
