@@ -61,6 +61,18 @@ pub struct Posterior {
     pub no_contact_chi2: f64,
 }
 
+impl Posterior {
+    /// Bytes its per-point vectors hold (what a frame waiting for its
+    /// smoothed belief keeps).
+    #[must_use]
+    pub fn bytes(&self) -> usize {
+        (self.probability.len() + self.display.len() + self.log_likelihood.len() + self.force_newtons.len())
+            * size_of::<f64>()
+            + self.phase_flags.len()
+            + self.support.len() * size_of::<usize>()
+    }
+}
+
 /// Estimates the contact from measured torques `tau` (N·m, sensed order).
 /// `hierarchy` is needed when `settings.phase_alpha` is set.
 pub fn estimate(

@@ -293,9 +293,9 @@ pub(crate) fn smooth(
             let room = |pieces: &Pieces, waiting: &Waiting, out: &InOrder| {
                 let in_flight = pieces.spawned - pieces.settled;
                 (in_flight == 0
-                    || (smoother.held_bytes() + pieces.bytes_in_flight + waiting.bytes + out.bytes <= limit
+                    || (smoother.held_bytes() + pieces.bytes_in_flight + waiting.bytes + out.bytes() <= limit
                         && in_flight <= threads))
-                    && out.presses_in_flight <= threads
+                    && out.presses_in_flight() <= threads
             };
             if !pieces.settle_until(
                 &done_rx,
@@ -365,11 +365,8 @@ struct InOrder<'a, 's> {
     /// From slot `front` on: frames ready to leave, or a press in flight.
     slots: VecDeque<Option<Vec<Settled>>>,
     front: usize,
-    presses_in_flight: usize,
-    /// Bytes the frames of the presses in flight hold.
-    bytes: usize,
-    /// Each press in flight's bytes, by slot.
-    press_bytes: std::collections::BTreeMap<usize, usize>,
+    /// The presses in flight: the bytes each one's frames hold, by slot.
+    in_flight: std::collections::BTreeMap<usize, usize>,
 }
 
 impl<'a, 's> InOrder<'a, 's> {
@@ -384,10 +381,18 @@ impl<'a, 's> InOrder<'a, 's> {
             fitted,
             slots: VecDeque::new(),
             front: 0,
-            presses_in_flight: 0,
-            bytes: 0,
-            press_bytes: std::collections::BTreeMap::new(),
+            in_flight: std::collections::BTreeMap::new(),
         }
+    }
+
+    /// Presses in flight.
+    fn presses_in_flight(&self) -> usize {
+        self.in_flight.len()
+    }
+
+    /// Bytes the frames of the presses in flight hold.
+    fn bytes(&self) -> usize {
+        self.in_flight.values().sum()
     }
 
     /// What the press queue hands on: a frame joins the last slot (or a
@@ -405,9 +410,7 @@ impl<'a, 's> InOrder<'a, 's> {
                     self.slots.push_back(Some(frames));
                 } else {
                     self.slots.push_back(None);
-                    self.presses_in_flight += 1;
-                    self.bytes += bytes;
-                    self.press_bytes.insert(slot, bytes);
+                    self.in_flight.insert(slot, bytes);
                 }
                 // Frames after the press start a slot of their own.
                 self.slots.push_back(Some(Vec::new()));
@@ -431,9 +434,7 @@ impl<'a, 's> InOrder<'a, 's> {
             if let Some(place) = slot.checked_sub(self.front).and_then(|k| self.slots.get_mut(k)) {
                 *place = Some(frames);
             }
-            self.presses_in_flight = self.presses_in_flight.saturating_sub(1);
-            let bytes = self.press_bytes.remove(&slot).unwrap_or(0);
-            self.bytes = self.bytes.saturating_sub(bytes);
+            self.in_flight.remove(&slot);
         }
         // The last slot may still grow: it leaves only once a later one exists.
         while self.slots.len() > 1 && matches!(self.slots.front(), Some(Some(_))) {
@@ -461,7 +462,7 @@ impl<'a, 's> InOrder<'a, 's> {
         }
         loop {
             self.emit(each);
-            if self.presses_in_flight == 0 {
+            if self.in_flight.is_empty() {
                 break;
             }
             help_or_wait();
@@ -498,11 +499,7 @@ impl Waiting {
 
 /// Bytes a pending update's posterior holds.
 fn pending_bytes(pending: &PendingUpdate) -> usize {
-    let p = &pending.posterior;
-    size_of::<PendingUpdate>()
-        + (p.probability.len() + p.display.len() + p.log_likelihood.len() + p.force_newtons.len()) * size_of::<f64>()
-        + p.phase_flags.len()
-        + p.support.len() * size_of::<usize>()
+    size_of::<PendingUpdate>() + pending.posterior.bytes()
 }
 
 /// Runs a task of the pool on this thread if one waits, else yields.

@@ -378,11 +378,7 @@ pub const PRESS_WINDOW: usize = 20;
 /// friction) and checked against its frames' own contacts (see
 /// [`Estimator::settle_press`]).
 pub(crate) struct PressQueue<'a> {
-    estimator: &'a Estimator,
-    robot: &'a Robot,
-    frames: &'a [SequenceFrame<'a>],
-    /// The temporal model's slide length, m/√s.
-    slide_m_per_sqrt_s: f64,
+    context: PressContext<'a>,
     /// The press so far: frame number, update, milliseconds it cost.
     held: Vec<(usize, Update, f64)>,
     /// Each held frame's summary from its own posterior alone.
@@ -398,10 +394,12 @@ impl<'a> PressQueue<'a> {
         slide_m_per_sqrt_s: f64,
     ) -> Self {
         Self {
-            estimator,
-            robot,
-            frames,
-            slide_m_per_sqrt_s,
+            context: PressContext {
+                estimator,
+                robot,
+                frames,
+                slide_m_per_sqrt_s,
+            },
             held: Vec::new(),
             alone: Vec::new(),
         }
@@ -417,7 +415,7 @@ impl<'a> PressQueue<'a> {
         cost_ms: f64,
         each: &mut impl FnMut(Offered<'a>),
     ) {
-        if !self.estimator.uses_patches() {
+        if !self.context.estimator.uses_patches() {
             each(Offered::Frame(i, update, cost_ms));
             return;
         }
@@ -446,10 +444,7 @@ impl<'a> PressQueue<'a> {
             return;
         }
         each(Offered::Press(PressJob {
-            estimator: self.estimator,
-            robot: self.robot,
-            frames: self.frames,
-            slide_m_per_sqrt_s: self.slide_m_per_sqrt_s,
+            context: self.context,
             held: std::mem::take(&mut self.held),
             alone: std::mem::take(&mut self.alone),
         }));
@@ -471,12 +466,19 @@ pub(crate) enum Offered<'a> {
 /// A press's frames waiting for their fit ([`Estimator::settle_press`]):
 /// it depends on nothing but its own frames, so it runs beside the rest.
 pub(crate) struct PressJob<'a> {
+    context: PressContext<'a>,
+    held: Vec<(usize, Update, f64)>,
+    alone: Vec<Option<Summary>>,
+}
+
+/// What a press's fit reads besides its frames.
+#[derive(Clone, Copy)]
+struct PressContext<'a> {
     estimator: &'a Estimator,
     robot: &'a Robot,
     frames: &'a [SequenceFrame<'a>],
+    /// The temporal model's slide length, m/√s.
     slide_m_per_sqrt_s: f64,
-    held: Vec<(usize, Update, f64)>,
-    alone: Vec<Option<Summary>>,
 }
 
 impl PressJob<'_> {
@@ -484,14 +486,7 @@ impl PressJob<'_> {
     pub(crate) fn bytes(&self) -> usize {
         self.held
             .iter()
-            .map(|(_, update, _)| {
-                let p = &update.posterior;
-                size_of::<Update>()
-                    + (p.probability.len() + p.display.len() + p.log_likelihood.len() + p.force_newtons.len())
-                        * size_of::<f64>()
-                    + p.phase_flags.len()
-                    + p.support.len() * size_of::<usize>()
-            })
+            .map(|(_, update, _)| size_of::<Update>() + update.posterior.bytes())
             .sum()
     }
 
@@ -499,10 +494,11 @@ impl PressJob<'_> {
     /// milliseconds (its share of the fit included).
     pub(crate) fn fit(mut self) -> Vec<(usize, Update, f64)> {
         let mut out = Vec::with_capacity(self.held.len());
-        self.estimator.settle_press(
-            self.robot,
-            self.frames,
-            self.slide_m_per_sqrt_s,
+        let c = self.context;
+        c.estimator.settle_press(
+            c.robot,
+            c.frames,
+            c.slide_m_per_sqrt_s,
             &mut self.held,
             &mut self.alone,
             &mut |i, update, ms| out.push((i, update, ms)),
