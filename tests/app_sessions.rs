@@ -682,8 +682,12 @@ fn measure_a_long_recording_opened_and_scrubbed() {
     wait(&mut harness, &|app| app.model.replay.is_some() || app.error.is_some());
     assert!(harness.state().error.is_none(), "{:?}", harness.state().error);
     let shown_after = t0.elapsed().as_secs_f64();
+    let preview = harness.state().is_session_preview();
     wait(&mut harness, &|app| app.is_frame_estimated());
     let estimated_after = t0.elapsed().as_secs_f64();
+    wait(&mut harness, &|app| !app.is_session_loading() || app.error.is_some());
+    assert!(harness.state().error.is_none(), "{:?}", harness.state().error);
+    let whole_after = t0.elapsed().as_secs_f64();
     let frames = harness.state().model.replay.as_ref().unwrap().session.frames.len();
     let mut scrubs = Vec::new();
     for k in 1..=10 {
@@ -702,14 +706,64 @@ fn measure_a_long_recording_opened_and_scrubbed() {
     // The session goes on being smoothed behind; its rate so far.
     let (elapsed, smoothed) = (t0.elapsed().as_secs_f64(), harness.state().session_estimated());
     println!(
-        "{frames} frames: the file shown after {shown_after:.2} s, its first frame estimated after \
-         {estimated_after:.2} s; {smoothed} frames smoothed after {elapsed:.1} s"
+        "{frames} frames: the file shown after {shown_after:.2} s (its first frames alone: {preview}), \
+         its first frame estimated after {estimated_after:.2} s, the whole file read after {whole_after:.2} s; \
+         {smoothed} frames smoothed after {elapsed:.1} s"
     );
     for (step, shown, estimated) in scrubs {
         println!(
             "scrub: the app's step {step:.1} ms, the frame's estimate shown after {shown:.0} ms ({estimated} frames smoothed by then)"
         );
     }
+}
+
+/// A long session is shown from its first frames while the rest is read:
+/// the frame on screen is estimated alone, the session is not estimated
+/// as a whole until it is all there, and the frame chosen meanwhile stays.
+#[test]
+fn a_long_session_is_shown_from_its_first_frames_while_read() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("long.session.json");
+    // 12 MB: read in seconds by a debug build, its first MiB in milliseconds.
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .arg("synth")
+        .arg(&path)
+        .args(["--seconds", "30", "--rate", "1000", "--seed", "5"])
+        .stdout(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let mut harness = app_harness();
+    settle(&mut harness);
+    harness.state_mut().open(path.to_str().unwrap());
+    let mut previewed = None;
+    for _ in 0..20_000 {
+        harness.step();
+        let app = harness.state();
+        if app.is_session_preview() && previewed.is_none() {
+            let frames = app.model.replay.as_ref().unwrap().session.frames.len();
+            assert!((1000..30_000).contains(&frames), "{frames}");
+            assert_eq!(app.session_estimated(), 0);
+            previewed = Some(frames);
+            harness
+                .state_mut()
+                .apply(proprioscope::app::Command::SetFrame(frames / 2));
+        }
+        if !harness.state().is_session_loading() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    let Some(preview_frames) = previewed else {
+        panic!("no preview shown; error: {:?}", harness.state().error);
+    };
+    let app = harness.state();
+    assert!(app.error.is_none(), "{:?}", app.error);
+    assert!(!app.is_session_preview());
+    let replay = app.model.replay.as_ref().unwrap();
+    assert_eq!(replay.session.frames.len(), 30_000);
+    assert_eq!(replay.frame, preview_frames / 2);
 }
 
 /// A sliding press replayed smoothed: the view draws the over-time

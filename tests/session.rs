@@ -85,3 +85,54 @@ fn estimate_reads_a_recorded_session() {
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(stdout.contains("median pos. error"), "{stdout}");
 }
+
+/// A session of `seconds` at 1 kHz drawn by `synth`.
+fn synth_session(name: &str, seconds: &str) -> PathBuf {
+    let path = scratch(name);
+    let status = Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .arg("synth")
+        .arg(&path)
+        .args(["--seconds", seconds, "--rate", "1000", "--seed", "4"])
+        .stdout(Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    path
+}
+
+/// `load_session` on `path`, with the previews it gave.
+fn load_with_previews(path: &std::path::Path) -> (proprioscope::batch::Loaded, Vec<proprioscope::batch::Loaded>) {
+    let previews = std::sync::Mutex::new(Vec::new());
+    let loaded = proprioscope::batch::load_session(
+        path,
+        None,
+        &[],
+        &proprioscope::io::recording::TopicChoice::default(),
+        &|_| {},
+        &|p| previews.lock().unwrap().push(p),
+    )
+    .unwrap();
+    (loaded, previews.into_inner().unwrap())
+}
+
+#[test]
+fn a_long_session_gives_its_first_frames_while_the_rest_is_read() {
+    let path = synth_session("long.session.json", "8");
+    assert!(std::fs::metadata(&path).unwrap().len() > 2 * proprioscope::batch::PREVIEW_BYTES as u64);
+    let ((whole, robot, spec), previews) = load_with_previews(&path);
+    let [(first, first_robot, first_spec)] = previews.as_slice() else {
+        panic!("{} previews", previews.len());
+    };
+    // The frames that fit in the bytes read, the same as the whole read's.
+    assert!(first.frames.len() > 1000, "{}", first.frames.len());
+    assert!(first.frames.len() < whole.frames.len() / 2);
+    assert_eq!(first.frames[..], whole.frames[..first.frames.len()]);
+    assert_eq!(first.file_frames[..], whole.file_frames[..first.frames.len()]);
+    assert_eq!((first_robot, first_spec), (&robot, &spec));
+    // A short session is read whole at once.
+    let short = synth_session("short.session.json", "1");
+    assert!(std::fs::metadata(&short).unwrap().len() < proprioscope::batch::PREVIEW_BYTES as u64);
+    let ((whole, _, _), previews) = load_with_previews(&short);
+    assert!(previews.is_empty());
+    assert_eq!(whole.frames.len(), 1000);
+}

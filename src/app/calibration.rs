@@ -252,6 +252,7 @@ impl ProprioscopeApp {
                     &packages,
                     &crate::io::recording::TopicChoice::default(),
                     &|_| {},
+                    &|_| {},
                 )
                 .map_err(|e| format!("{e:#}"))?;
                 let measured: Vec<Vec<f64>> = data.frames.iter().map(|f| f.tau.clone()).collect();

@@ -133,12 +133,21 @@ impl ProprioscopeApp {
             ui.colored_label(egui::Color32::from_rgb(230, 70, 70), format!("REC {frames} frames"));
         }
         if let Some(loader) = &self.session.loader {
+            // While a preview is shown, the bar says how much of it there is.
+            let shown = self
+                .model
+                .replay
+                .as_ref()
+                .filter(|_| self.session.previewing)
+                .and_then(|r| Some(r.session.frames.last()?.t - r.session.frames.first()?.t))
+                .map(|secs| format!(", its first {secs:.1} s shown"))
+                .unwrap_or_default();
             ui.add(egui::Spinner::new());
             ui.add(
                 egui::ProgressBar::new(loader.progress() as f32)
-                    .desired_width(320.0)
+                    .desired_width(360.0)
                     .text(format!(
-                        "loading {} ({:.0} s)",
+                        "loading {}{shown} ({:.0} s)",
                         loader.path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default(),
                         loader.started.elapsed().as_secs_f64()
                     )),

@@ -30,6 +30,9 @@ pub struct SessionPart {
     pub(crate) loader: Option<Loader>,
     /// The frame a session being loaded opens on.
     pub(crate) first_frame: Option<usize>,
+    /// Whether the session shown is the first frames of the one being
+    /// loaded: shown and estimated frame by frame, not yet as a whole.
+    pub(crate) previewing: bool,
     /// The session's metrics, with the estimation run they belong to.
     pub(crate) metrics: Option<((u64, usize), Option<super::session_panel::SessionMetrics>)>,
     /// The session's torque bias, when it is taken off, with what it was
@@ -59,6 +62,7 @@ impl SessionPart {
             key: None,
             loader: None,
             first_frame: None,
+            previewing: false,
             metrics: None,
             bias: None,
             calibration: None,
@@ -147,12 +151,36 @@ impl ProprioscopeApp {
         ));
     }
 
-    /// Installs a loaded session (or shows why it could not be loaded).
+    /// Installs a loaded session (or shows why it could not be loaded);
+    /// meanwhile, a long file's first frames.
     pub(super) fn poll_loader(&mut self) {
-        let Some(result) = self.session.loader.as_ref().and_then(Loader::poll) else {
+        let Some(loader) = self.session.loader.as_ref() else {
+            return;
+        };
+        let Some(result) = loader.poll() else {
+            if let Some((data, robot, spec)) = loader.take_preview() {
+                // The frame asked for is kept for the whole session.
+                let wanted = self.session.first_frame;
+                self.session.first_frame = wanted.map(|f| f.min(data.frames.len().saturating_sub(1)));
+                self.install_session(data, robot, spec);
+                self.session.first_frame = wanted;
+                self.session.previewing = true;
+            }
             return;
         };
         let path = self.session.loader.take().map(|l| l.path).unwrap_or_default();
+        if std::mem::take(&mut self.session.previewing) {
+            if result.is_ok() {
+                // The whole session opens on the frame the preview was at.
+                self.session.first_frame = self
+                    .session
+                    .first_frame
+                    .or_else(|| self.model.replay.as_ref().map(|r| r.frame));
+            } else {
+                // A file that could not be read whole is not shown in part.
+                self.close_session();
+            }
+        }
         match result {
             Ok((data, robot, spec)) => self.install_session(data, robot, spec),
             Err(LoadFailure::Failed(e)) => self.error = Some(format!("could not open session {}: {e}", path.display())),
@@ -168,8 +196,16 @@ impl ProprioscopeApp {
         let candidate_links = robot.default_candidate_links();
         let q = data.frames.first().map_or_else(|| vec![0.0; joints], |f| f.q.clone());
         let old = &self.model;
+        // The same robot keeps its `Arc`: the worker's sampled surface,
+        // keyed by it, then serves the session's first frame at once
+        // instead of sampling the surface again (a third of a second).
+        let robot = if *old.robot == robot {
+            old.robot.clone()
+        } else {
+            Arc::new(robot)
+        };
         let model = Model {
-            robot: Arc::new(robot),
+            robot,
             q,
             push: None,
             second_push: None,
@@ -205,6 +241,10 @@ impl ProprioscopeApp {
 
     /// Leaves the session; the robot stays where the frame put it.
     pub fn close_session(&mut self) {
+        // Closing a preview stops the file's loading.
+        if std::mem::take(&mut self.session.previewing) {
+            self.session.loader = None;
+        }
         self.model.replay = None;
         self.visited.clear();
         self.session.key = None;
@@ -217,6 +257,11 @@ impl ProprioscopeApp {
     /// (Re)starts the background estimation when the session or the
     /// settings changed, and collects what it has done.
     pub(super) fn update_session_estimates(&mut self) {
+        // A preview's frames are estimated one by one, as shown; the
+        // session as a whole once it is all read.
+        if self.session.previewing {
+            return;
+        }
         self.update_session_bias();
         self.update_session_calibration();
         let Some(replay) = &self.model.replay else {
@@ -366,6 +411,19 @@ impl ProprioscopeApp {
             bias_known: self.session_bias().is_some() && live_epoch.is_none(),
             calibration_settled: !self.calibration_pending() && live_epoch.is_none(),
         })
+    }
+
+    /// Whether a session file is being read.
+    #[must_use]
+    pub fn is_session_loading(&self) -> bool {
+        self.session.loader.is_some()
+    }
+
+    /// Whether the session shown is the first frames of one still being
+    /// read.
+    #[must_use]
+    pub fn is_session_preview(&self) -> bool {
+        self.session.previewing
     }
 
     /// Frames estimated in the background so far.

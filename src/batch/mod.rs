@@ -218,15 +218,32 @@ impl SessionData {
 /// name or a URDF path usable from the working directory).
 pub type Loaded = (SessionData, Robot, String);
 
+/// Bytes of a JSON session read first for [`load_session`]'s preview
+/// (about 2,500 frames of 7 joints: the first seconds of a 1 kHz
+/// recording, read in milliseconds).
+pub const PREVIEW_BYTES: usize = 1 << 20;
+
 /// Reads a session, skipping its bad frames, with its robot (`robot`
-/// overrides the session's; a CSV session needs one).
+/// overrides the session's; a CSV session needs one). A JSON session
+/// longer than [`PREVIEW_BYTES`] first gives `preview` its first frames
+/// with the robot, to be shown while the rest is read.
 pub fn load_session(
     path: &Path,
     robot: Option<&str>,
     package_paths: &[PathBuf],
     choice: &TopicChoice,
     progress: &dyn Fn(f64),
+    preview: &dyn Fn(Loaded),
 ) -> Result<Loaded> {
+    // The robot the preview loaded, for the same header.
+    let mut early: Option<(Option<String>, Option<Vec<String>>, Robot)> = None;
+    if let Ok(Some(start)) = Session::read_json_start(path, PREVIEW_BYTES) {
+        let header = (start.robot.clone(), start.joints.clone());
+        if let Ok(loaded) = with_robot(path, start, Vec::new(), robot, package_paths, None) {
+            early = Some((header.0, header.1, loaded.1.clone()));
+            preview(loaded);
+        }
+    }
     // The file is most of the work; the robot the last step. A choice
     // remembered from another recording that does not fit this one gives
     // way to what this file implies.
@@ -238,13 +255,29 @@ pub fn load_session(
         other => other,
     };
     let (session, problems) = opened?;
+    let known = early.and_then(|(r, joints, robot)| (r == session.robot && joints == session.joints).then_some(robot));
+    with_robot(path, session, problems, robot, package_paths, known)
+}
+
+/// A session read, with its robot (`known` when already loaded).
+fn with_robot(
+    path: &Path,
+    session: Session,
+    problems: Vec<FrameProblem>,
+    robot: Option<&str>,
+    package_paths: &[PathBuf],
+    known: Option<Robot>,
+) -> Result<Loaded> {
     let spec = match (robot, &session.robot) {
         (Some(r), _) => r.to_owned(),
         (None, Some(r)) if crate::io::builtin::is_builtin(r) => r.clone(),
         (None, Some(r)) => path.parent().unwrap_or(Path::new(".")).join(r).display().to_string(),
         (None, None) => String::new(),
     };
-    let robot = session_robot(&session, robot, package_paths, &[])?;
+    let robot = match known {
+        Some(known) => known,
+        None => session_robot(&session, robot, package_paths, &[])?,
+    };
     let joints = robot.sensed().len();
     if let Some(frame) = session.frames.first()
         && frame.q.len() != joints
@@ -346,6 +379,8 @@ pub struct Loader {
     pub started: Instant,
     /// How far it is, 0 to 1 (an `f64`'s bits).
     progress: Arc<std::sync::atomic::AtomicU64>,
+    /// The file's first frames, until taken.
+    preview: Arc<std::sync::Mutex<Option<Loaded>>>,
 }
 
 impl From<String> for LoadFailure {
@@ -361,30 +396,48 @@ impl Loader {
         robot: Option<String>,
         package_paths: Vec<PathBuf>,
         choice: TopicChoice,
-        wake: impl Fn() + Send + 'static,
+        wake: impl Fn() + Send + Sync + 'static,
     ) -> Self {
         let thread_path = path.clone();
         let progress = Arc::new(std::sync::atomic::AtomicU64::new(0));
         let shared = progress.clone();
+        let preview = Arc::new(std::sync::Mutex::new(None));
+        let preview_slot = preview.clone();
+        let wake = Arc::new(wake);
+        let wake_preview = wake.clone();
         let job = Background::spawn(
             path.display().to_string(),
             move || {
                 let report = |f: f64| shared.store(f.to_bits(), std::sync::atomic::Ordering::Relaxed);
-                load_session(&thread_path, robot.as_deref(), &package_paths, &choice, &report).map_err(|e| {
+                let show = |loaded: Loaded| {
+                    if let Ok(mut slot) = preview_slot.lock() {
+                        *slot = Some(loaded);
+                    }
+                    wake_preview();
+                };
+                load_session(&thread_path, robot.as_deref(), &package_paths, &choice, &report, &show).map_err(|e| {
                     match TopicPrompt::for_error(&thread_path, robot.clone(), &e) {
                         Some(prompt) => LoadFailure::NeedsTopics(Box::new(prompt)),
                         None => LoadFailure::Failed(format!("{e:#}")),
                     }
                 })
             },
-            wake,
+            move || wake(),
         );
         Self {
             job,
             path,
             started: Instant::now(),
             progress,
+            preview,
         }
+    }
+
+    /// The file's first frames with the robot, once read and until taken
+    /// (a long JSON session's: see [`load_session`]).
+    #[must_use]
+    pub fn take_preview(&self) -> Option<Loaded> {
+        self.preview.lock().ok()?.take()
     }
 
     /// How far loading is, 0 to 1.

@@ -9,6 +9,7 @@ pub mod cdr;
 pub mod foxglove;
 pub mod guard;
 pub mod inflate;
+mod json_array;
 pub mod live;
 pub mod mcap_out;
 pub mod mesh;

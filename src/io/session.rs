@@ -7,6 +7,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Deserializer};
 
 use crate::core::config::limits;
+use crate::io::json_array;
 
 /// The true contact of a frame, when known.
 #[derive(Debug, Clone, PartialEq)]
@@ -207,6 +208,29 @@ impl From<FrameFile> for Frame {
     }
 }
 
+/// A frame from its JSON text; `None` when the text is not JSON. A
+/// value that is not a frame (a string, a wrong truth) keeps its place as
+/// a frame with no values, so that the check names it.
+fn frame_from_text(text: &str) -> Option<Frame> {
+    match serde_json::from_str::<FrameFile>(text) {
+        Ok(f) => Some(Frame::from(f)),
+        // A wrong value can stop the parse before a syntax error does.
+        Err(e) if e.is_data() && serde_json::from_str::<serde::de::IgnoredAny>(text).is_ok() => Some(not_a_frame()),
+        Err(_) => None,
+    }
+}
+
+/// A frame with no values, in the place of a value that is not a frame.
+fn not_a_frame() -> Frame {
+    Frame::from(FrameFile {
+        t: f64::NAN,
+        q: Vec::new(),
+        tau: Vec::new(),
+        truth: TruthField::Absent,
+        truth_all: None,
+    })
+}
+
 #[derive(Deserialize)]
 struct FrameFile {
     #[serde(default = "not_a_number")]
@@ -277,8 +301,77 @@ impl Session {
         Ok(session)
     }
 
+    /// The first frames of a JSON session file longer than `max_bytes`,
+    /// read from its first `max_bytes` (a preview while the whole file is
+    /// read). `None` where the file is shorter, is not JSON, or its start
+    /// gives no frame that passes the checks: the whole read says why.
+    pub fn read_json_start(path: &Path, max_bytes: usize) -> Result<Option<Self>, SessionError> {
+        use std::io::Read;
+        let read_error = |cause| SessionError::Read {
+            path: path.to_owned(),
+            cause,
+        };
+        if is_csv(path) {
+            return Ok(None);
+        }
+        let mut bytes = Vec::new();
+        let file = std::fs::File::open(path).map_err(read_error)?;
+        file.take(max_bytes as u64 + 1)
+            .read_to_end(&mut bytes)
+            .map_err(read_error)?;
+        if bytes.len() <= max_bytes {
+            return Ok(None);
+        }
+        // The cut may fall inside a character.
+        let text = match std::str::from_utf8(&bytes) {
+            Ok(text) => text,
+            Err(e) => bytes
+                .get(..e.valid_up_to())
+                .and_then(|b| std::str::from_utf8(b).ok())
+                .unwrap_or_default(),
+        };
+        let Some(split) = json_array::split_array_field_start(text, "frames") else {
+            return Ok(None);
+        };
+        let Ok(file) = serde_json::from_str::<SessionFile>(&split.rest) else {
+            return Ok(None);
+        };
+        let Some(frames) = split
+            .elements
+            .into_par_iter()
+            .map(frame_from_text)
+            .collect::<Option<Vec<Frame>>>()
+        else {
+            return Ok(None);
+        };
+        match Self::from_file(file, frames, path) {
+            Ok(session) if !session.frames.is_empty() && session.check().is_ok() => Ok(Some(session)),
+            _ => Ok(None),
+        }
+    }
+
     /// Parses the JSON form.
     pub fn parse_json(text: &str, path: &Path) -> Result<Self, SessionError> {
+        // The frames found first and parsed in parallel; a text the split
+        // does not take, or a frame that is not JSON, is parsed whole,
+        // whose error names the line.
+        if let Some(split) = json_array::split_array_field(text, "frames")
+            && let Ok(file) = serde_json::from_str::<SessionFile>(&split.rest)
+            && let Some(frames) = split
+                .elements
+                .into_par_iter()
+                .map(frame_from_text)
+                .collect::<Option<Vec<Frame>>>()
+        {
+            return Self::from_file(file, frames, path);
+        }
+        Self::parse_json_whole(text, path)
+    }
+
+    /// Parses the JSON form in one pass of `serde_json` (what
+    /// [`Session::parse_json`] falls back on; the fuzz target checks
+    /// that both read every text alike).
+    pub fn parse_json_whole(text: &str, path: &Path) -> Result<Self, SessionError> {
         let file: SessionFile = serde_json::from_str(text).map_err(|e| {
             let mut message = e.to_string();
             if let Some(i) = message.rfind(" at line ") {
@@ -290,6 +383,18 @@ impl Session {
                 message,
             }
         })?;
+        // Each frame's text is read on its own, so the frames are read in
+        // parallel (in order); the whole text was JSON.
+        let frames = file
+            .frames
+            .par_iter()
+            .map(|raw| frame_from_text(raw.get()).unwrap_or_else(not_a_frame))
+            .collect();
+        Self::from_file(file, frames, path)
+    }
+
+    /// The session of a parsed file's header and frames.
+    fn from_file(file: SessionFile, frames: Vec<Frame>, path: &Path) -> Result<Self, SessionError> {
         let header = |field: &str, message: String| SessionError::Header {
             path: path.to_owned(),
             field: field.to_owned(),
@@ -311,25 +416,7 @@ impl Session {
             path: path.to_owned(),
             robot: Some(file.robot),
             joints: file.joints,
-            // Each frame's text is read on its own, so the frames are
-            // read in parallel (in order).
-            frames: file
-                .frames
-                .into_par_iter()
-                .map(|raw| {
-                    // A frame that is not even a frame (a string, a wrong
-                    // truth) keeps its place as a frame with no values, so
-                    // that the check names it.
-                    let f = serde_json::from_str::<FrameFile>(raw.get()).unwrap_or(FrameFile {
-                        t: f64::NAN,
-                        q: Vec::new(),
-                        tau: Vec::new(),
-                        truth: TruthField::Absent,
-                        truth_all: None,
-                    });
-                    Frame::from(f)
-                })
-                .collect(),
+            frames,
         })
     }
 

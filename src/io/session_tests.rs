@@ -289,3 +289,33 @@ fn live_lines_are_read_one_by_one_and_bad_ones_reported() {
         LiveLine::Frame(_)
     ));
 }
+
+/// The frames split out and parsed in parallel read every text as the
+/// whole parse does: a good session, a frame that is not a frame, and a
+/// frame whose wrong value comes before its syntax error (found by the
+/// fuzz target `session_json`: the frame's own parse stopped at the value
+/// and took it for a bad frame, where the whole text is not JSON).
+#[test]
+fn frames_split_out_read_as_the_whole_text() {
+    let path = Path::new("s.json");
+    let head = r#"{"format":"contact-session","version":1,"robot":"lwr4plus","frames":["#;
+    for frames in [
+        r#"{"t":0,"q":[1],"tau":[2]},{"t":1,"q":[1],"tau":[2],"truth":null}"#,
+        r#"{"t":0,"q":[1],"tau":[2]},"not a frame",{"t":1,"q":[1],"tau":[2]}"#,
+        r#"{"t":0,"q":[1],"tau":[2],"truth":{"link":"a","point":1,-2]}}"#,
+        r#"{"t":0,"q":[1],"tau":[2]} {"t":1}"#,
+    ] {
+        let text = format!("{head}{frames}]}}");
+        let split = Session::parse_json(&text, path);
+        let whole = Session::parse_json_whole(&text, path);
+        assert_eq!(format!("{split:?}"), format!("{whole:?}"), "{frames}");
+    }
+    let bad = format!(
+        "{head}{}]}}",
+        r#"{"t":0,"q":[1],"tau":[2],"truth":{"link":"a","point":1,-2]}}"#
+    );
+    let Err(SessionError::Parse { line: 1, message, .. }) = Session::parse_json(&bad, path) else {
+        panic!("a text that is not JSON read");
+    };
+    assert!(message.contains("key must be a string"), "{message}");
+}
