@@ -148,3 +148,35 @@ fn topics_are_listed_with_types_counts_and_rates() {
         "{message}"
     );
 }
+
+/// An MCAP's first half, read as a file cut short, gives its first frames
+/// as the whole read does (the app's preview of a long recording); a ROS 1
+/// bag cut short is an error, and gives no preview.
+#[test]
+#[ignore = "needs ../shared"]
+fn a_recording_cut_short_gives_its_first_frames() {
+    for name in [
+        "lwr4plus_dyn_example_link4_franka.mcap",
+        "lwr4plus_dyn_example_link4_kuka.mcap",
+        "lwr4plus_dyn_example_link4_plain.mcap",
+    ] {
+        let path = shared().join("recordings").join(name);
+        let choice = TopicChoice::default();
+        let (whole, _) = Session::open(&path, &choice, &|_| {}).unwrap();
+        let len = usize::try_from(std::fs::metadata(&path).unwrap().len()).unwrap();
+        let (start, _) = Session::open_start(&path, &choice, len / 2).unwrap();
+        let n = start.frames.len();
+        assert!(
+            (whole.frames.len() / 4..whole.frames.len() * 3 / 4).contains(&n),
+            "{name}: {n} of {}",
+            whole.frames.len()
+        );
+        // The last frame's pair may lie beyond the cut.
+        assert_eq!(start.frames[..n - 1], whole.frames[..n - 1], "{name}");
+        assert_eq!(start.joints, whole.joints, "{name}");
+        assert!(Session::open_start(&path, &choice, len).is_none(), "{name}");
+    }
+    let bag = shared().join("recordings/lwr4plus_dyn_example_link4_plain.bag");
+    let len = usize::try_from(std::fs::metadata(&bag).unwrap().len()).unwrap();
+    assert!(Session::open_start(&bag, &TopicChoice::default(), len / 2).is_none());
+}

@@ -223,9 +223,15 @@ pub type Loaded = (SessionData, Robot, String);
 /// recording, read in milliseconds).
 pub const PREVIEW_BYTES: usize = 1 << 20;
 
+/// Bytes of a robot recording read first for the preview: more than a
+/// JSON session's, since an MCAP's messages come in chunks (a chunk cut
+/// by the end is left out) beside other topics.
+pub const PREVIEW_RECORDING_BYTES: usize = 8 << 20;
+
 /// Reads a session, skipping its bad frames, with its robot (`robot`
 /// overrides the session's; a CSV session needs one). A JSON session
-/// longer than [`PREVIEW_BYTES`] first gives `preview` its first frames
+/// longer than [`PREVIEW_BYTES`], or a recording longer than
+/// [`PREVIEW_RECORDING_BYTES`], first gives `preview` its first frames
 /// with the robot, to be shown while the rest is read.
 pub fn load_session(
     path: &Path,
@@ -237,9 +243,14 @@ pub fn load_session(
 ) -> Result<Loaded> {
     // The robot the preview loaded, for the same header.
     let mut early: Option<(Option<String>, Option<Vec<String>>, Robot)> = None;
-    if let Ok(Some(start)) = Session::read_json_start(path, PREVIEW_BYTES) {
+    let preview_bytes = if crate::io::recording::is_recording(path) {
+        PREVIEW_RECORDING_BYTES
+    } else {
+        PREVIEW_BYTES
+    };
+    if let Some((start, problems)) = Session::open_start(path, choice, preview_bytes) {
         let header = (start.robot.clone(), start.joints.clone());
-        if let Ok(loaded) = with_robot(path, start, Vec::new(), robot, package_paths, None) {
+        if let Ok(loaded) = with_robot(path, start, problems, robot, package_paths, None) {
             early = Some((header.0, header.1, loaded.1.clone()));
             preview(loaded);
         }

@@ -70,6 +70,41 @@ impl Session {
     }
 }
 
+impl Session {
+    /// The first frames of a file longer than `max_bytes`, read from its
+    /// first `max_bytes` (a preview while the whole file is read): a JSON
+    /// session's ([`Session::read_json_start`]), or a recording's read as
+    /// a file cut short, with `choice`. `None` where the file is shorter
+    /// or its start gives no frame: the whole read says why.
+    #[must_use]
+    pub fn open_start(path: &Path, choice: &TopicChoice, max_bytes: usize) -> Option<(Self, Vec<FrameProblem>)> {
+        if !is_recording(path) {
+            return Self::read_json_start(path, max_bytes)
+                .ok()
+                .flatten()
+                .map(|session| (session, Vec::new()));
+        }
+        let bytes = read_start(path, max_bytes)?;
+        let read = recording::read_session(path, &bytes, choice, &|_| {}).ok()?;
+        (!read.session.frames.is_empty()).then_some((read.session, read.problems))
+    }
+}
+
+/// The first `max_bytes` of a file longer than that.
+fn read_start(path: &Path, max_bytes: usize) -> Option<Vec<u8>> {
+    use std::io::Read;
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .ok()?
+        .take(max_bytes as u64 + 1)
+        .read_to_end(&mut bytes)
+        .ok()?;
+    (bytes.len() > max_bytes).then(|| {
+        bytes.truncate(max_bytes);
+        bytes
+    })
+}
+
 /// Whether the file at `path` names no robot (CSV sessions and robot
 /// recordings): the robot must come from elsewhere.
 #[must_use]

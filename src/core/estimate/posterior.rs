@@ -73,6 +73,89 @@ impl Posterior {
     }
 }
 
+/// A posterior held while its frame waits (for its smoothed belief): the
+/// probability kept on its support alone, the display dropped where it is
+/// the probability. [`CompactPosterior::expand`] gives the same posterior
+/// back, bit for bit; a frame waits with 80 kB instead of 165 kB at 5,000
+/// points.
+#[derive(Debug, Clone)]
+pub struct CompactPosterior {
+    /// The posterior, its dense vectors emptied where they are kept below.
+    posterior: Posterior,
+    /// With the probability emptied: the surface's points, and the
+    /// probability at each support point.
+    sparse: Option<(usize, Vec<f64>)>,
+    /// The display was the probability.
+    display_is_probability: bool,
+}
+
+impl CompactPosterior {
+    /// `posterior` compacted where it can be given back exactly: its
+    /// probability is zero off its support.
+    #[must_use]
+    pub fn of(mut posterior: Posterior) -> Self {
+        // Bits compared: a -0.0 or a NaN comes back as it was.
+        let display_is_probability = posterior.display.len() == posterior.probability.len()
+            && posterior
+                .display
+                .iter()
+                .zip(&posterior.probability)
+                .all(|(d, p)| d.to_bits() == p.to_bits());
+        let mut on_support = 0;
+        let mut mass_on_support = Vec::with_capacity(posterior.support.len());
+        for &k in &posterior.support {
+            if let Some(&p) = posterior.probability.get(k) {
+                mass_on_support.push(p);
+                on_support += usize::from(p.to_bits() != 0);
+            }
+        }
+        let nonzero = posterior.probability.iter().filter(|p| p.to_bits() != 0).count();
+        let off_support = nonzero.saturating_sub(on_support);
+        let sparse = (off_support == 0 && mass_on_support.len() == posterior.support.len()).then(|| {
+            let points = posterior.probability.len();
+            posterior.probability = Vec::new();
+            (points, mass_on_support)
+        });
+        if display_is_probability {
+            posterior.display = Vec::new();
+        }
+        Self {
+            posterior,
+            sparse,
+            display_is_probability,
+        }
+    }
+
+    /// Bytes it holds.
+    #[must_use]
+    pub fn bytes(&self) -> usize {
+        self.posterior.bytes() + self.sparse.as_ref().map_or(0, |(_, p)| p.len() * size_of::<f64>())
+    }
+
+    /// The posterior it was made of.
+    #[must_use]
+    pub fn expand(self) -> Posterior {
+        let Self {
+            mut posterior,
+            sparse,
+            display_is_probability,
+        } = self;
+        if let Some((points, mass_on_support)) = sparse {
+            let mut probability = vec![0.0; points];
+            for (&k, p) in posterior.support.iter().zip(mass_on_support) {
+                if let Some(slot) = probability.get_mut(k) {
+                    *slot = p;
+                }
+            }
+            posterior.probability = probability;
+        }
+        if display_is_probability {
+            posterior.display.clone_from(&posterior.probability);
+        }
+        posterior
+    }
+}
+
 /// Estimates the contact from measured torques `tau` (N·m, sensed order).
 /// `hierarchy` is needed when `settings.phase_alpha` is set.
 pub fn estimate(

@@ -573,3 +573,60 @@ fn contact_off_the_candidate_links_is_flagged() {
     let post = estimate(&few.model, &tau, &settings(0.05), None).unwrap();
     assert_eq!(summarize(&post, &few.surface, &few.pose, 7).verdict, Verdict::PoorFit);
 }
+
+/// Bits of every value of a posterior's vectors, for comparisons that
+/// tell -0.0 from 0.0 and take NaN as itself.
+fn bits(p: &Posterior) -> Vec<Vec<u64>> {
+    [&p.probability, &p.display, &p.log_likelihood, &p.force_newtons]
+        .iter()
+        .map(|v| v.iter().map(|x| x.to_bits()).collect())
+        .collect()
+}
+
+#[test]
+fn a_compacted_posterior_comes_back_bit_for_bit() {
+    let s = setup(&Q, 2000, None);
+    let (_, tau) = push_at(&s, 700, 12.0);
+    let exact = estimate(&s.model, &tau, &settings(0.05), None).unwrap();
+    let mut set = settings(0.05);
+    set.mode = Mode::Particles(ParticleSettings {
+        sampling: Sampling::Deterministic {
+            magnitudes_per_point: 5,
+        },
+    });
+    let particles = estimate(&s.model, &tau, &set, None).unwrap();
+    // What the estimator never leaves comes back too: a -0.0 off the
+    // support and a NaN display; a probability off the support.
+    let outside = (0..exact.probability.len())
+        .find(|k| !exact.support.contains(k))
+        .unwrap();
+    let mut odd = exact.clone();
+    odd.probability[outside] = -0.0;
+    odd.display[3] = f64::NAN;
+    let mut off = exact.clone();
+    off.probability[outside] = 1e-30;
+    for (name, p) in [
+        ("exact", &exact),
+        ("particles", &particles),
+        ("odd", &odd),
+        ("off", &off),
+    ] {
+        let compact = CompactPosterior::of(p.clone());
+        let bytes = compact.bytes();
+        let back = compact.expand();
+        assert_eq!(bits(&back), bits(p), "{name}");
+        assert_eq!(
+            (&back.support, back.map_point, &back.phase_flags),
+            (&p.support, p.map_point, &p.phase_flags)
+        );
+        if name == "exact" {
+            // The probability on its support alone, no display.
+            assert!(
+                bytes * 2 < p.bytes() + 4 * p.support.len() * 8 + 4096,
+                "{bytes} of {}",
+                p.bytes()
+            );
+            assert!(exact.support.len() < 200, "{}", exact.support.len());
+        }
+    }
+}

@@ -16,6 +16,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::core::estimate::estimator::{Estimator, PendingUpdate, Update, elapsed_ms, finite};
+use crate::core::estimate::posterior::CompactPosterior;
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Summary;
 use crate::core::over_time::frame::SequenceFrame;
@@ -24,6 +25,7 @@ use crate::core::over_time::presses::{FrictionGate, Offered, PressJob, PressQueu
 use crate::core::over_time::smoother::FilterState;
 use crate::core::over_time::stretches::{Piece, Stretch, StretchSmoother};
 use crate::core::over_time::temporal::{Belief, TemporalError, TemporalModel};
+use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::Robot;
 
 /// Why a sequence could not be estimated.
@@ -136,6 +138,21 @@ fn likelihoods(
 ) -> Vec<Done<(PendingUpdate, FrameLikelihood)>> {
     in_parallel(frames, start, |f| {
         estimator.update_for_sequence(robot, f.joint_positions, f.tau)
+    })
+}
+
+/// As [`likelihoods`], each frame's posterior compacted to wait for its
+/// smoothed belief (in parallel: the filter's thread only stores it).
+fn waiting_likelihoods(
+    estimator: &Estimator,
+    robot: &Robot,
+    frames: &[SequenceFrame],
+    start: usize,
+) -> Vec<Done<(WaitingFrame, FrameLikelihood)>> {
+    in_parallel(frames, start, |f| {
+        estimator
+            .update_for_sequence(robot, f.joint_positions, f.tau)
+            .map(|(pending, likelihood)| (WaitingFrame::of(pending), likelihood))
     })
 }
 
@@ -262,7 +279,7 @@ pub(crate) fn smooth(
         // The frames pushed and not yet settled, with what each has cost.
         let mut waiting = Waiting::default();
         let mut start = 0;
-        let mut done = likelihoods(estimator, robot, frames, start);
+        let mut done = waiting_likelihoods(estimator, robot, frames, start);
         let limit = model.store_limit_bytes();
         let threads = rayon::current_num_threads();
         while !done.is_empty() {
@@ -282,7 +299,7 @@ pub(crate) fn smooth(
                     }
                     Ok(cut)
                 },
-                || likelihoods(estimator, robot, frames, start),
+                || waiting_likelihoods(estimator, robot, frames, start),
             );
             done = next;
             for piece in cut? {
@@ -471,35 +488,56 @@ impl<'a, 's> InOrder<'a, 's> {
     }
 }
 
+/// A frame's own estimate while it waits for its smoothed belief: its
+/// pose and its posterior, compacted (kept rather than computed again:
+/// it is a third of a frame's work).
+struct WaitingFrame {
+    pose: RobotPose,
+    posterior: CompactPosterior,
+}
+
+impl WaitingFrame {
+    fn of(pending: PendingUpdate) -> Self {
+        Self {
+            pose: pending.pose,
+            posterior: CompactPosterior::of(pending.posterior),
+        }
+    }
+
+    fn bytes(&self) -> usize {
+        size_of::<Self>() + self.posterior.bytes()
+    }
+
+    fn expand(self) -> PendingUpdate {
+        PendingUpdate {
+            pose: self.pose,
+            posterior: self.posterior.expand(),
+        }
+    }
+}
+
 /// The frames filtered and not yet settled, in order: number, what each
-/// has cost so far, its own posterior (kept rather than computed again:
-/// it is a third of a frame's work, and a smaller store than the
-/// smoother's).
+/// has cost so far, its own estimate.
 #[derive(Default)]
 struct Waiting {
-    frames: VecDeque<(usize, f64, PendingUpdate)>,
+    frames: VecDeque<(usize, f64, WaitingFrame)>,
     /// Bytes their posteriors hold.
     bytes: usize,
 }
 
 impl Waiting {
-    fn push(&mut self, i: usize, ms: f64, pending: PendingUpdate) {
-        self.bytes += pending_bytes(&pending);
-        self.frames.push_back((i, ms, pending));
+    fn push(&mut self, i: usize, ms: f64, frame: WaitingFrame) {
+        self.bytes += frame.bytes();
+        self.frames.push_back((i, ms, frame));
     }
 
     /// The first `n`, in order.
-    fn take(&mut self, n: usize) -> Vec<(usize, f64, PendingUpdate)> {
+    fn take(&mut self, n: usize) -> Vec<(usize, f64, WaitingFrame)> {
         let taken: Vec<_> = self.frames.drain(..n.min(self.frames.len())).collect();
-        let freed: usize = taken.iter().map(|(_, _, p)| pending_bytes(p)).sum();
+        let freed: usize = taken.iter().map(|(_, _, f)| f.bytes()).sum();
         self.bytes = self.bytes.saturating_sub(freed);
         taken
     }
-}
-
-/// Bytes a pending update's posterior holds.
-fn pending_bytes(pending: &PendingUpdate) -> usize {
-    size_of::<PendingUpdate>() + pending.posterior.bytes()
 }
 
 /// Runs a task of the pool on this thread if one waits, else yields.
@@ -614,9 +652,10 @@ fn settle_stretch(
         let done: Vec<Done<(Update, Option<Summary>)>> = chunk
             .into_par_iter()
             .enumerate()
-            .filter_map(|(j, (i, ms, pending))| {
+            .filter_map(|(j, (i, ms, waiting))| {
                 let t0 = Instant::now();
                 let f = frames.get(i)?;
+                let pending = waiting.expand();
                 let belief = stretch.belief(c * BLOCK_FRAMES + j)?;
                 let alone = estimator.summary_alone(robot, &pending, f.tau, &belief);
                 let update = estimator.with_belief_as(robot, pending, f.tau, &belief, !estimator.fits_presses());
