@@ -445,7 +445,7 @@ impl Loader {
     }
 
     /// The file's first frames with the robot, once read and until taken
-    /// (a long JSON session's: see [`load_session`]).
+    /// (a long JSON session's or MCAP's: see [`load_session`]).
     #[must_use]
     pub fn take_preview(&self) -> Option<Loaded> {
         self.preview.lock().ok()?.take()

@@ -330,24 +330,26 @@ impl Session {
                 .and_then(|b| std::str::from_utf8(b).ok())
                 .unwrap_or_default(),
         };
-        let Some(split) = json_array::split_array_field_start(text, "frames") else {
-            return Ok(None);
-        };
-        let Ok(file) = serde_json::from_str::<SessionFile>(&split.rest) else {
-            return Ok(None);
-        };
-        let Some(frames) = split
+        Ok(Self::parse_json_start(text, path))
+    }
+
+    /// The session of the start of a JSON text cut anywhere: the fields
+    /// before its frames and the frames that end before the cut. `None`
+    /// where that gives no frame, or one that fails the checks. (The
+    /// fuzz target `session_json` checks that the frames of any cut of a
+    /// session are its first frames.)
+    #[must_use]
+    pub fn parse_json_start(text: &str, path: &Path) -> Option<Self> {
+        let split = json_array::split_array_field_start(text, "frames")?;
+        let file = serde_json::from_str::<SessionFile>(&split.rest).ok()?;
+        let frames = split
             .elements
             .into_par_iter()
             .map(frame_from_text)
-            .collect::<Option<Vec<Frame>>>()
-        else {
-            return Ok(None);
-        };
-        match Self::from_file(file, frames, path) {
-            Ok(session) if !session.frames.is_empty() && session.check().is_ok() => Ok(Some(session)),
-            _ => Ok(None),
-        }
+            .collect::<Option<Vec<Frame>>>()?;
+        Self::from_file(file, frames, path)
+            .ok()
+            .filter(|session| !session.frames.is_empty() && session.check().is_ok())
     }
 
     /// Parses the JSON form.

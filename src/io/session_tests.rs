@@ -319,3 +319,28 @@ fn frames_split_out_read_as_the_whole_text() {
     };
     assert!(message.contains("key must be a string"), "{message}");
 }
+
+/// A session's text cut at every place gives its first frames: none
+/// before the first frame ends, then one more with each frame's end.
+#[test]
+fn a_text_cut_anywhere_gives_the_first_frames() {
+    let path = Path::new("s.json");
+    let whole = Session::parse_json(JSON, path).unwrap();
+    let mut seen = Vec::new();
+    for cut in (0..=JSON.len()).filter(|&c| JSON.is_char_boundary(c)) {
+        let Some(start) = Session::parse_json_start(&JSON[..cut], path) else {
+            assert!(
+                seen.is_empty() || cut == JSON.len(),
+                "cut at {cut}: nothing after {seen:?}"
+            );
+            continue;
+        };
+        let n = start.frames.len();
+        assert_eq!(start.frames[..], whole.frames[..n], "cut at {cut}");
+        assert_eq!(start.robot, whole.robot);
+        if seen.last() != Some(&n) {
+            seen.push(n);
+        }
+    }
+    assert_eq!(seen, vec![1, 2, 3]);
+}
