@@ -149,9 +149,8 @@ fn topics_are_listed_with_types_counts_and_rates() {
     );
 }
 
-/// An MCAP's first half, read as a file cut short, gives its first frames
-/// as the whole read does (the app's preview of a long recording); a ROS 1
-/// bag cut short is an error, and gives no preview.
+/// A recording's start, read as such, gives its first frames as the whole
+/// read does (the app's preview of a long recording).
 #[test]
 #[ignore = "needs ../shared"]
 fn a_recording_cut_short_gives_its_first_frames() {
@@ -176,7 +175,18 @@ fn a_recording_cut_short_gives_its_first_frames() {
         assert_eq!(start.joints, whole.joints, "{name}");
         assert!(Session::open_start(&path, &choice, len).is_none(), "{name}");
     }
+    // The bag's messages are in one chunk (92 % of the file, the index
+    // after it): cut in it, no frame; cut after it, every frame. Read
+    // whole, a bag cut short is an error.
     let bag = shared().join("recordings/lwr4plus_dyn_example_link4_plain.bag");
+    let choice = TopicChoice::default();
+    let (whole, _) = Session::open(&bag, &choice, &|_| {}).unwrap();
     let len = usize::try_from(std::fs::metadata(&bag).unwrap().len()).unwrap();
-    assert!(Session::open_start(&bag, &TopicChoice::default(), len / 2).is_none());
+    assert!(Session::open_start(&bag, &choice, len / 2).is_none());
+    let (start, _) = Session::open_start(&bag, &choice, len * 95 / 100).unwrap();
+    assert_eq!(start.frames, whole.frames);
+    let bytes = std::fs::read(&bag).unwrap();
+    let cut = &bytes[..len * 95 / 100];
+    assert!(recording::read_session(&bag, cut, &choice, &|_| {}).is_err());
+    assert!(recording::read_session_start(&bag, cut, &choice).is_ok());
 }

@@ -224,8 +224,8 @@ pub type Loaded = (SessionData, Robot, String);
 pub const PREVIEW_BYTES: usize = 1 << 20;
 
 /// Bytes of a robot recording read first for the preview: more than a
-/// JSON session's, since an MCAP's messages come in chunks (a chunk cut
-/// by the end is left out) beside other topics.
+/// JSON session's, since an MCAP's or a bag's messages come in chunks (a
+/// chunk cut by the end is left out) beside other topics.
 pub const PREVIEW_RECORDING_BYTES: usize = 8 << 20;
 
 /// Reads a session, skipping its bad frames, with its robot (`robot`
@@ -445,7 +445,7 @@ impl Loader {
     }
 
     /// The file's first frames with the robot, once read and until taken
-    /// (a long JSON session's or MCAP's: see [`load_session`]).
+    /// (a long session's or recording's: see [`load_session`]).
     #[must_use]
     pub fn take_preview(&self) -> Option<Loaded> {
         self.preview.lock().ok()?.take()

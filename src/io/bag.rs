@@ -162,13 +162,38 @@ pub fn read_bag(
     bytes: &[u8],
     visit: &mut dyn FnMut(&Connection, BagMessage<'_>),
 ) -> Result<BTreeMap<u32, Connection>, BagError> {
+    read_bag_with(bytes, visit, false)
+}
+
+/// [`read_bag`] of the start of a bag cut anywhere (a preview of a long
+/// one): the records before the one the cut falls in.
+///
+/// # Errors
+/// As [`read_bag`], for the records before the cut.
+pub fn read_bag_start(
+    bytes: &[u8],
+    visit: &mut dyn FnMut(&Connection, BagMessage<'_>),
+) -> Result<BTreeMap<u32, Connection>, BagError> {
+    read_bag_with(bytes, visit, true)
+}
+
+fn read_bag_with(
+    bytes: &[u8],
+    visit: &mut dyn FnMut(&Connection, BagMessage<'_>),
+    cut_short: bool,
+) -> Result<BTreeMap<u32, Connection>, BagError> {
     if !bytes.starts_with(BAG_MAGIC) {
         return Err(BagError::NotABag);
     }
     let start = BAG_MAGIC.len();
     let mut connections = BTreeMap::new();
     for item in records(bytes, start) {
-        let (offset, record) = item?;
+        let (offset, record) = match item {
+            Ok(item) => item,
+            // The record the cut falls in, and what follows, are not there.
+            Err(_) if cut_short => break,
+            Err(e) => return Err(e),
+        };
         match record.op() {
             Some(OP_CHUNK) => {
                 let compression = record.field("compression").unwrap_or(b"none");
@@ -335,5 +360,12 @@ pub(crate) mod tests {
             assert_eq!(result.is_ok(), n == header_end, "a prefix of {n} bytes");
         }
         assert_eq!(read_bag(b"#ROSBAG V1.2\n", &mut |_, _| {}), Err(BagError::NotABag));
+        // Read as a start, a prefix gives the records before its cut: the
+        // chunk's two messages once it is whole.
+        for n in BAG_MAGIC.len() + 1..=bag.len() {
+            let mut count = 0;
+            read_bag_start(&bag[..n], &mut |_, _| count += 1).unwrap();
+            assert_eq!(count, if n == bag.len() { 2 } else { 0 }, "a prefix of {n} bytes");
+        }
     }
 }

@@ -195,7 +195,7 @@ impl EstimateWriter {
     pub fn copy_recording(&mut self, source: &Path, bytes: &[u8]) -> Result<(), McapOutError> {
         let mut ids: HashMap<u32, u16> = HashMap::new();
         let mut failure = None;
-        scan(source, bytes, &mut |message| {
+        scan(source, bytes, false, &mut |message| {
             if failure.is_some() {
                 return;
             }

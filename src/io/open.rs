@@ -73,8 +73,8 @@ impl Session {
 impl Session {
     /// The first frames of a file longer than `max_bytes`, read from its
     /// first `max_bytes` (a preview while the whole file is read): a JSON
-    /// session's ([`Session::read_json_start`]), or a recording's read as
-    /// a file cut short, with `choice`. `None` where the file is shorter
+    /// session's ([`Session::read_json_start`]), or a recording's
+    /// ([`recording::read_session_start`]), with `choice`. `None` where the file is shorter
     /// or its start gives no frame: the whole read says why.
     #[must_use]
     pub fn open_start(path: &Path, choice: &TopicChoice, max_bytes: usize) -> Option<(Self, Vec<FrameProblem>)> {
@@ -85,7 +85,7 @@ impl Session {
                 .map(|session| (session, Vec::new()));
         }
         let bytes = read_start(path, max_bytes)?;
-        let read = recording::read_session(path, &bytes, choice, &|_| {}).ok()?;
+        let read = recording::read_session_start(path, &bytes, choice).ok()?;
         (!read.session.frames.is_empty()).then_some((read.session, read.problems))
     }
 }

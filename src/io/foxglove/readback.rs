@@ -140,7 +140,7 @@ impl Snapshot {
         // Our own reader of the container: every length checked against
         // the bytes there are (the `mcap` crate's reader allocates what a
         // chunk claims).
-        scan(Path::new("MCAP"), bytes, &mut |message| {
+        scan(Path::new("MCAP"), bytes, false, &mut |message| {
             if failure.is_some() {
                 return;
             }

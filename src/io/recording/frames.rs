@@ -10,7 +10,7 @@ use crate::io::session::{ContactTruth, Frame, FrameProblem, Session, Truth, fram
 use super::scan::{Topics, scan};
 use super::{
     Mapping, RecordingError, SECOND_TRUTH_POINT_TOPIC, SECOND_TRUTH_TOPIC, StampSource, TRUTH_POINT_TOPIC, TRUTH_TOPIC,
-    TopicChoice, index,
+    TopicChoice, index_of,
 };
 
 /// Samples of one topic: stamps and values in a fixed joint order.
@@ -161,16 +161,32 @@ pub struct RecordingSession {
 
 /// Reads a recording's frames (see the module's doc). `progress` goes
 /// from 0 to 1.
-// One pass over the file fills every topic's samples; the steps share
-// their state, and split apart they would pass it all along.
-#[allow(clippy::too_many_lines)]
 pub fn read_session(
     path: &Path,
     bytes: &[u8],
     choice: &TopicChoice,
     progress: &dyn Fn(f64),
 ) -> Result<RecordingSession, RecordingError> {
-    let index = index(path, bytes)?;
+    read_session_of(path, bytes, choice, progress, false)
+}
+
+/// [`read_session`] of the start of a recording cut anywhere (a preview
+/// of a long one): the frames of the records before the cut.
+pub fn read_session_start(path: &Path, bytes: &[u8], choice: &TopicChoice) -> Result<RecordingSession, RecordingError> {
+    read_session_of(path, bytes, choice, &|_| {}, true)
+}
+
+// One pass over the file fills every topic's samples; the steps share
+// their state, and split apart they would pass it all along.
+#[allow(clippy::too_many_lines)]
+fn read_session_of(
+    path: &Path,
+    bytes: &[u8],
+    choice: &TopicChoice,
+    progress: &dyn Fn(f64),
+    cut_short: bool,
+) -> Result<RecordingSession, RecordingError> {
+    let index = index_of(path, bytes, cut_short)?;
     progress(0.3);
     let mapping = index.mapping(choice)?;
     let (Some(tau_info), Some(q_info)) = (index.topic(&mapping.tau_topic), index.topic(&mapping.q_topic)) else {
@@ -221,7 +237,7 @@ pub fn read_session(
     let mut topics = Topics::default();
     let mut seen = 0usize;
 
-    scan(path, bytes, &mut |message| {
+    scan(path, bytes, cut_short, &mut |message| {
         let i = topics.note(&message);
         let Some(info) = topics.list.get(i) else {
             return;

@@ -21,7 +21,7 @@ use std::sync::Arc;
 use crate::io::bag::BagError;
 use crate::io::rosmsg::{MessageDefinition, Value};
 
-pub use frames::{RecordingSession, read_session};
+pub use frames::{RecordingSession, read_session, read_session_start};
 use scan::Topics;
 pub(crate) use scan::scan;
 
@@ -290,8 +290,13 @@ pub fn read_bytes(path: &Path) -> Result<Vec<u8>, RecordingError> {
 
 /// Lists the topics of a recording held in `bytes`.
 pub fn index(path: &Path, bytes: &[u8]) -> Result<RecordingIndex, RecordingError> {
+    index_of(path, bytes, false)
+}
+
+/// [`index`]; with `cut_short`, of a file's start cut anywhere.
+pub(crate) fn index_of(path: &Path, bytes: &[u8], cut_short: bool) -> Result<RecordingIndex, RecordingError> {
     let mut topics = Topics::default();
-    let container = scan(path, bytes, &mut |message| {
+    let container = scan(path, bytes, cut_short, &mut |message| {
         let i = topics.note(&message);
         if let Some(t) = topics.list.get_mut(i) {
             t.count += 1;

@@ -29,17 +29,21 @@ pub(crate) struct RawMessage<'a> {
     pub data: &'a [u8],
 }
 
-/// Calls `visit` for every message of the file, in file order.
+/// Calls `visit` for every message of the file, in file order; with
+/// `cut_short`, of a file's start cut anywhere (an MCAP is always read so:
+/// a recorder killed leaves such a file).
 pub(crate) fn scan(
     path: &Path,
     bytes: &[u8],
+    cut_short: bool,
     visit: &mut dyn FnMut(RawMessage<'_>),
 ) -> Result<&'static str, RecordingError> {
     if bytes.starts_with(MCAP_MAGIC) {
         McapScan::default().records(path, bytes.get(MCAP_MAGIC.len()..).unwrap_or_default(), false, visit)?;
         Ok("MCAP")
     } else if bytes.starts_with(bag::BAG_MAGIC) {
-        bag::read_bag(bytes, &mut |connection, message| {
+        let read = if cut_short { bag::read_bag_start } else { bag::read_bag };
+        read(bytes, &mut |connection, message| {
             visit(RawMessage {
                 key: connection.id,
                 topic: &connection.topic,
