@@ -39,6 +39,23 @@ fn demo_session(name: &str, seconds: f64) -> std::path::PathBuf {
     path
 }
 
+/// A session drawn by `synth` with `args`, named `name` in this test's
+/// folder.
+fn synth_session(name: &str, args: &[&str]) -> std::path::PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
+        .arg("synth")
+        .arg(&path)
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    path
+}
+
 fn session_harness(path: &Path) -> Harness<'static, ProprioscopeApp> {
     let mut harness =
         proprioscope::app::headless_harness(open_target(Some(path.to_str().unwrap())).unwrap(), [1400.0, 900.0]);
@@ -730,18 +747,11 @@ fn measure_a_long_recording_opened_and_scrubbed() {
 /// as a whole until it is all there, and the frame chosen meanwhile stays.
 #[test]
 fn a_long_session_is_shown_from_its_first_frames_while_read() {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("long.session.json");
     // 12 MB: read in seconds by a debug build, its first MiB in milliseconds.
-    let status = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
-        .arg("synth")
-        .arg(&path)
-        .args(["--seconds", "30", "--rate", "1000", "--seed", "5"])
-        .stdout(std::process::Stdio::null())
-        .status()
-        .unwrap();
-    assert!(status.success());
+    let path = synth_session(
+        "long.session.json",
+        &["--seconds", "30", "--rate", "1000", "--seed", "5"],
+    );
     let mut harness = app_harness();
     settle(&mut harness);
     harness.state_mut().open(path.to_str().unwrap());
@@ -779,13 +789,9 @@ fn a_long_session_is_shown_from_its_first_frames_while_read() {
 /// over-time estimate.
 #[test]
 fn a_sliding_contact_leaves_its_track_over_the_last_second() {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app-sessions");
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("slide.session.json");
-    let status = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
-        .arg("synth")
-        .arg(&path)
-        .args([
+    let path = synth_session(
+        "slide.session.json",
+        &[
             "--seconds",
             "3",
             "--rate",
@@ -794,12 +800,12 @@ fn a_sliding_contact_leaves_its_track_over_the_last_second() {
             "0.1",
             "--kinetic-friction",
             "0.3,0.6",
-        ])
-        .args(["--links", "lwr_5_link", "--seed", "2"])
-        .stdout(std::process::Stdio::null())
-        .status()
-        .unwrap();
-    assert!(status.success());
+            "--links",
+            "lwr_5_link",
+            "--seed",
+            "2",
+        ],
+    );
     let mut harness = session_harness(&path);
     // A frame whose contact was on its link for the 10 frames before it
     // (the track ends where the estimate leaves the link).

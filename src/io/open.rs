@@ -73,18 +73,24 @@ impl Session {
 impl Session {
     /// The first frames of a file longer than `max_bytes`, read from its
     /// first `max_bytes` (a preview while the whole file is read): a JSON
-    /// session's ([`Session::read_json_start`]), or a recording's
-    /// ([`recording::read_session_start`]), with `choice`. `None` where the file is shorter
-    /// or its start gives no frame: the whole read says why.
+    /// session's ([`Session::parse_json_start`]), or a recording's
+    /// ([`recording::read_session_start`], with `choice`). `None` where
+    /// the file is shorter, is CSV, or its start gives no frame: the whole
+    /// read says why.
     #[must_use]
     pub fn open_start(path: &Path, choice: &TopicChoice, max_bytes: usize) -> Option<(Self, Vec<FrameProblem>)> {
-        if !is_recording(path) {
-            return Self::read_json_start(path, max_bytes)
-                .ok()
-                .flatten()
-                .map(|session| (session, Vec::new()));
+        if is_csv(path) {
+            return None;
         }
         let bytes = read_start(path, max_bytes)?;
+        if !is_recording(path) {
+            // The cut may fall inside a character.
+            let text = match std::str::from_utf8(&bytes) {
+                Ok(text) => text,
+                Err(e) => std::str::from_utf8(bytes.get(..e.valid_up_to())?).ok()?,
+            };
+            return Self::parse_json_start(text, path).map(|session| (session, Vec::new()));
+        }
         let read = recording::read_session_start(path, &bytes, choice).ok()?;
         (!read.session.frames.is_empty()).then_some((read.session, read.problems))
     }

@@ -301,38 +301,6 @@ impl Session {
         Ok(session)
     }
 
-    /// The first frames of a JSON session file longer than `max_bytes`,
-    /// read from its first `max_bytes` (a preview while the whole file is
-    /// read). `None` where the file is shorter, is not JSON, or its start
-    /// gives no frame that passes the checks: the whole read says why.
-    pub fn read_json_start(path: &Path, max_bytes: usize) -> Result<Option<Self>, SessionError> {
-        use std::io::Read;
-        let read_error = |cause| SessionError::Read {
-            path: path.to_owned(),
-            cause,
-        };
-        if is_csv(path) {
-            return Ok(None);
-        }
-        let mut bytes = Vec::new();
-        let file = std::fs::File::open(path).map_err(read_error)?;
-        file.take(max_bytes as u64 + 1)
-            .read_to_end(&mut bytes)
-            .map_err(read_error)?;
-        if bytes.len() <= max_bytes {
-            return Ok(None);
-        }
-        // The cut may fall inside a character.
-        let text = match std::str::from_utf8(&bytes) {
-            Ok(text) => text,
-            Err(e) => bytes
-                .get(..e.valid_up_to())
-                .and_then(|b| std::str::from_utf8(b).ok())
-                .unwrap_or_default(),
-        };
-        Ok(Self::parse_json_start(text, path))
-    }
-
     /// The session of the start of a JSON text cut anywhere: the fields
     /// before its frames and the frames that end before the cut. `None`
     /// where that gives no frame, or one that fails the checks. (The
@@ -340,16 +308,22 @@ impl Session {
     /// session are its first frames.)
     #[must_use]
     pub fn parse_json_start(text: &str, path: &Path) -> Option<Self> {
-        let split = json_array::split_array_field_start(text, "frames")?;
+        Self::from_split(json_array::split_array_field_start(text, "frames")?, path)?
+            .ok()
+            .filter(|session| !session.frames.is_empty() && session.check().is_ok())
+    }
+
+    /// The session of a text split at its frames, which are parsed in
+    /// parallel; `None` where its fields around them or a frame are not
+    /// JSON.
+    fn from_split(split: json_array::Split<'_>, path: &Path) -> Option<Result<Self, SessionError>> {
         let file = serde_json::from_str::<SessionFile>(&split.rest).ok()?;
         let frames = split
             .elements
             .into_par_iter()
             .map(frame_from_text)
             .collect::<Option<Vec<Frame>>>()?;
-        Self::from_file(file, frames, path)
-            .ok()
-            .filter(|session| !session.frames.is_empty() && session.check().is_ok())
+        Some(Self::from_file(file, frames, path))
     }
 
     /// Parses the JSON form.
@@ -357,17 +331,9 @@ impl Session {
         // The frames found first and parsed in parallel; a text the split
         // does not take, or a frame that is not JSON, is parsed whole,
         // whose error names the line.
-        if let Some(split) = json_array::split_array_field(text, "frames")
-            && let Ok(file) = serde_json::from_str::<SessionFile>(&split.rest)
-            && let Some(frames) = split
-                .elements
-                .into_par_iter()
-                .map(frame_from_text)
-                .collect::<Option<Vec<Frame>>>()
-        {
-            return Self::from_file(file, frames, path);
-        }
-        Self::parse_json_whole(text, path)
+        json_array::split_array_field(text, "frames")
+            .and_then(|split| Self::from_split(split, path))
+            .unwrap_or_else(|| Self::parse_json_whole(text, path))
     }
 
     /// Parses the JSON form in one pass of `serde_json` (what

@@ -129,30 +129,18 @@ pub(crate) fn alone(
     Ok(true)
 }
 
-/// Each frame's likelihoods (and pending posterior) for the block from `start`.
-fn likelihoods(
-    estimator: &Estimator,
-    robot: &Robot,
-    frames: &[SequenceFrame],
+/// Each frame's likelihoods for the block from `start`, with its pending
+/// update as `keep` makes it (the smoother compacts it here, in
+/// parallel, so that the filter's thread only stores it).
+fn likelihoods<W: Send>(
+    (estimator, robot, frames): (&Estimator, &Robot, &[SequenceFrame]),
     start: usize,
-) -> Vec<Done<(PendingUpdate, FrameLikelihood)>> {
-    in_parallel(frames, start, |f| {
-        estimator.update_for_sequence(robot, f.joint_positions, f.tau)
-    })
-}
-
-/// As [`likelihoods`], each frame's posterior compacted to wait for its
-/// smoothed belief (in parallel: the filter's thread only stores it).
-fn waiting_likelihoods(
-    estimator: &Estimator,
-    robot: &Robot,
-    frames: &[SequenceFrame],
-    start: usize,
-) -> Vec<Done<(WaitingFrame, FrameLikelihood)>> {
+    keep: impl Fn(PendingUpdate) -> W + Sync + Send,
+) -> Vec<Done<(W, FrameLikelihood)>> {
     in_parallel(frames, start, |f| {
         estimator
             .update_for_sequence(robot, f.joint_positions, f.tau)
-            .map(|(pending, likelihood)| (WaitingFrame::of(pending), likelihood))
+            .map(|(pending, likelihood)| (keep(pending), likelihood))
     })
 }
 
@@ -173,7 +161,7 @@ pub(crate) fn filter(
     let mut gate = FrictionGate::default();
     let slide = model.settings().slide_m_per_sqrt_s;
     let mut start = 0;
-    let mut done = likelihoods(estimator, robot, frames, start);
+    let mut done = likelihoods((estimator, robot, frames), start, |p| p);
     while !done.is_empty() {
         if !(calls.keep_going)() {
             return Ok(false);
@@ -193,7 +181,7 @@ pub(crate) fn filter(
                     })
                     .collect()
             },
-            || likelihoods(estimator, robot, frames, start),
+            || likelihoods((estimator, robot, frames), start, |p| p),
         );
         done = next;
         let summarised: Vec<(usize, Update, f64)> = stepped?
@@ -279,7 +267,7 @@ pub(crate) fn smooth(
         // The frames pushed and not yet settled, with what each has cost.
         let mut waiting = Waiting::default();
         let mut start = 0;
-        let mut done = waiting_likelihoods(estimator, robot, frames, start);
+        let mut done = likelihoods((estimator, robot, frames), start, WaitingFrame::of);
         let limit = model.store_limit_bytes();
         let threads = rayon::current_num_threads();
         while !done.is_empty() {
@@ -299,7 +287,7 @@ pub(crate) fn smooth(
                     }
                     Ok(cut)
                 },
-                || waiting_likelihoods(estimator, robot, frames, start),
+                || likelihoods((estimator, robot, frames), start, WaitingFrame::of),
             );
             done = next;
             for piece in cut? {
