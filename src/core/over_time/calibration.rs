@@ -559,24 +559,28 @@ impl Design {
         self.shapes[j] = shape;
     }
 
-    /// The lagged columns at every frame, row-major per frame.
-    fn lagged(&self, times_secs: &[f64], gain: Option<f64>) -> Vec<Vec<f64>> {
+    /// Hands `visit` each frame's number and its lagged columns (row-major
+    /// per joint), in order. The rows are made as they are read: at 60,000
+    /// frames of seven joints the whole matrix would be over 200 MB, held
+    /// by the allocator long after the fit.
+    fn for_each_lagged(&self, times_secs: &[f64], gain: Option<f64>, mut visit: impl FnMut(usize, &[f64])) {
         let width = self.joints * self.columns;
         let mut lag = Lag::new(gain, width);
         let mut input = vec![0.0; width];
-        self.rows
-            .chunks_exact(width)
-            .zip(frame_steps(times_secs))
-            .map(|(raw, (dt, restart))| {
-                if restart {
-                    lag.reset();
-                }
-                for (x, r) in input.iter_mut().zip(raw) {
-                    *x = f64::from(*r);
-                }
-                lag.step(dt, &input).to_vec()
-            })
-            .collect()
+        for (k, (raw, (dt, restart))) in self.rows.chunks_exact(width).zip(frame_steps(times_secs)).enumerate() {
+            if restart {
+                lag.reset();
+            }
+            for (x, r) in input.iter_mut().zip(raw) {
+                *x = f64::from(*r);
+            }
+            visit(k, lag.step(dt, &input));
+        }
+    }
+
+    /// Frames the design holds.
+    fn frames(&self) -> usize {
+        self.rows.len().checked_div(self.joints * self.columns).unwrap_or(0)
     }
 }
 
@@ -603,21 +607,23 @@ fn fit_at(
     gain: Option<f64>,
 ) -> Result<Fit, CalibrationError> {
     let step = typical_step_secs(times_secs);
-    let lagged = design.lagged(times_secs, gain);
     let (p, n) = (design.columns, design.joints);
     let mut normal = vec![0.0; p * p];
     let mut rhs = vec![0.0; p];
     // Neighbouring frames of a long 1 kHz recording carry nearly the same
     // lagged columns: beyond 20,000 frames, every few frames make one row.
-    let stride = lagged.len().div_ceil(20_000).max(1);
-    for (k, row) in lagged.iter().enumerate().step_by(stride) {
-        if !free[k] {
-            continue;
+    let stride = design.frames().min(times_secs.len()).div_ceil(20_000).max(1);
+    design.for_each_lagged(times_secs, gain, |k, row| {
+        if k % stride != 0 || !free.get(k).copied().unwrap_or(false) {
+            return;
         }
+        let (Some(&weight), Some(tau)) = (weights.get(k), torques.get(k)) else {
+            return;
+        };
         for j in 0..n {
-            let w = weights[k] / (sigma[j] * sigma[j]);
+            let w = weight / (sigma[j] * sigma[j]);
             let a = &row[j * p..(j + 1) * p];
-            let r = torques[k][j];
+            let r = tau[j];
             for (c1, &x1) in a.iter().enumerate() {
                 if x1 == 0.0 {
                     continue;
@@ -628,7 +634,7 @@ fn fit_at(
                 }
             }
         }
-    }
+    });
     // Rows within one correlation time of the lag are one vote, not many.
     let correlated = gain.map_or(1.0, |k| {
         let pole = (1.0 - k * step).clamp(0.0, 1.0 - 1e-9);
@@ -658,23 +664,26 @@ fn fit_at(
         }
     }
     let mut per_joint = vec![0.0; n];
-    let residuals: Vec<Vec<f64>> = lagged
-        .iter()
-        .zip(torques)
-        .enumerate()
-        .map(|(k, (row, tau))| {
+    let mut residuals: Vec<Vec<f64>> = Vec::with_capacity(torques.len());
+    design.for_each_lagged(times_secs, gain, |k, row| {
+        let Some(tau) = torques.get(k) else {
+            return;
+        };
+        let counted = free.get(k).copied().unwrap_or(false) && k % stride == 0;
+        let weight = weights.get(k).copied().unwrap_or(0.0);
+        residuals.push(
             (0..n)
                 .map(|j| {
                     let a = &row[j * p..(j + 1) * p];
                     let e = tau[j] - a.iter().zip(&coefficients).map(|(x, c)| x * c).sum::<f64>();
-                    if free[k] && k % stride == 0 {
-                        per_joint[j] += weights[k] * e * e;
+                    if counted {
+                        per_joint[j] += weight * e * e;
                     }
                     e
                 })
-                .collect()
-        })
-        .collect();
+                .collect(),
+        );
+    });
     Ok(Fit {
         gain,
         coefficients,

@@ -16,14 +16,16 @@ use crate::core::over_time::observer::{Lag, frame_steps};
 /// known to be busy just because the fit cannot yet predict them.
 pub(super) fn prediction_spread(design: &Design, times_secs: &[f64], fit: &Fit) -> Vec<Vec<f64>> {
     let (p, n) = (design.columns, design.joints);
-    let lagged = design.lagged(times_secs, fit.gain);
+    let frames = design.frames().min(times_secs.len());
     // The spread follows the motion, slowly next to the frame rate: on a
     // long recording every few frames' value serves the ones after it.
-    let stride = lagged.len().div_ceil(20_000).max(1);
-    let sampled: Vec<Vec<f64>> = lagged
-        .iter()
-        .step_by(stride)
-        .map(|row| {
+    let stride = frames.div_ceil(20_000).max(1);
+    let mut sampled: Vec<Vec<f64>> = Vec::with_capacity(frames.div_ceil(stride));
+    design.for_each_lagged(times_secs, fit.gain, |k, row| {
+        if k % stride != 0 {
+            return;
+        }
+        sampled.push(
             (0..n)
                 .map(|j| {
                     let a = &row[j * p..(j + 1) * p];
@@ -35,10 +37,10 @@ pub(super) fn prediction_spread(design: &Design, times_secs: &[f64], fit: &Fit) 
                     }
                     v.max(0.0)
                 })
-                .collect()
-        })
-        .collect();
-    (0..lagged.len())
+                .collect(),
+        );
+    });
+    (0..frames)
         .map(|k| sampled.get(k / stride).cloned().unwrap_or_else(|| vec![0.0; n]))
         .collect()
 }
