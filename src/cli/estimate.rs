@@ -12,10 +12,12 @@ use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot};
 use proprioscope::core::config::estimator::{EstimatorConfig, Friction};
 use proprioscope::core::config::limits;
 use proprioscope::core::estimate::estimator::Estimator;
+use proprioscope::core::estimate::estimator::Update;
 use proprioscope::core::estimate::summary::Verdict;
 use proprioscope::core::eval::metrics::{
     FrameOutcome, Metrics, detection, metrics, metrics_by_sensing_joints, percentile,
 };
+use proprioscope::core::eval::slides::{MIN_SLIDE_M, SlidePath, SlideTracker};
 use proprioscope::core::over_time::bias::{estimate_drifting_bias, without_drifting_bias};
 use proprioscope::core::over_time::frame::SequenceFrame;
 use proprioscope::core::over_time::pairs::SecondContactChain;
@@ -25,7 +27,7 @@ use proprioscope::core::robot::model::Robot;
 use proprioscope::io::foxglove::{Arrow, ArrowRole};
 use proprioscope::io::mcap_out::EstimateMessage;
 use proprioscope::io::recording::is_recording;
-use proprioscope::io::session::{Session, kept_frame_numbers};
+use proprioscope::io::session::{Session, Truth, kept_frame_numbers};
 
 use super::estimate_out::{Out, json_line};
 use super::{EstimatorArgs, TemporalArg, TemporalArgs, TopicArgs, option_error};
@@ -294,6 +296,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     let mut times_ms = Vec::new();
     let mut verdicts = [0usize; 3];
     let mut called = Vec::with_capacity(session.frames.len());
+    let mut slides = SlideTracker::default();
     let mut written: Result<()> = Ok(());
     let two_contacts = config.contacts_at_once >= 2;
     let (mut singles, mut pending, mut messages) = (Vec::new(), Vec::new(), Vec::new());
@@ -315,6 +318,8 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
                     Verdict::PoorFit => 2,
                 }] += 1;
                 called.push(update.summary.verdict != Verdict::NoContact);
+                let (true_place, estimated_place) = slide_places(&robot, &update, &frame.truth);
+                slides.push(frame.t, true_place, estimated_place);
                 let outcome = frame_outcome(
                     &robot,
                     &FrameEstimate::of_frame(&robot, &estimator.surface, &update, ms, &frame.truth),
@@ -363,6 +368,52 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     if !outcomes.is_empty() {
         print_metrics(&outcomes)?;
     }
+    report_slides(&slides.finish())?;
+    Ok(())
+}
+
+/// A frame's true contact (its link, and its place in that link's frame)
+/// and the estimated place in the same frame where the frame is called a
+/// contact on that link: what a slide's paths are measured from.
+fn slide_places(robot: &Robot, update: &Update, truth: &Truth) -> (Option<(usize, DVec3)>, Option<DVec3>) {
+    let Truth::Contact { link, point, .. } = truth else {
+        return (None, None);
+    };
+    let Some(index) = robot.links.iter().position(|l| &l.name == link) else {
+        return (None, None);
+    };
+    let Some(link_from_world) = update.pose.world_from_link.get(index).map(glam::DAffine3::inverse) else {
+        return (None, None);
+    };
+    let true_place = link_from_world.transform_point3(DVec3::from_array(*point));
+    let map = &update.summary.map;
+    let estimated = (update.summary.verdict != Verdict::NoContact && map.link == index)
+        .then(|| link_from_world.transform_point3(map.point_world));
+    (Some((index, true_place)), estimated)
+}
+
+/// The presses that slid: how long their estimated paths were against
+/// the true ones (`docs/validation.md`, *Sliding contacts*).
+fn report_slides(paths: &[SlidePath]) -> Result<()> {
+    let ratios: Vec<f64> = paths
+        .iter()
+        .filter_map(SlidePath::relative_error)
+        .map(|e| 1.0 + e)
+        .collect();
+    if ratios.is_empty() {
+        return Ok(());
+    }
+    let within = ratios.iter().filter(|&&r| (r - 1.0).abs() <= 0.2).count();
+    outln!(
+        "slides: {} of {} presses slid {:.0} cm or more; estimated path / true path: median {:.2} (p10 {:.2}, p90 {:.2}), within 20 % in {within} of {}",
+        ratios.len(),
+        paths.len(),
+        MIN_SLIDE_M * 100.0,
+        percentile(&ratios, 0.5),
+        percentile(&ratios, 0.1),
+        percentile(&ratios, 0.9),
+        ratios.len()
+    );
     Ok(())
 }
 
