@@ -744,3 +744,52 @@ fn a_csv_session_without_a_robot_is_refused_with_the_reason() {
     );
     assert!(!out.exists());
 }
+
+/// `estimate` scores the paths of presses that slide (its `slides:`
+/// line) and says nothing of them where every press holds.
+#[test]
+fn estimate_scores_slides_paths_only_where_presses_slide() {
+    let dir = std::env::temp_dir().join(format!("proprioscope-slides-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let synth = |name: &str, slide: &[&str]| {
+        let path = dir.join(name);
+        let mut args = vec!["synth", path.to_str().unwrap(), "--seconds", "4", "--rate", "50"];
+        args.extend(["--seed", "1", "--links", "lwr_6_link"]);
+        args.extend(slide);
+        let (ok, _, err) = run_out(&args);
+        assert!(ok, "{err}");
+        let (ok, out, err) = run_out(&[
+            "estimate",
+            path.to_str().unwrap(),
+            "--points",
+            "1000",
+            "--temporal",
+            "smooth",
+        ]);
+        assert!(ok, "{err}");
+        out
+    };
+    let out = synth(
+        "slides.json",
+        &["--slide", "0.1", "--slide-min", "0.05", "--kinetic-friction", "0.3,0.6"],
+    );
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("slides: "))
+        .unwrap_or_else(|| panic!("{out}"));
+    let median: f64 = line
+        .split("median ")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{line}"));
+    // Three presses slide 5–10 cm/s; the estimate follows them within a
+    // few times their length (`docs/validation.md`, *Sliding contacts*).
+    assert!(
+        line.contains("3 of 3 presses") && median > 0.5 && median < 5.0,
+        "{line}"
+    );
+    let out = synth("held.json", &[]);
+    assert!(!out.contains("slides:"), "{out}");
+    std::fs::remove_dir_all(&dir).ok();
+}
