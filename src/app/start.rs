@@ -225,12 +225,19 @@ fn absolute_spec(path: &std::path::Path) -> String {
     crate::io::scene::normalized_path(path).display().to_string()
 }
 
-/// Runs frames until the newest estimate has arrived (at most ~10 s).
+/// Runs frames until the newest estimate has arrived (at most ~10 s), then
+/// until nothing moves: a session's timeline panel grows into place over
+/// a dozen frames, and a picture taken before it ends depends on how soon
+/// the estimate came.
 pub fn settle(harness: &mut egui_kittest::Harness<'_, ProprioscopeApp>) -> Result<(), String> {
     for _ in 0..1000 {
         harness.step();
         if harness.state().is_up_to_date() {
             harness.run_steps(2);
+            // Beyond kittest's few steps it goes on until the frames are
+            // still (or its hundred diagnostic steps pass): either is as
+            // far as waiting helps.
+            let _ = harness.try_run();
             return Ok(());
         }
         std::thread::sleep(std::time::Duration::from_millis(10));
