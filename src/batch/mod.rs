@@ -76,18 +76,25 @@ pub fn credible_set_holds_truth(
     update: &crate::core::estimate::estimator::Update,
     truth: &Truth,
 ) -> Option<bool> {
+    let (link, point_in_link) = truth_in_link(robot, &update.pose, truth)?;
+    let owner = surface.owner(link, point_in_link)?;
+    Some(update.summary.credible90.points.contains(&owner))
+}
+
+/// A frame's true contact as its link and its place in that link's frame
+/// at `pose` (`None` without a known contact on one of the robot's links).
+#[must_use]
+pub fn truth_in_link(
+    robot: &Robot,
+    pose: &crate::core::robot::kinematics::RobotPose,
+    truth: &Truth,
+) -> Option<(LinkId, DVec3)> {
     let Truth::Contact { link, point, .. } = truth else {
         return None;
     };
     let link = robot.link_id(link).ok()?;
-    let point_in_link = update
-        .pose
-        .world_from_link
-        .get(link)?
-        .inverse()
-        .transform_point3(DVec3::from_array(*point));
-    let owner = surface.owner(link, point_in_link)?;
-    Some(update.summary.credible90.points.contains(&owner))
+    let link_from_world = pose.world_from_link.get(link)?.inverse();
+    Some((link, link_from_world.transform_point3(DVec3::from_array(*point))))
 }
 
 /// The errors of an estimate against a frame's truth (`None` without a

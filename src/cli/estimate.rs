@@ -8,7 +8,7 @@ use anyhow::{Context as _, Result};
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use proprioscope::batch::pairs::{FramePair, PairScore, SingleSeen, session_pairs};
-use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot};
+use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot, truth_in_link};
 use proprioscope::core::config::estimator::{EstimatorConfig, Friction};
 use proprioscope::core::config::limits;
 use proprioscope::core::estimate::estimator::Estimator;
@@ -376,20 +376,17 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
 /// and the estimated place in the same frame where the frame is called a
 /// contact on that link: what a slide's paths are measured from.
 fn slide_places(robot: &Robot, update: &Update, truth: &Truth) -> (Option<(usize, DVec3)>, Option<DVec3>) {
-    let Truth::Contact { link, point, .. } = truth else {
+    let Some((link, true_place)) = truth_in_link(robot, &update.pose, truth) else {
         return (None, None);
     };
-    let Some(index) = robot.links.iter().position(|l| &l.name == link) else {
-        return (None, None);
-    };
-    let Some(link_from_world) = update.pose.world_from_link.get(index).map(glam::DAffine3::inverse) else {
-        return (None, None);
-    };
-    let true_place = link_from_world.transform_point3(DVec3::from_array(*point));
     let map = &update.summary.map;
-    let estimated = (update.summary.verdict != Verdict::NoContact && map.link == index)
-        .then(|| link_from_world.transform_point3(map.point_world));
-    (Some((index, true_place)), estimated)
+    let estimated = if update.summary.verdict != Verdict::NoContact && map.link == link {
+        let world_from_link = update.pose.world_from_link.get(link);
+        world_from_link.map(|w| w.inverse().transform_point3(map.point_world))
+    } else {
+        None
+    };
+    (Some((link, true_place)), estimated)
 }
 
 /// The presses that slid: how long their estimated paths were against

@@ -29,9 +29,7 @@
 
 use crate::core::numerics::linalg::{LinalgError, solve_spd};
 use crate::core::numerics::special::chi_square_survival;
-use crate::core::over_time::observer::{
-    Lag, Unlag, correlation_samples, differentiate, frame_steps, typical_step_secs,
-};
+use crate::core::over_time::observer::{Unlag, correlation_samples, differentiate, frame_steps, typical_step_secs};
 use crate::core::robot::dynamics::{DynamicsError, RigidBodies};
 
 /// Observer gains tried when the gain is not given, 1/s.
@@ -80,18 +78,6 @@ pub const MIN_RMS_SPEED_RAD_S: f64 = 0.02;
 
 /// The fewest free frames a fit needs.
 pub const MIN_FREE_FRAMES: usize = 50;
-
-/// The prior on an inertial correction: this fraction of the model's
-/// value, plus [`PRIOR_FLOOR`] by kind (kg, kg·m, kg·m²).
-const PRIOR_RELATIVE: f64 = 0.3;
-/// See [`PRIOR_RELATIVE`]; in [`crate::core::robot::spatial::PARAMETER_NAMES`] order.
-const PRIOR_FLOOR: [f64; 10] = [0.2, 0.02, 0.02, 0.02, 0.01, 0.01, 0.01, 0.01, 0.01, 0.01];
-/// The prior's standard deviation of a joint's Coulomb friction, N·m.
-const PRIOR_COULOMB_NM: f64 = 1.0;
-/// ... of its viscous friction, N·m·s/rad.
-const PRIOR_VISCOUS_NMS: f64 = 1.0;
-/// ... of its offset, N·m.
-const PRIOR_OFFSET_NM: f64 = 0.3;
 
 /// How the observer's gain is known.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -242,18 +228,6 @@ pub struct Calibration {
 
 /// Per frame, one value per joint.
 type PerFrame = Vec<Vec<f64>>;
-
-/// One frame's columns before the lag, row-major (joints × columns).
-struct Design {
-    base: Vec<usize>,
-    /// The prior's standard deviation of each column's coefficient.
-    prior_sd: Vec<f64>,
-    columns: usize,
-    joints: usize,
-    rows: Vec<f32>,
-    /// Each joint's Coulomb (lead s, transition speed rad/s).
-    shapes: Vec<(f64, f64)>,
-}
 
 impl Calibration {
     /// The correction that does nothing, with `sigma_nm` for every joint.
@@ -481,109 +455,6 @@ fn chi_square_quantile(p: f64, dof: usize) -> f64 {
     0.5 * (lo + hi)
 }
 
-impl Design {
-    /// Every read frame's columns: the regressor's base columns, then per
-    /// joint its Coulomb, viscous and offset columns (signs as the
-    /// residual sees them).
-    fn new(
-        bodies: &RigidBodies,
-        settings: &CalibrationSettings,
-        positions: &[Vec<f64>],
-        velocities: &[Vec<f64>],
-        accelerations: &[Vec<f64>],
-    ) -> Result<Self, CalibrationError> {
-        let joints = bodies.dof();
-        let nominal = bodies.parameters();
-        let has_inertials = bodies.moving_links().iter().any(|&l| nominal[l * 10] > 0.0);
-        let base = if settings.inertial && has_inertials {
-            bodies.base_columns()
-        } else {
-            Vec::new()
-        };
-        let columns = base.len() + 3 * joints;
-        let all_columns = nominal.len();
-        let mut rows = Vec::with_capacity(positions.len() * joints * columns);
-        for ((q, qd), qdd) in positions.iter().zip(velocities).zip(accelerations) {
-            let y = if base.is_empty() {
-                Vec::new()
-            } else {
-                bodies.regressor(q, qd, qdd)?
-            };
-            for j in 0..joints {
-                for &c in &base {
-                    rows.push(y[j * all_columns + c] as f32);
-                }
-                for i in 0..joints {
-                    let (coulomb, viscous, offset) = if i == j && settings.friction {
-                        (coulomb_shape(qd[j], qdd[j], 0.0, STICTION_SPEED_RAD_S), -qd[j], 1.0)
-                    } else if i == j {
-                        (0.0, 0.0, 1.0)
-                    } else {
-                        (0.0, 0.0, 0.0)
-                    };
-                    rows.push(coulomb as f32);
-                    rows.push(viscous as f32);
-                    rows.push(offset as f32);
-                }
-            }
-        }
-        let mut prior_sd: Vec<f64> = base
-            .iter()
-            .map(|&c| PRIOR_RELATIVE * nominal[c].abs() + PRIOR_FLOOR[c % 10])
-            .collect();
-        for _ in 0..joints {
-            prior_sd.extend([PRIOR_COULOMB_NM, PRIOR_VISCOUS_NMS, PRIOR_OFFSET_NM]);
-        }
-        Ok(Self {
-            base,
-            prior_sd,
-            columns,
-            joints,
-            rows,
-            shapes: vec![(0.0, STICTION_SPEED_RAD_S); joints],
-        })
-    }
-
-    /// Where joint `j`'s Coulomb column sits in a frame's row block.
-    fn coulomb_index(&self, j: usize) -> usize {
-        j * self.columns + self.base.len() + 3 * j
-    }
-
-    /// Reshapes joint `j`'s Coulomb column to `(lead, switch)`.
-    fn set_coulomb(&mut self, j: usize, shape: (f64, f64), velocities: &[Vec<f64>], accelerations: &[Vec<f64>]) {
-        let width = self.joints * self.columns;
-        let at = self.coulomb_index(j);
-        for ((row, v), a) in self.rows.chunks_exact_mut(width).zip(velocities).zip(accelerations) {
-            row[at] = coulomb_shape(v[j], a[j], shape.0, shape.1) as f32;
-        }
-        self.shapes[j] = shape;
-    }
-
-    /// Hands `visit` each frame's number and its lagged columns (row-major
-    /// per joint), in order. The rows are made as they are read: at 60,000
-    /// frames of seven joints the whole matrix would be over 200 MB, held
-    /// by the allocator long after the fit.
-    fn for_each_lagged(&self, times_secs: &[f64], gain: Option<f64>, mut visit: impl FnMut(usize, &[f64])) {
-        let width = self.joints * self.columns;
-        let mut lag = Lag::new(gain, width);
-        let mut input = vec![0.0; width];
-        for (k, (raw, (dt, restart))) in self.rows.chunks_exact(width).zip(frame_steps(times_secs)).enumerate() {
-            if restart {
-                lag.reset();
-            }
-            for (x, r) in input.iter_mut().zip(raw) {
-                *x = f64::from(*r);
-            }
-            visit(k, lag.step(dt, &input));
-        }
-    }
-
-    /// Frames the design holds.
-    fn frames(&self) -> usize {
-        self.rows.len().checked_div(self.joints * self.columns).unwrap_or(0)
-    }
-}
-
 /// A fit at one gain: the coefficients, and each frame's residual.
 struct Fit {
     gain: Option<f64>,
@@ -612,7 +483,7 @@ fn fit_at(
     let mut rhs = vec![0.0; p];
     // Neighbouring frames of a long 1 kHz recording carry nearly the same
     // lagged columns: beyond 20,000 frames, every few frames make one row.
-    let stride = design.frames().min(times_secs.len()).div_ceil(20_000).max(1);
+    let stride = design.lagged_frames(times_secs).div_ceil(20_000).max(1);
     design.for_each_lagged(times_secs, gain, |k, row| {
         if k % stride != 0 || !free.get(k).copied().unwrap_or(false) {
             return;
@@ -1020,6 +891,9 @@ pub fn calibrate(
     })
 }
 
+#[path = "calibration_design.rs"]
+mod design;
+use design::Design;
 #[path = "calibration_shapes.rs"]
 mod shapes;
 use shapes::{ShapeSearch, best_coulomb_shapes, prediction_spread};

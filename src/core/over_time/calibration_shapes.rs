@@ -16,7 +16,7 @@ use crate::core::over_time::observer::{Lag, frame_steps};
 /// known to be busy just because the fit cannot yet predict them.
 pub(super) fn prediction_spread(design: &Design, times_secs: &[f64], fit: &Fit) -> Vec<Vec<f64>> {
     let (p, n) = (design.columns, design.joints);
-    let frames = design.frames().min(times_secs.len());
+    let frames = design.lagged_frames(times_secs);
     // The spread follows the motion, slowly next to the frame rate: on a
     // long recording every few frames' value serves the ones after it.
     let stride = frames.div_ceil(20_000).max(1);

@@ -5,6 +5,7 @@ use glam::{DAffine3, DMat3, DVec3};
 
 use super::*;
 use crate::core::numerics::rng::Rng;
+use crate::core::over_time::observer::Lag;
 use crate::core::robot::model::{JointKind, JointSpec, LinkSpec, Robot};
 use crate::core::robot::spatial::Inertial;
 
