@@ -5,14 +5,7 @@
 
 mod common;
 
-use common::{THESIS_SESSION, run_out, temp_file};
-
-/// A free local TCP address (bound and let go: another program could take
-/// it in between, which a test run does not).
-fn free_address() -> String {
-    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-    listener.local_addr().unwrap().to_string()
-}
+use common::{THESIS_SESSION, run_out, spawn_live, temp_file};
 
 /// Sends `lines` to `address` once something listens there.
 fn send_lines(address: &str, lines: &[&str]) {
@@ -36,26 +29,26 @@ fn send_lines(address: &str, lines: &[&str]) {
 /// second connection goes on.
 #[test]
 fn live_frames_are_estimated_and_bad_lines_skipped() {
-    let address = free_address();
     let out = temp_file("live.jsonl", "");
-    let child = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args([
-            "estimate",
-            "--live",
-            &address,
+    let live = spawn_live(
+        "127.0.0.1:0",
+        false,
+        &[
             "--live-frames",
             "3",
             "--points",
             "2000",
             "--sigma",
             "0.01",
-        ])
-        .args(["--fmin", "0.5", "--fmax", "3", "--out"])
-        .arg(&out)
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
+            "--fmin",
+            "0.5",
+            "--fmax",
+            "3",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    let address = live.live.clone();
     let contact = r#"{"t": 0.0, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.09516, -0.53783, 0.09516, 0.01017, 0, 0, 0], "truth": {"link": "lwr_4_link", "point": [0.046, 0.098, 0.692], "force": [-1.37, -0.85, 0.33]}}"#;
     let later = contact.replace(r#""t": 0.0"#, r#""t": 0.01"#);
     send_lines(
@@ -69,9 +62,8 @@ fn live_frames_are_estimated_and_bad_lines_skipped() {
         ],
     );
     send_lines(&address, &[contact]);
-    let output = child.wait_with_output().unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(output.status.success(), "{stderr}");
+    let (ok, stderr) = live.wait();
+    assert!(ok, "{stderr}");
     assert!(
         stderr.contains("skipped line 2") && stderr.contains("skipped line 3"),
         "{stderr}"
@@ -93,29 +85,33 @@ fn live_frames_are_estimated_and_bad_lines_skipped() {
 /// `stream` replays a session to a live estimate, frame for frame.
 #[test]
 fn a_streamed_session_is_estimated_live() {
-    let address = free_address();
     let session = temp_file("streamed.session.json", THESIS_SESSION);
     let out = temp_file("streamed.jsonl", "");
-    let child = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args([
-            "estimate",
-            "--live",
-            &address,
+    let live = spawn_live(
+        "127.0.0.1:0",
+        false,
+        &[
             "--live-frames",
             "2",
             "--points",
             "2000",
             "--sigma",
             "0.01",
-        ])
-        .args(["--fmin", "0.5", "--fmax", "3", "--temporal", "none", "--out"])
-        .arg(&out)
-        .spawn()
-        .unwrap();
+            "--fmin",
+            "0.5",
+            "--fmax",
+            "3",
+            "--temporal",
+            "none",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    let address = live.live.clone();
     let (ok, _, err) = run_out(&["stream", session.to_str().unwrap(), "--to", &address, "--rate", "0"]);
     assert!(ok, "{err}");
-    assert!(child.wait_with_output().unwrap().status.success());
+    let (ok, stderr) = live.wait();
+    assert!(ok, "{stderr}");
     let lines: Vec<serde_json::Value> = std::fs::read_to_string(&out)
         .unwrap()
         .lines()
@@ -130,21 +126,16 @@ fn a_streamed_session_is_estimated_live() {
 /// `estimate --live udp://…`.
 #[test]
 fn a_session_streamed_over_udp_is_estimated_live() {
-    use std::io::BufRead as _;
     let session = temp_file("udp.session.json", THESIS_SESSION);
     let out = temp_file("udp.jsonl", "");
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_proprioscope"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args([
-            "estimate",
-            "--live",
-            "udp://127.0.0.1:0",
+    let live = spawn_live(
+        "udp://127.0.0.1:0",
+        false,
+        &[
             "--live-frames",
             "2",
             "--points",
             "2000",
-        ])
-        .args([
             "--sigma",
             "0.01",
             "--fmin",
@@ -154,20 +145,15 @@ fn a_session_streamed_over_udp_is_estimated_live() {
             "--temporal",
             "none",
             "--out",
-        ])
-        .arg(&out)
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    // The port the system chose, from "listening on udp://127.0.0.1:PORT".
-    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    stderr.read_line(&mut line).unwrap();
-    let address = line.trim().strip_prefix("listening on ").unwrap().to_owned();
-    assert!(address.starts_with("udp://127.0.0.1:"), "{line}");
+            out.to_str().unwrap(),
+        ],
+    );
+    let address = live.live.clone();
+    assert!(address.starts_with("udp://127.0.0.1:"), "{address}");
     let (ok, _, err) = run_out(&["stream", session.to_str().unwrap(), "--to", &address, "--rate", "0"]);
     assert!(ok, "{err}");
-    assert!(child.wait().unwrap().success());
+    let (ok, stderr) = live.wait();
+    assert!(ok, "{stderr}");
     let lines: Vec<serde_json::Value> = std::fs::read_to_string(&out)
         .unwrap()
         .lines()

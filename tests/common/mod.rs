@@ -118,3 +118,76 @@ pub fn estimate_figures(out: &str) -> (f64, f64, f64) {
         row.split('|').nth(3).unwrap().trim().parse().unwrap(),
     )
 }
+
+/// A running `proprioscope estimate --live …` on a port the system chose,
+/// with the addresses it printed. Each test's process binds port 0 itself:
+/// a port found free by the test and let go can be taken by a test running
+/// beside it before the process binds it.
+pub struct LiveEstimate {
+    /// The process.
+    pub child: std::process::Child,
+    /// Where it takes frames (`HOST:PORT`, or `udp://HOST:PORT`).
+    pub live: String,
+    /// Where its Foxglove server listens (`HOST:PORT`), with `--serve`.
+    pub serve: Option<String>,
+    /// Its standard error, read to the end on a thread so that it never
+    /// blocks on a full pipe.
+    stderr: std::thread::JoinHandle<String>,
+}
+
+/// Starts `proprioscope estimate --live LIVE args…` (with `--serve
+/// 127.0.0.1:0` when `serve`) and waits for the lines that say where it
+/// listens.
+pub fn spawn_live(live: &str, serve: bool, args: &[&str]) -> LiveEstimate {
+    use std::io::BufRead as _;
+    let mut command = Command::new(env!("CARGO_BIN_EXE_proprioscope"));
+    command
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env_remove("RUST_LOG")
+        .args(["estimate", "--live", live]);
+    if serve {
+        command.args(["--serve", "127.0.0.1:0"]);
+    }
+    let mut child = command.args(args).stderr(std::process::Stdio::piped()).spawn().unwrap();
+    let mut reader = std::io::BufReader::new(child.stderr.take().unwrap());
+    let (mut seen, mut live, mut served) = (String::new(), None, None);
+    while live.is_none() || (serve && served.is_none()) {
+        let mut line = String::new();
+        if reader.read_line(&mut line).unwrap() == 0 {
+            let _ = child.wait();
+            panic!("estimate --live ended before it said where it listens:\n{seen}");
+        }
+        if let Some(address) = line.trim().strip_prefix("listening on ") {
+            live = Some(address.to_owned());
+        }
+        if let Some((_, address)) = line.trim().split_once("ws://") {
+            served = Some(address.to_owned());
+        }
+        seen.push_str(&line);
+    }
+    let stderr = std::thread::spawn(move || {
+        let mut rest = String::new();
+        let _ = std::io::Read::read_to_string(&mut reader, &mut rest);
+        seen + &rest
+    });
+    LiveEstimate {
+        child,
+        live: live.unwrap(),
+        serve: served,
+        stderr,
+    }
+}
+
+impl LiveEstimate {
+    /// Waits for the process to end: whether it succeeded, and its stderr.
+    pub fn wait(mut self) -> (bool, String) {
+        let status = self.child.wait().unwrap();
+        (status.success(), self.stderr.join().unwrap())
+    }
+
+    /// Ends the process: its stderr.
+    pub fn kill(mut self) -> String {
+        let _ = self.child.kill();
+        self.wait().1
+    }
+}
