@@ -518,6 +518,25 @@ fn an_ambiguous_recording_asks_for_its_topics_once() {
     assert!(harness.state().model.replay.is_some(), "{:?}", harness.state().error);
 }
 
+/// Listening live takes the live surface (fewer samples, so that each
+/// frame keeps up) where the surface was left at the default, and says
+/// so; a surface the user chose stays.
+#[test]
+fn listening_live_takes_the_live_surface_unless_the_user_chose_one() {
+    use proprioscope::app::Command;
+    use proprioscope::core::config::estimator::{DEFAULT_SURFACE_POINTS, LIVE_SURFACE_POINTS};
+    const { assert!(LIVE_SURFACE_POINTS < DEFAULT_SURFACE_POINTS) };
+    let mut harness = app_harness();
+    assert_eq!(harness.state().model.config.surface_points, DEFAULT_SURFACE_POINTS);
+    harness.state_mut().start_live("127.0.0.1:0");
+    assert_eq!(harness.state().model.config.surface_points, LIVE_SURFACE_POINTS);
+    harness.state_mut().stop_live();
+    let mut harness = app_harness();
+    harness.state_mut().apply(Command::SetSurfacePoints(4000));
+    harness.state_mut().start_live("127.0.0.1:0");
+    assert_eq!(harness.state().model.config.surface_points, 4000);
+}
+
 /// A live session: frames sent over TCP fill the timeline and the view
 /// follows the newest; after the user steps back it stays there while
 /// frames keep coming, until *Follow newest*.

@@ -163,3 +163,39 @@ fn a_session_streamed_over_udp_is_estimated_live() {
     assert_eq!(lines[0]["verdict"], "contact");
     assert_eq!(lines[1]["verdict"], "no_contact");
 }
+
+/// Live, the surface has fewer samples than for a file unless `--points`
+/// says (so that each frame keeps up with the arm), and the log says how
+/// many.
+#[test]
+fn live_takes_the_live_surface_unless_points_are_given() {
+    use proprioscope::core::config::estimator::LIVE_SURFACE_POINTS;
+    let frame = r#"{"t": 0.0, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.09516, -0.53783, 0.09516, 0.01017, 0, 0, 0]}"#;
+    for (points, want) in [(None, LIVE_SURFACE_POINTS), (Some("1200"), 1200)] {
+        let out = temp_file(&format!("live-points-{want}.jsonl"), "");
+        let mut args = vec![
+            "--live-frames",
+            "1",
+            "--temporal",
+            "none",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        if let Some(n) = points {
+            args.extend(["--points", n]);
+        }
+        let live = spawn_live("127.0.0.1:0", false, &args);
+        let address = live.live.clone();
+        send_lines(
+            &address,
+            &[
+                r#"{"format": "contact-session", "version": 1, "robot": "lwr4plus"}"#,
+                frame,
+            ],
+        );
+        let (ok, stderr) = live.wait();
+        assert!(ok, "{stderr}");
+        assert!(stderr.contains(&format!(": {want} surface points on")), "{stderr}");
+        assert_eq!(stderr.contains("--points to change"), points.is_none(), "{stderr}");
+    }
+}

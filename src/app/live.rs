@@ -15,6 +15,7 @@ use eframe::egui;
 
 use super::{Command, ProprioscopeApp};
 use crate::batch::SessionData;
+use crate::core::config::estimator::{DEFAULT_SURFACE_POINTS, LIVE_SURFACE_POINTS};
 use crate::io::live::{LiveEvent, LiveSource};
 use crate::io::session::Frame;
 
@@ -139,7 +140,14 @@ impl ProprioscopeApp {
         let ctx = self.ctx.clone();
         match LiveSource::listen(address, move || ctx.request_repaint()) {
             Ok(source) => {
-                let note = format!("listening on {}", source.address);
+                let mut note = format!("listening on {}", source.address);
+                // A live frame has to be done before the next: a surface
+                // left at the default becomes the live one (as `estimate
+                // --live`); the N slider still sets it.
+                if self.model.config.surface_points == DEFAULT_SURFACE_POINTS {
+                    self.apply(Command::SetSurfacePoints(LIVE_SURFACE_POINTS));
+                    note = format!("{note}; {LIVE_SURFACE_POINTS} surface points, so that each frame keeps up live");
+                }
                 self.live.view = Some(LiveView {
                     source,
                     follow: true,

@@ -8,6 +8,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result, anyhow};
 use glam::DVec3;
 use proprioscope::batch::credible_set_holds_truth;
+use proprioscope::core::config::estimator::LIVE_SURFACE_POINTS;
 use proprioscope::core::config::limits;
 use proprioscope::core::estimate::estimator::{Estimator, StageTimes, Update};
 use proprioscope::core::estimate::settings::{EstimatorSettings, Mode, ParticleSettings, Sampling};
@@ -398,6 +399,8 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
     let estimators = [
         ("refined (patches)", 5000, true, Temporal::None),
         ("filtered over time", 5000, true, Temporal::Filter),
+        // What `estimate --live` and the app listening take by default.
+        ("filtered over time", LIVE_SURFACE_POINTS, true, Temporal::Filter),
         ("smoothed over time", 5000, true, Temporal::Smooth),
         ("grid of points", 5000, false, Temporal::None),
         ("grid of points", 35_000, false, Temporal::None),

@@ -268,8 +268,18 @@ fn start(args: &EstimateArgs, robot: Option<&str>, temporal: Temporal) -> Result
         frames: Vec::new(),
     };
     let robot = session_robot(&empty, None, &args.package_paths, &args.estimator.links)?;
-    let config = args.estimator.config(&args.temporal)?;
+    let config = args.estimator.live_config(&args.temporal)?;
     let estimator = args.estimator.estimator(&robot, &config, temporal)?;
+    log::info!(
+        "{robot_name}: {} surface points on {} links{}",
+        estimator.surface.len(),
+        estimator.links.len(),
+        if args.estimator.points.is_none() {
+            " (fewer than for a file, so that a frame keeps up live; --points to change)"
+        } else {
+            ""
+        }
+    );
     let model = match temporal {
         Temporal::None => None,
         _ => Some(config.temporal_model(&estimator.surface, estimator.uses_patches())?),

@@ -15,8 +15,8 @@ use std::path::Path;
 use anyhow::{Result, bail};
 use glam::DVec3;
 use proprioscope::core::config::estimator::{
-    BuildError, ConfigError, DEFAULT_FORCE_RANGE_NEWTONS, DEFAULT_SIGMA_NEWTON_METRES, EstimatorConfig, Friction,
-    ModeKind, Sigma, TorqueModel,
+    BuildError, ConfigError, DEFAULT_FORCE_RANGE_NEWTONS, DEFAULT_SIGMA_NEWTON_METRES, DEFAULT_SURFACE_POINTS,
+    EstimatorConfig, Friction, LIVE_SURFACE_POINTS, ModeKind, Sigma, TorqueModel,
 };
 use proprioscope::core::config::limits::{self, CountRange, Range};
 use proprioscope::core::estimate::estimator::Estimator;
@@ -228,9 +228,11 @@ pub struct EstimatorArgs {
     /// point) or `random` (`--particles` over the surface).
     #[arg(long, value_enum, default_value = "deterministic")]
     pub sampling: SamplingArg,
-    /// Surface points over the candidate links (valid: 1 to 1000000).
-    #[arg(long, default_value_t = EstimatorConfig::default().surface_points, value_parser = counted(&limits::SURFACE_POINTS))]
-    pub points: usize,
+    /// Surface points over the candidate links (valid: 1 to 1000000)
+    /// [default: 5000; with --live, 2500, so that a filtered frame keeps
+    /// up with a 1 kHz arm on one thread].
+    #[arg(long, value_parser = counted(&limits::SURFACE_POINTS))]
+    pub points: Option<usize>,
     /// Random particles over the surface (particle mode, random
     /// sampling; valid: 1 to 10000000).
     #[arg(long, default_value_t = EstimatorConfig::default().particles, value_parser = counted(&limits::PARTICLES))]
@@ -363,6 +365,16 @@ impl EstimatorArgs {
     /// The options (and the temporal model's, `temporal`) as the one
     /// configuration, checked.
     pub fn config(&self, temporal: &TemporalArgs) -> Result<EstimatorConfig> {
+        self.config_with(temporal, DEFAULT_SURFACE_POINTS)
+    }
+
+    /// [`EstimatorArgs::config`] for frames that arrive live: the surface
+    /// points [`LIVE_SURFACE_POINTS`] unless `--points` says.
+    pub fn live_config(&self, temporal: &TemporalArgs) -> Result<EstimatorConfig> {
+        self.config_with(temporal, LIVE_SURFACE_POINTS)
+    }
+
+    fn config_with(&self, temporal: &TemporalArgs, default_points: usize) -> Result<EstimatorConfig> {
         let values: Vec<f64> = self
             .sigma
             .iter()
@@ -400,7 +412,7 @@ impl EstimatorArgs {
             alpha: self.alpha,
             friction: self.friction,
             patches: !self.points_only,
-            surface_points: self.points,
+            surface_points: self.points.unwrap_or(default_points),
             surface_seed: self.seed,
             temporal: temporal.settings(),
             torques: TorqueModel {

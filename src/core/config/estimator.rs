@@ -32,6 +32,17 @@ pub use crate::core::estimate::settings::DEFAULT_FORCE_RANGE_NEWTONS;
 /// at a few hundred microseconds a frame.
 pub const DEFAULT_SURFACE_POINTS: usize = 5000;
 
+/// Surface samples when nobody says and frames arrive live (`estimate
+/// --live`, the app listening): the filter's work grows with the samples,
+/// and a live frame has to be done before the next. On the shared
+/// dynamic examples (`bench`, one thread of the 2-core development VM,
+/// surface seeds 0–4) a filtered frame takes 346–365 µs at p99 with 2500
+/// samples against 625–708 µs with 5000, and the filtered place is as
+/// good within the seeds' spread (link 4: 12.5–33.0 mm at the median
+/// against 13.1–27.6 mm; link 6: 4.0–4.3 mm against 4.1–4.4 mm;
+/// `docs/validation.md`, *Long recordings at robot rates*).
+pub const LIVE_SURFACE_POINTS: usize = 2500;
+
 /// The likelihood σ: one value for every sensed joint, or one per joint.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Sigma {
