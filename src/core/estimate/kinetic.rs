@@ -4,7 +4,7 @@
 //!
 //! The slide's direction is the fitted track's own: each frame's
 //! velocity over the surface is the slope of a line fitted through the
-//! places within 300 ms (`WINDOW_SECS`) either side, along the surface. A frame
+//! places within 50 ms (`WINDOW_SECS`) either side, along the surface. A frame
 //! either sticks (no tangential force) or slips (`μ_k f_t` along its
 //! velocity); one that moves slower than 5 mm/s (`MOVING_M_PER_S`) cannot slip.
 //! `μ_k` is one unknown for the whole press (one object on one surface)
@@ -38,17 +38,8 @@ const MU_START: f64 = 0.4;
 /// slipping at a frame.
 const SWITCH_COST: f64 = 10.0;
 
-/// Half the window a frame's velocity is fitted over, s. The places a
-/// search starts from are an estimate's, which wander by millimetres
-/// from frame to frame across a slide's direction: over 50 ms either
-/// side their velocities pointed where slipping explained few frames
-/// (the shared link-4 slide: 28 of 129), and the search ended at `μ_k` = 0;
-/// over 300 ms it finds the slide there (median force error 12.2 →
-/// 3.8 N; `docs/validation.md`, *Sliding contacts*). A window this wide
-/// blurs a slide that turns within it, and reads a press as moving up to
-/// 300 ms before and after it does (where the stick and slip states
-/// decide).
-const WINDOW_SECS: f64 = 0.3;
+/// Half the window a frame's velocity is fitted over, s.
+const WINDOW_SECS: f64 = 0.05;
 
 /// Rounds of directions and search.
 const ROUNDS: usize = 3;

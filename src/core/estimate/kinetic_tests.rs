@@ -116,24 +116,24 @@ fn frames<'a>(s: &'a Slide, starts: &[MeshPoint]) -> Vec<PressFrame<'a>> {
 
 /// A slide's directions: along the slide (unit vectors) while the place
 /// moves at 8 cm/s, and none where it stands, a window away from the
-/// slide (30 frames at 100 Hz).
+/// slide.
 #[test]
 fn directions_follow_the_slide_and_vanish_at_rest() {
-    let s = slide("lwr_5_link", 45, 40, 0.08, 0.5, 1);
+    let s = slide("lwr_5_link", 30, 40, 0.08, 0.5, 1);
     let shape = s.surface.shape(s.link).unwrap();
     let settings = settings(0.2);
     let frames = frames(&s, &s.places);
     let problem = Problem::new(shape, s.link, &frames, &settings).unwrap();
     let directions = slides_at(&problem, &s.places).unwrap().directions;
     for (i, (d, (here, _))) in directions.iter().zip(&s.truth).enumerate() {
-        if (55..75).contains(&i) {
+        if (40..60).contains(&i) {
             // The move over the window, along the surface here.
             let moved = s.truth[i + 5].0.point - s.truth[i - 5].0.point;
             let along = (moved - moved.dot(here.inward_normal) * here.inward_normal).normalize();
             assert!((d.length() - 1.0).abs() < 1e-9, "frame {i}: {d:?}");
             assert!(d.normalize().dot(along) > 0.99, "frame {i}: {d:?} against {along:?}");
         }
-        if !(10..120).contains(&i) {
+        if !(20..90).contains(&i) {
             assert!(d.length() < 1e-9, "frame {i}: {d:?}");
         }
     }
