@@ -85,51 +85,24 @@ fn live_frames_are_estimated_and_bad_lines_skipped() {
 /// `stream` replays a session to a live estimate, frame for frame.
 #[test]
 fn a_streamed_session_is_estimated_live() {
-    let session = temp_file("streamed.session.json", THESIS_SESSION);
-    let out = temp_file("streamed.jsonl", "");
-    let live = spawn_live(
-        "127.0.0.1:0",
-        false,
-        &[
-            "--live-frames",
-            "2",
-            "--points",
-            "2000",
-            "--sigma",
-            "0.01",
-            "--fmin",
-            "0.5",
-            "--fmax",
-            "3",
-            "--temporal",
-            "none",
-            "--out",
-            out.to_str().unwrap(),
-        ],
-    );
-    let address = live.live.clone();
-    let (ok, _, err) = run_out(&["stream", session.to_str().unwrap(), "--to", &address, "--rate", "0"]);
-    assert!(ok, "{err}");
-    let (ok, stderr) = live.wait();
-    assert!(ok, "{stderr}");
-    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&out)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
-    assert_eq!(lines.len(), 2);
-    assert_eq!(lines[0]["verdict"], "contact");
-    assert_eq!(lines[1]["verdict"], "no_contact");
+    streamed_session_is_estimated_live("127.0.0.1:0", "tcp");
 }
 
 /// The same over UDP: `stream --to udp://…` sends a datagram a line to
 /// `estimate --live udp://…`.
 #[test]
 fn a_session_streamed_over_udp_is_estimated_live() {
-    let session = temp_file("udp.session.json", THESIS_SESSION);
-    let out = temp_file("udp.jsonl", "");
+    streamed_session_is_estimated_live("udp://127.0.0.1:0", "udp");
+}
+
+/// The thesis' session streamed by `stream` to `estimate --live listen`
+/// (files named after `name`): its two frames estimated, a contact then
+/// none.
+fn streamed_session_is_estimated_live(listen: &str, name: &str) {
+    let session = temp_file(&format!("{name}.session.json"), THESIS_SESSION);
+    let out = temp_file(&format!("{name}.jsonl"), "");
     let live = spawn_live(
-        "udp://127.0.0.1:0",
+        listen,
         false,
         &[
             "--live-frames",
@@ -149,7 +122,8 @@ fn a_session_streamed_over_udp_is_estimated_live() {
         ],
     );
     let address = live.live.clone();
-    assert!(address.starts_with("udp://127.0.0.1:"), "{address}");
+    let scheme = listen.split_once("://").map_or("", |(scheme, _)| scheme);
+    assert!(address.starts_with(scheme), "{address} from {listen}");
     let (ok, _, err) = run_out(&["stream", session.to_str().unwrap(), "--to", &address, "--rate", "0"]);
     assert!(ok, "{err}");
     let (ok, stderr) = live.wait();
