@@ -5,6 +5,8 @@
 // Test helpers may unwrap: a panic is a failed test with its message.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 use proprioscope::core::estimate::estimator::Estimator;
 use proprioscope::core::estimate::friction::frictional_force;
 use proprioscope::core::estimate::measurement::Measurement;
@@ -954,4 +956,31 @@ fn sets_hold_at_least(
     assert!(count >= 300, "{count} contact frames");
     assert!(share >= least, "{share}");
     assert!(radius < 0.05, "{radius}");
+}
+
+/// Issue 42's force target on the `../shared` link 4 slide (`MuJoCo`, μ
+/// 0.5, four joints sense it): smoothed, the median force error is at
+/// most 4 N at each of surface seeds 0–2 (measured 3.40, 3.14, 2.79 N;
+/// 12.17, 6.88, 12.30 N with the slide's direction read over 50 ms
+/// either side), and the place stays within 10 mm (7.3, 6.1, 5.4 mm).
+#[test]
+#[ignore = "needs ../shared"]
+fn the_shared_link_4_slide_is_found_with_its_force() {
+    let session = common::shared().join("sessions/lwr4plus_slide_example_link4.session.json");
+    for seed in ["0", "1", "2"] {
+        let (ok, out, err) = common::run_out(&[
+            "estimate",
+            session.to_str().unwrap(),
+            "--temporal",
+            "smooth",
+            "--seed",
+            seed,
+        ]);
+        assert!(ok, "{err}");
+        let row = out.lines().find(|l| l.contains("| all |")).unwrap();
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        let (place_mm, force_n): (f64, f64) = (cells[3].parse().unwrap(), cells[5].parse().unwrap());
+        assert!(force_n <= 4.0, "seed {seed}: {row}");
+        assert!(place_mm <= 10.0, "seed {seed}: {row}");
+    }
 }

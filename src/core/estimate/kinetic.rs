@@ -4,7 +4,10 @@
 //!
 //! The slide's direction is the fitted track's own: each frame's
 //! velocity over the surface is the slope of a line fitted through the
-//! places within 50 ms (`WINDOW_SECS`) either side, along the surface. A frame
+//! places within 500 ms (`WINDOW_SECS`) either side, along the surface: a
+//! fitted track strays by millimetres from the true one, smoothly, and a
+//! slide of a few cm/s moves only as much in 50 ms. A slide shorter than
+//! the window is read with its ends smeared into the frames at rest. A frame
 //! either sticks (no tangential force) or slips (`μ_k f_t` along its
 //! velocity); one that moves slower than 5 mm/s (`MOVING_M_PER_S`) cannot slip.
 //! `μ_k` is one unknown for the whole press (one object on one surface)
@@ -38,8 +41,9 @@ const MU_START: f64 = 0.4;
 /// slipping at a frame.
 const SWITCH_COST: f64 = 10.0;
 
-/// Half the window a frame's velocity is fitted over, s.
-const WINDOW_SECS: f64 = 0.05;
+/// Half the window a frame's velocity is fitted over, s (see
+/// `docs/decisions.md`, *The slide's direction over a wider window*).
+const WINDOW_SECS: f64 = 0.5;
 
 /// Rounds of directions and search.
 const ROUNDS: usize = 3;

@@ -25,7 +25,8 @@ impl Estimator {
     /// better than none, each frame's reported contact, fit test and
     /// verdict become the fit's. Then checks the press against its
     /// frames' own contacts (`alone`, one per frame; see
-    /// [`PRESS_MISFIT_PER_FRAME`]), hands the frames to `each`, each with
+    /// [`PRESS_MISFIT_PER_FRAME`], and [`SLIDE_MISFIT_PER_FRAME`] where
+    /// kinetic friction explains it), hands the frames to `each`, each with
     /// its share of the time, and empties `press` and `alone`.
     fn settle_press(
         &self,
@@ -41,18 +42,23 @@ impl Estimator {
             return;
         }
         let t0 = Instant::now();
-        if self.fits_presses() {
-            self.fit_press_of(robot, frames, slide_m_per_sqrt_s, press, alone);
-        }
-        check_press(press, alone);
+        let slides =
+            self.fits_presses() && self.fit_press_of(robot, frames, slide_m_per_sqrt_s, press, alone) == Some(true);
+        let limit_per_frame = if slides {
+            SLIDE_MISFIT_PER_FRAME
+        } else {
+            PRESS_MISFIT_PER_FRAME
+        };
+        check_press(press, alone, limit_per_frame);
         let share_ms = elapsed_ms(t0) / press.len() as f64;
         for (i, update, cost_ms) in press.drain(..) {
             each(i, update, cost_ms + share_ms);
         }
     }
 
-    /// [`Estimator::settle_press`]'s fit; `None` (nothing changed) where
-    /// the press keeps its estimates.
+    /// [`Estimator::settle_press`]'s fit: whether kinetic friction along
+    /// the slide explains the press; `None` (nothing changed) where the
+    /// press keeps its estimates.
     ///
     /// The press is fitted from the recording's places and, where a few
     /// of its frames alone (`alone`; [`ALTERNATIVE_MIN_FRAMES`]) place the
@@ -71,7 +77,7 @@ impl Estimator {
         slide_m_per_sqrt_s: f64,
         press: &mut [(usize, Update, f64)],
         alone: &[Option<Summary>],
-    ) -> Option<()> {
+    ) -> Option<bool> {
         let link = press.first()?.1.summary.map.link;
         let models: Vec<TorqueModel> = press
             .iter()
@@ -170,7 +176,7 @@ impl Estimator {
                 self.widen_credible(update, link, spread);
             }
         }
-        Some(())
+        Some(answer.kinetic_friction.is_some())
     }
 
     /// The press's frames fitted on `link` (see [`explain_press`]), each
@@ -562,10 +568,11 @@ pub const MAX_ALTERNATIVES: usize = 2;
 pub const MAX_PRESS_FRAMES: usize = 400;
 
 /// Where a smoothed press's contacts explain its frames far worse than
-/// each frame's own contact does ([`PRESS_MISFIT_PER_FRAME`]), each frame
+/// each frame's own contact does (by more than `limit_per_frame` a frame,
+/// plus [`PRESS_MISFIT_MARGIN`]), each frame
 /// takes its own contact (the recording's contact probability, shares
 /// and credible set stay). Empties `alone`.
-fn check_press(press: &mut [(usize, Update, f64)], alone: &mut Vec<Option<Summary>>) {
+fn check_press(press: &mut [(usize, Update, f64)], alone: &mut Vec<Option<Summary>>, limit_per_frame: f64) {
     let together: f64 = press.iter().map(|(_, u, _)| u.summary.fit.best_residual_chi2).sum();
     // Every frame must have its own refined contact to compare with.
     let apart: Option<f64> = alone
@@ -574,7 +581,7 @@ fn check_press(press: &mut [(usize, Update, f64)], alone: &mut Vec<Option<Summar
         .sum();
     let frames = press.len() as f64;
     if alone.len() == press.len()
-        && apart.is_some_and(|apart| together - apart > PRESS_MISFIT_PER_FRAME * frames + PRESS_MISFIT_MARGIN)
+        && apart.is_some_and(|apart| together - apart > limit_per_frame * frames + PRESS_MISFIT_MARGIN)
     {
         for ((_, update, _), own) in press.iter_mut().zip(alone.iter()) {
             if let Some(own) = own {
@@ -598,6 +605,19 @@ fn check_press(press: &mut [(usize, Update, f64)], alone: &mut Vec<Option<Summar
 /// frame alone is the better report. 300 (17σ a frame) leaves every
 /// frictionless press measured alone.
 pub const PRESS_MISFIT_PER_FRAME: f64 = 300.0;
+
+/// [`PRESS_MISFIT_PER_FRAME`] for a press that kinetic friction along its
+/// slide explains. That model follows a slide and can absorb misfit a
+/// fixed place cannot: on the `../shared` two-contact example, the link 7
+/// press (which link 6 explains frame by frame) misses its frames by 302
+/// a frame with it and 327 without, and where such a press is kept as a
+/// slide on link 7 it is poorly explained throughout, which calls a
+/// second contact in its frames (22 of the 170 one-probe frames, with
+/// the slide's direction over 300 ms). The presses the model does
+/// explain miss by at most 33 a frame on the shared slide and observer
+/// examples (surface seeds 0–2) and 20 on generated slides, but for one
+/// link 4 press at 199, now each frame's own.
+pub const SLIDE_MISFIT_PER_FRAME: f64 = 50.0;
 
 /// See [`PRESS_MISFIT_PER_FRAME`]: a short press must still miss by this
 /// much in all.
