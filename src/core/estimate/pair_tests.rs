@@ -271,3 +271,60 @@ fn settings_are_checked() {
     };
     assert!(matches!(bad.validate(), Err(PairSettingsError::Separation { .. })));
 }
+
+/// Friction at both contacts of a pair never explains more than the
+/// pair's whole misfit: its gain is at most half the pair's χ² (the
+/// likelihood of a perfect fit). Each contact's gain alone, summed, counts
+/// twice a misfit that either one's tangential force can explain: on one
+/// push dragged at 0.5 of its push, a pair of it and a sample of the same
+/// link gained 518 nats against a χ² of 940.
+#[test]
+fn friction_at_both_contacts_explains_the_misfit_once() {
+    let s = scene();
+    let settings = EstimatorSettings {
+        friction: 0.5,
+        ..EstimatorSettings::exact(vec![SIGMA; 7])
+    };
+    let posed = PosedSurface {
+        torque_model: &s.torque_model,
+        surface: &s.surface,
+    };
+    let pair_settings = PairSettings::default();
+    let mut rng = Rng::new(3);
+    let (mut pairs, mut most) = (0, 0.0_f64);
+    for nth in 0..20 {
+        // One push on link 5 dragged along a tangent by half of it.
+        let k = s.truth_on("lwr_5_link", nth);
+        let link = s.truths.link[k];
+        let normal = s.truths.inward_normal_in_link[k];
+        let (t1, _) = normal.any_orthonormal_pair();
+        let force_in_link = normal * 15.0 + t1 * 7.5;
+        let point = s.pose.point_to_world(link, s.truths.point_in_link[k]);
+        let force = s.pose.world_from_link[link].transform_vector3(force_in_link);
+        let tau: Vec<f64> = joint_torques(&s.robot, &s.pose, link, point, force.normalize())
+            .iter()
+            .map(|u| u * force.length() + SIGMA * rng.normal())
+            .collect();
+        let search = Search {
+            posed: &posed,
+            tau: &tau,
+            settings: &settings,
+            hierarchy: None,
+            pair: &pair_settings,
+            weights: settings.weights(),
+            ln_prior_norm: 0.0,
+        };
+        let a = search.at_sample(s.nearest_sample(k), 15.0);
+        for b in (0..s.surface.len()).filter(|&b| s.surface.link[b] == link).step_by(7) {
+            let b = search.at_sample(b, rng.uniform_in(1.0, 15.0));
+            let residual = search.residual(&a, &b);
+            let gain = search.pair_friction_gain(&a, &b);
+            assert!(gain <= 0.5 * residual + 1e-9, "gain {gain} against χ² {residual}");
+            most = most.max(gain / (0.5 * residual));
+            pairs += 1;
+        }
+    }
+    assert!(pairs >= 200, "{pairs}");
+    // Friction explains most of the misfit of some pairs: the test sees it.
+    assert!(most > 0.5, "{most}");
+}
