@@ -307,6 +307,30 @@ fn a_client_on_loopback_subscribes_and_receives_the_arm_s_transforms() {
     assert_eq!(server.clients(), 1);
 }
 
+/// A subscription to a channel the server has not advertised is refused
+/// with the status that [`refused`] reads (the tests that subscribe send
+/// theirs again on it).
+#[test]
+fn a_subscription_to_an_unknown_channel_is_refused_with_a_status() {
+    let server = FoxgloveServer::start("127.0.0.1:0", "test").unwrap();
+    let mut socket = foxglove_client(&server.address().to_string());
+    let subscribe = serde_json::json!({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": 9999}]});
+    socket
+        .send(tungstenite::Message::Text(subscribe.to_string().into()))
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let mut texts = Vec::new();
+    while Instant::now() < deadline {
+        if let Some(tungstenite::Message::Text(text)) = next_message(&mut socket, Duration::from_millis(100)) {
+            if refused(&text) {
+                return;
+            }
+            texts.push(text.to_string());
+        }
+    }
+    panic!("no refusal among {texts:?}");
+}
+
 /// Whether a text message from the server refuses a subscription to a
 /// channel it does not know. The server sends a channel's advertisement
 /// before it records the channel as advertised to the client, so a
