@@ -977,10 +977,9 @@ fn the_shared_link_4_slide_is_found_with_its_force() {
             seed,
         ]);
         assert!(ok, "{err}");
-        let row = out.lines().find(|l| l.contains("| all |")).unwrap();
-        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
-        let (place_mm, force_n): (f64, f64) = (cells[3].parse().unwrap(), cells[5].parse().unwrap());
-        assert!(force_n <= 4.0, "seed {seed}: {row}");
-        assert!(place_mm <= 10.0, "seed {seed}: {row}");
+        let row = common::all_row(&out);
+        let (place_mm, force_n) = (row[0], row[2]);
+        assert!(force_n <= 4.0, "seed {seed}: {out}");
+        assert!(place_mm <= 10.0, "seed {seed}: {out}");
     }
 }

@@ -111,12 +111,24 @@ pub fn estimate_figures(out: &str) -> (f64, f64, f64) {
         .skip(1)
         .map(|p| p.split(' ').next().unwrap().parse().unwrap())
         .collect();
+    (percents[0], percents[1], all_row(out)[2])
+}
+
+/// The numbers of an `estimate` run's `| all |` row, from its median
+/// position error on: `[median mm, p90 mm, median N, p90 N, …]`; a cell
+/// read up to its first space (`69 %`), NaN where that is no number.
+pub fn all_row(out: &str) -> Vec<f64> {
     let row = out.lines().find(|l| l.contains("| all |")).unwrap();
-    (
-        percents[0],
-        percents[1],
-        row.split('|').nth(3).unwrap().trim().parse().unwrap(),
-    )
+    row.split('|')
+        .skip(3)
+        .map(|cell| {
+            cell.trim()
+                .split(' ')
+                .next()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(f64::NAN)
+        })
+        .collect()
 }
 
 /// A running `proprioscope estimate --live …` on a port the system chose,

@@ -150,14 +150,43 @@ pub fn frictional_force(
 pub fn friction_evidence(
     model: &TorqueModel,
     link: LinkId,
-    (point_in_link, inward_normal_in_link): (DVec3, DVec3),
+    place: (DVec3, DVec3),
     m: &Measurement,
     friction: f64,
 ) -> Option<(FrictionalForce, f64)> {
+    friction_fits(model, link, place, m, friction).map(|fits| (fits.without, fits.gain))
+}
+
+/// One place's forces with and without friction, and what friction buys.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrictionFits {
+    /// The friction model's force ([`frictional_force`]).
+    pub with: FrictionalForce,
+    /// The push along the normal alone.
+    pub without: FrictionalForce,
+    /// How much lower `-2 ln L` is with friction than without (as
+    /// [`friction_evidence`]'s).
+    pub gain: f64,
+}
+
+/// [`friction_evidence`] with the friction model's force as well, from
+/// one set of the place's torques. `None` as [`frictional_force`].
+#[must_use]
+pub fn friction_fits(
+    model: &TorqueModel,
+    link: LinkId,
+    (point_in_link, inward_normal_in_link): (DVec3, DVec3),
+    m: &Measurement,
+    friction: f64,
+) -> Option<FrictionFits> {
     let place = PlaceTorques::new(model, link, point_in_link, inward_normal_in_link)?;
-    let (_, with_cost) = place.force(m, friction)?;
+    let (with, with_cost) = place.force(m, friction)?;
     let (without, without_cost) = place.force(m, 0.0)?;
-    Some((without, without_cost - with_cost))
+    Some(FrictionFits {
+        with,
+        without,
+        gain: without_cost - with_cost,
+    })
 }
 
 /// The torques per newton of a push at a place and of forces along two

@@ -35,7 +35,7 @@
 use glam::DVec3;
 
 use crate::core::estimate::contact::{PosedSurface, UnitTorqueSource};
-use crate::core::estimate::friction::{friction_evidence, frictional_force};
+use crate::core::estimate::friction::friction_fits;
 use crate::core::estimate::measurement::Measurement;
 use crate::core::estimate::phases::PhaseHierarchy;
 use crate::core::estimate::posterior::{Posterior, estimate};
@@ -295,8 +295,8 @@ impl Search<'_> {
             ..self.measurement(left)
         };
         let place = (one.point_in_link, one.inward_normal_in_link);
-        let (_, gain) = friction_evidence(self.posed.torque_model, one.link, place, &measurement, mu)?;
-        let force = frictional_force(self.posed.torque_model, one.link, place, &measurement, mu)?;
+        let fits = friction_fits(self.posed.torque_model, one.link, place, &measurement, mu)?;
+        let (force, gain) = (fits.with, fits.gain);
         let force_in_link = one.inward_normal_in_link * force.normal_newtons + force.tangential_in_link;
         let torques = self
             .posed
