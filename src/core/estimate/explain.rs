@@ -166,6 +166,7 @@ pub fn explain_press(
         Some(slides) => problem.spreads_with(&found.locations, ratio, Drag::Kinetic(slides)),
         None => problem.spreads(&found.locations, ratio, with_friction),
     };
+    let plan = slides.as_ref().map(|s| s.drag_plan(false)).unwrap_or_default();
     let contacts = found
         .locations
         .iter()
@@ -179,14 +180,12 @@ pub fn explain_press(
                 point_in_link: surface.point,
                 inward_normal_in_link: surface.inward_normal,
                 force_newtons,
-                tangential_in_link: match &slides {
-                    Some(slides) => {
-                        along_surface(
-                            slides.directions.get(t).copied().unwrap_or(DVec3::ZERO),
-                            surface.inward_normal,
-                        ) * (ratio.x * force_newtons)
+                tangential_in_link: match (&slides, plan.get(t)) {
+                    (Some(_), Some(&(d, share))) => {
+                        along_surface(d, surface.inward_normal) * (share.of(ratio) * force_newtons)
                     }
-                    None => along_surface(ratio, surface.inward_normal) * force_newtons,
+                    (Some(_), None) => DVec3::ZERO,
+                    (None, _) => along_surface(ratio, surface.inward_normal) * force_newtons,
                 },
                 residual_chi2,
                 spread: spreads

@@ -18,6 +18,8 @@ use crate::core::robot::torque::TorqueModel;
 use crate::core::surface::sampling::{Surface, SurfaceRequest};
 
 const RATE_HZ: f64 = 100.0;
+/// The share of the push the test slide's drag holds after it stops.
+const HELD: f64 = 0.15;
 const WEIGHTS: [f64; 7] = [400.0; 7];
 
 /// Frames the test press sticks before and after its slide: more than
@@ -33,8 +35,9 @@ const SPEED_M_PER_S: f64 = 0.04;
 /// A press on the LWR's link 5 at 100 Hz while every joint swings by up
 /// to 0.3 rad: it sticks for `stick` frames, slides `slide` frames at
 /// `speed` m/s along its first tangent with kinetic friction `mu` (the
-/// arm dragged along the slide), and sticks `stick` frames again; a
-/// push of 8–12 N, σ = 0.05 N·m.
+/// arm dragged along the slide), and sticks `stick` frames again, static
+/// friction holding `held` times the push along the slide's last
+/// direction; a push of 8–12 N, σ = 0.05 N·m.
 struct Slide {
     surface: Surface,
     link: LinkId,
@@ -47,7 +50,7 @@ struct Slide {
     places: Vec<MeshPoint>,
 }
 
-fn slide(link_name: &str, stick: usize, slide: usize, speed: f64, mu: f64, seed: u64) -> Slide {
+fn slide(link_name: &str, stick: usize, slide: usize, speed: f64, (mu, held): (f64, f64), seed: u64) -> Slide {
     let robot = builtin::lwr4plus_generated().unwrap();
     let link = robot.link_id(link_name).unwrap();
     let links = robot.default_candidate_links();
@@ -72,11 +75,17 @@ fn slide(link_name: &str, stick: usize, slide: usize, speed: f64, mu: f64, seed:
         truth: Vec::new(),
         places: Vec::new(),
     };
+    let mut last_along = DVec3::ZERO;
     for i in 0..(2 * stick + slide) {
         let t = i as f64 / RATE_HZ;
         let sliding = (stick..stick + slide).contains(&i);
         let here = shape.frame(at).unwrap();
         let along = (heading - heading.dot(here.inward_normal) * here.inward_normal).normalize();
+        if sliding {
+            last_along = along;
+        }
+        // The drag held after the slide, along the surface here.
+        let kept = (last_along - last_along.dot(here.inward_normal) * here.inward_normal).normalize_or_zero();
         let q: Vec<f64> = phases
             .iter()
             .enumerate()
@@ -85,7 +94,11 @@ fn slide(link_name: &str, stick: usize, slide: usize, speed: f64, mu: f64, seed:
         let pose = RobotPose::new(&robot, &robot.joint_positions(&q, &[]).unwrap());
         let model = TorqueModel::new(&robot, &pose, &links);
         let push = 10.0 + 2.0 * (std::f64::consts::TAU * t).sin();
-        let tangential = if sliding { along * (mu * push) } else { DVec3::ZERO };
+        let tangential = if sliding {
+            along * (mu * push)
+        } else {
+            kept * (held * push)
+        };
         let force = here.inward_normal * push + tangential;
         let tau = model
             .torques(link, here.point, force)
@@ -129,7 +142,7 @@ fn frames<'a>(s: &'a Slide, starts: &[MeshPoint]) -> Vec<PressFrame<'a>> {
 /// from the slide.
 #[test]
 fn directions_follow_the_slide_and_vanish_at_rest() {
-    let s = slide("lwr_5_link", STICK, SLIDE, SPEED_M_PER_S, 0.5, 1);
+    let s = slide("lwr_5_link", STICK, SLIDE, SPEED_M_PER_S, (0.5, 0.0), 1);
     let window = (WINDOW_SECS * RATE_HZ).round() as usize;
     let shape = s.surface.shape(s.link).unwrap();
     let settings = settings(0.2);
@@ -157,7 +170,7 @@ fn directions_follow_the_slide_and_vanish_at_rest() {
 #[test]
 fn a_sliding_press_is_found_with_its_kinetic_friction() {
     for seed in 1..=3 {
-        let s = slide("lwr_5_link", STICK, SLIDE, SPEED_M_PER_S, 0.5, seed);
+        let s = slide("lwr_5_link", STICK, SLIDE, SPEED_M_PER_S, (0.5, 0.0), seed);
         let shape = s.surface.shape(s.link).unwrap();
         let frames = frames(&s, &s.places);
         let answer = explain_press(shape, s.link, &frames, &settings(0.2)).unwrap();
@@ -195,5 +208,45 @@ fn a_sliding_press_is_found_with_its_kinetic_friction() {
         assert!(place90 < 5e-3, "{place90}");
         assert!(force < 0.5, "{force}");
         assert!(plain90 > 3.0 * place90, "{plain90}");
+    }
+}
+
+/// A slide that stops with its drag held (static friction keeping
+/// [`HELD`] of the push along the slide's last direction) is found with
+/// that drag: `μ_k` within 0.1, the force of the frames after the slide
+/// within 0.6 N at the median and the place within 5 mm at p90. Without
+/// the held drag in the model the places move to explain it: 2.9 N and
+/// 9.9 mm at seed 1. With drags of 0.25–0.3 the fit is less sure: at one
+/// seed in three the press is not taken for a slide at all
+/// (`docs/decisions.md`, *Friction while a slide sticks*).
+#[test]
+fn a_slide_that_stops_holding_its_drag_is_found_with_it() {
+    for seed in 1..=3 {
+        let s = slide("lwr_5_link", STICK, SLIDE, SPEED_M_PER_S, (0.5, HELD), seed);
+        let shape = s.surface.shape(s.link).unwrap();
+        let frames = frames(&s, &s.places);
+        let answer = explain_press(shape, s.link, &frames, &settings(0.2)).unwrap();
+        let after = STICK + SLIDE + (WINDOW_SECS * RATE_HZ).round() as usize;
+        let force: Vec<f64> = answer.contacts[after..]
+            .iter()
+            .zip(&s.truth[after..])
+            .map(|(c, (_, f))| (c.inward_normal_in_link * c.force_newtons + c.tangential_in_link).distance(*f))
+            .collect();
+        let place: Vec<f64> = answer
+            .contacts
+            .iter()
+            .zip(&s.truth)
+            .map(|(c, (here, _))| c.point_in_link.distance(here.point))
+            .collect();
+        let (force, place90) = (percentile(&force, 0.5), percentile(&place, 0.9));
+        eprintln!(
+            "seed {seed}: μ_k {:?}, after the slide {force:.2} N, place p90 {:.1} mm",
+            answer.kinetic_friction,
+            place90 * 1e3
+        );
+        let mu = answer.kinetic_friction.unwrap();
+        assert!((mu - 0.5).abs() < 0.1, "{mu}");
+        assert!(force < 0.6, "{force}");
+        assert!(place90 < 5e-3, "{place90}");
     }
 }

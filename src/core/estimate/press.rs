@@ -264,6 +264,102 @@ pub struct Slides {
     pub velocities_m_per_s: Vec<DVec3>,
 }
 
+impl Slides {
+    /// Each frame's drag direction: its own slide direction where it has
+    /// one, else that of the nearest frame that has (the earlier of two
+    /// as near): the way a press that sticks holds its drag. Zero where
+    /// no frame slides.
+    #[must_use]
+    pub fn drag_directions(&self) -> Vec<DVec3> {
+        let mut out = self.directions.clone();
+        let mut gap = vec![usize::MAX; out.len()];
+        let mut last: Option<(usize, DVec3)> = None;
+        for (t, &d) in self.directions.iter().enumerate() {
+            if d.length() > 0.0 {
+                last = Some((t, d));
+            } else if let (Some((k, dk)), Some(o), Some(g)) = (last, out.get_mut(t), gap.get_mut(t)) {
+                *o = dk;
+                *g = t - k;
+            }
+        }
+        let mut next: Option<(usize, DVec3)> = None;
+        for (t, &d) in self.directions.iter().enumerate().rev() {
+            if d.length() > 0.0 {
+                next = Some((t, d));
+            } else if let (Some((k, dk)), Some(o), Some(g)) = (next, out.get_mut(t), gap.get_mut(t))
+                && k - t < *g
+            {
+                *o = dk;
+                *g = k - t;
+            }
+        }
+        out
+    }
+
+    /// Each frame's tangential force under kinetic friction: its
+    /// direction and which share of the push it carries. A frame that
+    /// slides drags along its slide (`μ_k`); one that sticks holds a
+    /// drag along [`Slides::drag_directions`], with one share after the
+    /// press's first slide and one before it. `all_stick`: every frame
+    /// as if it stuck (where the states are chosen).
+    #[must_use]
+    pub fn drag_plan(&self, all_stick: bool) -> Vec<(DVec3, DragShare)> {
+        let first_slide = self
+            .directions
+            .iter()
+            .position(|d| d.length() > 0.0)
+            .unwrap_or(self.directions.len());
+        self.drag_directions()
+            .into_iter()
+            .zip(&self.directions)
+            .enumerate()
+            .map(|(t, (held, own))| {
+                let share = if own.length() > 0.0 && !all_stick {
+                    DragShare::Slip
+                } else if t < first_slide {
+                    DragShare::HeldBefore
+                } else {
+                    DragShare::HeldAfter
+                };
+                (held, share)
+            })
+            .collect()
+    }
+}
+
+/// Which share of the push a frame's drag carries under kinetic
+/// friction: one of the press's three unknowns in its ratio.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DragShare {
+    /// `μ_k` while the press slides (`ratio.x`).
+    Slip,
+    /// The drag held while it sticks after its first slide (`ratio.y`).
+    HeldAfter,
+    /// The drag held while it sticks before its first slide (`ratio.z`).
+    HeldBefore,
+}
+
+impl DragShare {
+    /// Its share from the press's `ratio`.
+    #[must_use]
+    pub fn of(self, ratio: DVec3) -> f64 {
+        match self {
+            Self::Slip => ratio.x,
+            Self::HeldAfter => ratio.y,
+            Self::HeldBefore => ratio.z,
+        }
+    }
+
+    /// Its axis in the ratio (0, 1, 2).
+    const fn axis(self) -> usize {
+        match self {
+            Self::Slip => 0,
+            Self::HeldAfter => 1,
+            Self::HeldBefore => 2,
+        }
+    }
+}
+
 /// The tangential force a search fits.
 #[derive(Debug, Clone, Copy)]
 pub(super) enum Drag<'d> {
@@ -271,10 +367,15 @@ pub(super) enum Drag<'d> {
     None,
     /// γ, fixed in the link's frame, under its prior (spread μ).
     Fixed,
-    /// `μ_k` times the push along each frame's slide (see
-    /// [`crate::core::estimate::kinetic`]), the places expected to move
-    /// with the slides' velocities.
+    /// `μ_k` (`ratio.x`) times the push along each frame's slide, and
+    /// where it sticks the held drag along [`Slides::drag_directions`]:
+    /// `ratio.y` times the push after the first slide, `ratio.z` before it
+    /// (see [`crate::core::estimate::kinetic`]); the places expected to
+    /// move with the slides' velocities.
     Kinetic(&'d Slides),
+    /// Every frame sticking, with the held drag of [`Drag::Kinetic`]: a
+    /// sticking frame's residual where the states are chosen.
+    Held(&'d Slides),
     /// No tangential force, the places expected to move with the slides'
     /// velocities: what kinetic friction is weighed against.
     Drift(&'d Slides),
@@ -291,7 +392,7 @@ impl Drag<'_> {
     /// slides' states.
     fn spread(self, friction: f64) -> f64 {
         match self {
-            Drag::Kinetic(_) | Drag::Gated(_) => KINETIC_SPREAD,
+            Drag::Kinetic(_) | Drag::Gated(_) | Drag::Held(_) => KINETIC_SPREAD,
             Drag::None | Drag::Fixed | Drag::Drift(_) => friction,
         }
     }
@@ -301,7 +402,7 @@ impl Drag<'_> {
     /// `None` where a frame has no slide.
     fn expected_move(self, t: usize, dt_secs: f64) -> Option<DVec3> {
         match self {
-            Drag::Kinetic(slides) | Drag::Drift(slides) | Drag::Gated(slides) => {
+            Drag::Kinetic(slides) | Drag::Drift(slides) | Drag::Gated(slides) | Drag::Held(slides) => {
                 let v = slides.velocities_m_per_s.get(t)?;
                 let v_before = slides.velocities_m_per_s.get(t.checked_sub(1)?)?;
                 Some((*v + *v_before) * (0.5 * dt_secs))
@@ -312,7 +413,7 @@ impl Drag<'_> {
 
     /// Whether the search moves a ratio (γ or `μ_k`).
     fn is_free(self) -> bool {
-        matches!(self, Drag::Fixed | Drag::Kinetic(_) | Drag::Gated(_))
+        matches!(self, Drag::Fixed | Drag::Kinetic(_) | Drag::Gated(_) | Drag::Held(_))
     }
 }
 
@@ -467,8 +568,8 @@ impl Problem<'_> {
                     })
                     .collect();
                 let mut next_ratio = ratio + ratio_step * scale;
-                if let Drag::Kinetic(_) = drag {
-                    next_ratio = DVec3::new(next_ratio.x.max(0.0), 0.0, 0.0);
+                if let Drag::Kinetic(_) | Drag::Held(_) = drag {
+                    next_ratio.x = next_ratio.x.max(0.0);
                 }
                 if let Some(next) = self.normal_with(&moved, next_ratio, drag)
                     && next.cost < normal.cost
@@ -535,9 +636,15 @@ impl Problem<'_> {
         let mut normal = Normal::prior(surface, ratio, ratio_free.then_some(spread));
         // u, ∂u/∂s₁, ∂u/∂s₂, then the three axes' tangential columns.
         let mut columns = vec![vec![0.0; joints]; 6];
-        // With kinetic friction: the push along the frame's slide, and
-        // the two axes that carry nothing.
+        // With kinetic friction: the push along the frame's slide (or,
+        // where it sticks, along the drag it holds) on one axis, and the
+        // axes that carry nothing.
         let mut along_slide = vec![0.0; joints];
+        let plan = match drag {
+            Drag::Kinetic(slides) => Some(slides.drag_plan(false)),
+            Drag::Held(slides) => Some(slides.drag_plan(true)),
+            _ => None,
+        };
         let unused = vec![0.0; joints];
         let mut pushed = vec![0.0; joints];
         let mut residual = vec![0.0; joints];
@@ -548,16 +655,19 @@ impl Problem<'_> {
             let [u, d0, d1, c0, c1, c2] = columns.as_slice() else {
                 return None;
             };
-            let axes: [&[f64]; 3] = match drag {
-                Drag::Kinetic(slides) => {
-                    let d = *slides.directions.get(t)?;
-                    for (j, a) in along_slide.iter_mut().enumerate() {
-                        *a = d.x * c0.get(j)? + d.y * c1.get(j)? + d.z * c2.get(j)?;
-                    }
-                    [&along_slide, &unused, &unused]
+            let axes: [&[f64]; 3] = if let Some(plan) = &plan {
+                let &(d, share) = plan.get(t)?;
+                for (j, a) in along_slide.iter_mut().enumerate() {
+                    *a = d.x * c0.get(j)? + d.y * c1.get(j)? + d.z * c2.get(j)?;
                 }
-                Drag::Gated(slides) if slides.directions.get(t)?.length() == 0.0 => [&unused, &unused, &unused],
-                Drag::None | Drag::Fixed | Drag::Drift(_) | Drag::Gated(_) => [c0, c1, c2],
+                let mut axes = [unused.as_slice(); 3];
+                *axes.get_mut(share.axis())? = &along_slide;
+                axes
+            } else {
+                match drag {
+                    Drag::Gated(slides) if slides.directions.get(t)?.length() == 0.0 => [&unused, &unused, &unused],
+                    _ => [c0, c1, c2],
+                }
             };
             let [c0, c1, c2] = axes;
             for (j, p) in pushed.iter_mut().enumerate() {
