@@ -2,7 +2,8 @@
 //! poorly explained frame's two-contact search in order (each starts where the
 //! frames before left the contacts), then the chain of two states over
 //! the frames' evidence, smoothed over the whole session
-//! ([`crate::core::over_time::pairs`]).
+//! ([`crate::core::over_time::pairs`]); or, live, a frame at a time with
+//! the chain filtered ([`LivePairs`]).
 
 use glam::DVec3;
 
@@ -12,7 +13,7 @@ use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Verdict;
 use crate::core::eval::metrics::percentile;
 use crate::core::over_time::frame::SequenceFrame;
-use crate::core::over_time::pairs::{NO_PAIR_LOG_RATIO, PairTracker, SecondContactChain};
+use crate::core::over_time::pairs::{ChainFilter, NO_PAIR_LOG_RATIO, PairTracker, SecondContactChain};
 use crate::core::robot::model::Robot;
 use crate::io::session::ContactTruth;
 
@@ -59,8 +60,74 @@ impl FramePair {
     }
 }
 
+/// A session's pair searches in order, each started where the frames
+/// before left the contacts ([`PairTracker`]): the part of the pass that
+/// a recording and a live stream share.
+#[derive(Debug, Clone, Default)]
+pub struct PairFollower {
+    tracker: PairTracker,
+}
+
+impl PairFollower {
+    /// A follower that has seen no frame.
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The next frame's two-contact account, given its single contact
+    /// (`None`: no contact); `None` where it is not searched.
+    ///
+    /// # Errors
+    /// The frame's search failing.
+    pub fn search(
+        &mut self,
+        estimator: &Estimator,
+        robot: &Robot,
+        frame: &SequenceFrame<'_>,
+        single: Option<SingleSeen>,
+        pair_settings: &PairSettings,
+    ) -> Result<Option<PairEstimate>, EstimateError> {
+        let Some(single) = single else {
+            self.tracker.observe(None, None);
+            return Ok(None);
+        };
+        // One contact that explains the torques (the fit test) is not
+        // searched for a second: on one-contact recordings with friction
+        // and model error, the pair's two spare unknowns otherwise take
+        // up the misfit (`docs/decisions.md`, *Two contacts*).
+        if single.explained {
+            self.tracker.observe(Some((single.point, single.force_newtons)), None);
+            return Ok(None);
+        }
+        let mut pair = estimator.pair_at(
+            robot,
+            frame.joint_positions,
+            frame.tau,
+            pair_settings,
+            &self.tracker.starts(),
+        )?;
+        // A session keeps each pair's summary, not its posteriors over
+        // the surface: memory stays flat in the frames searched.
+        for contact in pair.iter_mut().flat_map(|p| p.contacts.iter_mut()) {
+            contact.probability = Vec::new();
+        }
+        self.tracker.observe(None, pair.as_ref());
+        Ok(pair)
+    }
+}
+
+/// A frame's evidence ratio for the chain (a frame without a pair
+/// account: "no second contact").
+fn log_ratio(pair: Option<&PairEstimate>) -> f64 {
+    pair.map_or(NO_PAIR_LOG_RATIO, PairEstimate::log_evidence_ratio)
+}
+
 /// Each frame's two-contact account (`None` for frames without contact),
-/// the searches run in order, `singles[i]` frame `i`'s single contact.
+/// the searches run in order, `singles[i]` frame `i`'s single contact;
+/// the chain smoothed over the session, or (`smoothed` false) filtered:
+/// each frame's probability of two from it and the frames before, as
+/// [`LivePairs`] gives it.
 ///
 /// # Errors
 /// A frame whose search fails, with its number.
@@ -70,54 +137,79 @@ pub fn session_pairs(
     frames: &[SequenceFrame<'_>],
     singles: &[Option<SingleSeen>],
     pair_settings: &PairSettings,
-    chain: SecondContactChain,
+    (chain, smoothed): (SecondContactChain, bool),
 ) -> Result<Vec<Option<FramePair>>, (usize, EstimateError)> {
-    let mut tracker = PairTracker::new();
-    let mut found: Vec<Option<PairEstimate>> = Vec::with_capacity(frames.len());
-    for (i, (frame, single)) in frames.iter().zip(singles).enumerate() {
-        let Some(single) = single else {
-            tracker.observe(None, None);
-            found.push(None);
-            continue;
-        };
-        // One contact that explains the torques (the fit test) is not
-        // searched for a second: on one-contact recordings with friction
-        // and model error, the pair's two spare unknowns otherwise take
-        // up the misfit (`docs/decisions.md`, *Two contacts*).
-        if single.explained {
-            tracker.observe(Some((single.point, single.force_newtons)), None);
-            found.push(None);
-            continue;
-        }
-        let mut pair = estimator
-            .pair_at(
-                robot,
-                frame.joint_positions,
-                frame.tau,
-                pair_settings,
-                &tracker.starts(),
-            )
-            .map_err(|e| (i, e))?;
-        // A session keeps each pair's summary, not its posteriors over
-        // the surface: memory stays flat in the frames searched.
-        for contact in pair.iter_mut().flat_map(|p| p.contacts.iter_mut()) {
-            contact.probability = Vec::new();
-        }
-        let alone = single.explained.then_some((single.point, single.force_newtons));
-        tracker.observe(alone, pair.as_ref());
-        found.push(pair);
-    }
-    let times: Vec<f64> = frames.iter().map(|f| f.t_secs).collect();
-    let ratios: Vec<f64> = found
+    let mut follower = PairFollower::new();
+    let found = frames
         .iter()
-        .map(|p| p.as_ref().map_or(NO_PAIR_LOG_RATIO, PairEstimate::log_evidence_ratio))
-        .collect();
-    let smoothed = chain.smooth(&times, &ratios, pair_settings.prior_two);
+        .zip(singles)
+        .enumerate()
+        .map(|(i, (frame, &single))| {
+            follower
+                .search(estimator, robot, frame, single, pair_settings)
+                .map_err(|e| (i, e))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let times: Vec<f64> = frames.iter().map(|f| f.t_secs).collect();
+    let ratios: Vec<f64> = found.iter().map(|p| log_ratio(p.as_ref())).collect();
+    let probabilities = if smoothed {
+        chain.smooth(&times, &ratios, pair_settings.prior_two)
+    } else {
+        chain.filter(&times, &ratios, pair_settings.prior_two)
+    };
     Ok(found
         .into_iter()
-        .zip(smoothed)
+        .zip(probabilities)
         .map(|(pair, probability_two)| pair.map(|pair| FramePair { pair, probability_two }))
         .collect())
+}
+
+/// Second contacts of a live stream, a frame at a time: the searches as
+/// a recording's, the chain filtered (each frame's probability of two
+/// from it and the frames before).
+#[derive(Debug, Clone)]
+pub struct LivePairs {
+    follower: PairFollower,
+    filter: ChainFilter,
+    settings: PairSettings,
+}
+
+impl LivePairs {
+    /// Nothing seen yet; pairs searched with `settings`, followed over
+    /// time with `chain`.
+    #[must_use]
+    pub fn new(settings: PairSettings, chain: SecondContactChain) -> Self {
+        Self {
+            follower: PairFollower::new(),
+            filter: ChainFilter::new(chain, settings.prior_two),
+            settings,
+        }
+    }
+
+    /// The next frame's two-contact account (`None` where it is not
+    /// searched), given its single contact.
+    ///
+    /// # Errors
+    /// The frame's search failing; the stream goes on from the next frame
+    /// as from a frame without a pair account.
+    pub fn push(
+        &mut self,
+        estimator: &Estimator,
+        robot: &Robot,
+        frame: &SequenceFrame<'_>,
+        single: Option<SingleSeen>,
+    ) -> Result<Option<FramePair>, EstimateError> {
+        let found = self.follower.search(estimator, robot, frame, single, &self.settings);
+        let pair = found.as_ref().ok().and_then(Option::as_ref);
+        let probability_two = self.filter.push(frame.t_secs, log_ratio(pair));
+        Ok(found?.map(|pair| FramePair { pair, probability_two }))
+    }
+
+    /// Forgets every frame (a new sender, a new stream).
+    pub fn reset(&mut self) {
+        self.follower = PairFollower::new();
+        self.filter.reset();
+    }
 }
 
 /// How the second contacts of a session with every true contact recorded

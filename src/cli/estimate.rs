@@ -357,7 +357,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     if two_contacts {
         let pairs = args
             .estimator
-            .with_threads(|| second_contacts(&estimator, &robot, &config, &sequence, &singles))?
+            .with_threads(|| second_contacts(&estimator, &robot, &config, temporal, &sequence, &singles))?
             .map_err(|(n, e)| anyhow::anyhow!("{}: frame {n}: {e}", session.path.display()))?;
         write_with_second_contacts(&robot, &session, &pairs, (&mut pending, &mut messages), out.as_mut())?;
     }
@@ -415,19 +415,35 @@ fn report_slides(paths: &[SlidePath]) -> Result<()> {
 }
 
 /// The session's second contacts ([`session_pairs`]), followed with the
-/// temporal model's onset and release rates.
+/// temporal model's onset and release rates: filtered where the single
+/// contact is (`--temporal filter`: each frame from the frames before, as
+/// live), else smoothed.
 fn second_contacts(
     estimator: &Estimator,
     robot: &Robot,
     config: &EstimatorConfig,
+    temporal: Temporal,
     sequence: &[SequenceFrame<'_>],
     singles: &[Option<SingleSeen>],
 ) -> Result<Vec<Option<FramePair>>, (usize, proprioscope::core::estimate::settings::EstimateError)> {
-    let chain = SecondContactChain {
+    let smoothed = temporal != Temporal::Filter;
+    session_pairs(
+        estimator,
+        robot,
+        sequence,
+        singles,
+        &config.pair,
+        (chain_of(config), smoothed),
+    )
+}
+
+/// The second contact's chain: the temporal model's onset and release
+/// rates.
+pub(super) fn chain_of(config: &EstimatorConfig) -> SecondContactChain {
+    SecondContactChain {
         onset_per_s: config.temporal.onset_per_s,
         release_per_s: config.temporal.release_per_s,
-    };
-    session_pairs(estimator, robot, sequence, singles, &config.pair, chain)
+    }
 }
 
 /// The session's frames as the sequence takes them.
@@ -533,7 +549,11 @@ fn add_second_contacts(
 
 /// A frame's `contacts` where two are called: each with its probability
 /// (the frame's contact probability, times that of two for the second).
-fn pair_contacts_json(robot: &Robot, pair: &FramePair, contact_probability: Option<f64>) -> serde_json::Value {
+pub(super) fn pair_contacts_json(
+    robot: &Robot,
+    pair: &FramePair,
+    contact_probability: Option<f64>,
+) -> serde_json::Value {
     let contact = contact_probability.unwrap_or(1.0);
     let entries: Vec<serde_json::Value> = pair
         .pair

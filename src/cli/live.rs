@@ -8,9 +8,11 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
-use proprioscope::batch::{FrameEstimate, credible_set_holds_truth, frame_outcome, session_robot};
+use proprioscope::batch::pairs::{LivePairs, SingleSeen};
+use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot};
 use proprioscope::core::config::limits;
 use proprioscope::core::estimate::estimator::{Estimator, Update};
+use proprioscope::core::over_time::frame::SequenceFrame;
 use proprioscope::core::over_time::sequence::{SequenceError, StreamFilter, Temporal};
 use proprioscope::core::over_time::temporal::TemporalModel;
 use proprioscope::io::foxglove::serve::FoxgloveServer;
@@ -20,7 +22,8 @@ use proprioscope::io::session::Session;
 
 use super::TemporalArg;
 use super::estimate::EstimateArgs;
-use super::output::{SlideVelocity, frame_json};
+use super::estimate_out::json_line;
+use super::output::SlideVelocity;
 
 /// Options of `stream`.
 #[derive(Debug, clap::Args)]
@@ -152,8 +155,20 @@ struct Live {
     model: Option<TemporalModel>,
     /// The belief and friction gate carried between frames.
     filter: StreamFilter,
+    /// With `--contacts 2`: the second contact followed over the frames.
+    pairs: Option<LivePairs>,
     /// With --serve: the arm's scene and what Foxglove is sent a frame.
     foxglove: Option<(ArmScene, FoxglovePainter)>,
+}
+
+impl Live {
+    /// Forgets the frames so far: a new stream starts.
+    fn start_over(&mut self) {
+        self.filter = StreamFilter::default();
+        if let Some(pairs) = self.pairs.as_mut() {
+            pairs.reset();
+        }
+    }
 }
 
 /// `estimate --live ADDR`.
@@ -209,13 +224,13 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
                 log::info!("{from}: connected");
                 // A new sender starts a new recording: nothing carries over.
                 if let Some(l) = live.as_mut() {
-                    l.filter = StreamFilter::default();
+                    l.start_over();
                 }
             }
             LiveEvent::NewSender { from, previous } => {
                 log::info!("{from}: a new sender after {previous} went quiet: a new stream segment");
                 if let Some(l) = live.as_mut() {
-                    l.filter = StreamFilter::default();
+                    l.start_over();
                 }
             }
             LiveEvent::Header { robot, .. } => {
@@ -284,6 +299,9 @@ fn start(args: &EstimateArgs, robot: Option<&str>, temporal: Temporal) -> Result
         Temporal::None => None,
         _ => Some(config.temporal_model(&estimator.surface, estimator.uses_patches())?),
     };
+    // A second contact is followed with the frames before it whatever
+    // --temporal says of the first: a stream has no frames after.
+    let pairs = (config.contacts_at_once >= 2).then(|| LivePairs::new(config.pair, super::estimate::chain_of(&config)));
     let foxglove = args.serve.is_some().then(|| {
         let painter = FoxglovePainter::new(&robot, &estimator, temporal != Temporal::None, args.tf_hz);
         (ArmScene::new(&robot), painter)
@@ -293,6 +311,7 @@ fn start(args: &EstimateArgs, robot: Option<&str>, temporal: Temporal) -> Result
         estimator,
         model,
         filter: StreamFilter::default(),
+        pairs,
         foxglove,
     })
 }
@@ -330,16 +349,34 @@ fn estimate_frame(
                 SequenceError::Temporal(source) => anyhow::Error::from(source),
             })?,
     };
+    let single_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let pair = match live.pairs.as_mut() {
+        Some(pairs) => {
+            let at = SequenceFrame {
+                t_secs: frame.t,
+                joint_positions: &positions,
+                tau: &frame.tau,
+            };
+            pairs
+                .push(&live.estimator, &live.robot, &at, SingleSeen::of(&update))
+                .context("the second contact's search")?
+                .filter(proprioscope::batch::pairs::FramePair::has_two)
+        }
+        None => None,
+    };
+    // The frame's whole cost, its second contact's search included.
     let ms = t0.elapsed().as_secs_f64() * 1e3;
-    let outcome = frame_outcome(&live.robot, &FrameEstimate::of(&update, ms), &frame.truth);
-    let held = credible_set_holds_truth(&live.robot, &live.estimator.surface, &update, &frame.truth);
-    let line = frame_json(
+    let outcome = frame_outcome(&live.robot, &FrameEstimate::of(&update, single_ms), &frame.truth);
+    let mut line = json_line(
+        &live.estimator,
         &live.robot,
-        (number, frame.t),
+        (number, frame),
         &update,
         ms,
-        &frame.truth,
-        (outcome.as_ref(), held),
+        outcome.as_ref(),
     );
+    if let Some(pair) = &pair {
+        line["contacts"] = super::estimate::pair_contacts_json(&live.robot, pair, line["contact_probability"].as_f64());
+    }
     Ok((line, update, positions))
 }

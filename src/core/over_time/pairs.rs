@@ -7,7 +7,8 @@
 //! ([`PairTracker`]), and whether a second contact presses is a chain of
 //! two states over the frames' evidence ([`SecondContactChain`]), with its
 //! own onset and release: one contact may hold while the other comes and
-//! goes.
+//! goes. A recording smooths the chain; a live stream filters it a frame
+//! at a time ([`ChainFilter`]).
 
 use crate::core::estimate::pair::{PairEstimate, PairStart, Placed};
 use crate::core::numerics::special::logistic;
@@ -115,19 +116,15 @@ impl SecondContactChain {
 
     /// Each frame's probability of two contacts given it and the frames
     /// before (`times_secs` ascending, `log_ratios` one per frame),
-    /// starting from `prior_two`.
+    /// starting from `prior_two`: [`ChainFilter`] over the frames.
     #[must_use]
     pub fn filter(&self, times_secs: &[f64], log_ratios: &[f64], prior_two: f64) -> Vec<f64> {
-        let mut out = Vec::with_capacity(log_ratios.len());
-        let mut two = prior_two;
-        let mut last: Option<f64> = None;
-        for (&t, &r) in times_secs.iter().zip(log_ratios) {
-            let predicted = last.map_or(two, |l| self.predict(two, t - l));
-            two = Self::correct(predicted, r);
-            out.push(two);
-            last = Some(t);
-        }
-        out
+        let mut filter = ChainFilter::new(*self, prior_two);
+        times_secs
+            .iter()
+            .zip(log_ratios)
+            .map(|(&t, &r)| filter.push(t, r))
+            .collect()
     }
 
     /// Each frame's probability of two contacts given every frame: the
@@ -169,6 +166,48 @@ impl SecondContactChain {
             }
         }
         out
+    }
+}
+
+/// [`SecondContactChain`]'s filter a frame at a time: what a live stream
+/// knows of a second contact, from the frames so far.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChainFilter {
+    chain: SecondContactChain,
+    prior_two: f64,
+    /// Probability of two contacts after the last frame.
+    two: f64,
+    /// The last frame's time, s (`None` before the first).
+    last_secs: Option<f64>,
+}
+
+impl ChainFilter {
+    /// A filter that has seen no frame, starting from `prior_two`.
+    #[must_use]
+    pub fn new(chain: SecondContactChain, prior_two: f64) -> Self {
+        Self {
+            chain,
+            prior_two,
+            two: prior_two,
+            last_secs: None,
+        }
+    }
+
+    /// The probability of two contacts at a frame at `t_secs` with the
+    /// evidence ratio `ln (Z₂ / Z₁)` (NaN: the frame has no pair
+    /// account), given it and the frames before.
+    pub fn push(&mut self, t_secs: f64, log_ratio: f64) -> f64 {
+        let predicted = self
+            .last_secs
+            .map_or(self.two, |l| self.chain.predict(self.two, t_secs - l));
+        self.two = SecondContactChain::correct(predicted, log_ratio);
+        self.last_secs = Some(t_secs);
+        self.two
+    }
+
+    /// Forgets every frame (a new stream starts).
+    pub fn reset(&mut self) {
+        *self = Self::new(self.chain, self.prior_two);
     }
 }
 
@@ -234,6 +273,27 @@ mod tests {
         }
         // The last frame's smoothed belief is its filtered one.
         assert!((smoothed[n - 1] - filtered[n - 1]).abs() < 1e-15);
+    }
+
+    /// A frame at a time, the filter gives what the whole-session filter
+    /// gives, to the bit; after `reset`, what a new one gives.
+    #[test]
+    fn the_filter_a_frame_at_a_time_is_the_session_filter() {
+        let times = [0.0, 0.01, 0.03, 0.04, 0.1, 0.12];
+        let ratios = [-3.0, 2.0, -0.5, 4.0, f64::NAN, 1.0];
+        let whole = CHAIN.filter(&times, &ratios, 0.2);
+        let mut live = ChainFilter::new(CHAIN, 0.2);
+        let each: Vec<f64> = times.iter().zip(&ratios).map(|(&t, &r)| live.push(t, r)).collect();
+        assert_eq!(each, whole);
+        // By hand: the first frame corrects the prior alone.
+        let odds = (0.2_f64 / 0.8).ln() - 3.0;
+        assert!((whole[0] - 1.0 / (1.0 + (-odds).exp())).abs() < 1e-15);
+        live.reset();
+        assert_eq!(live, ChainFilter::new(CHAIN, 0.2));
+        assert_eq!(
+            live.push(5.0, 2.0).to_bits(),
+            CHAIN.filter(&[5.0], &[2.0], 0.2)[0].to_bits()
+        );
     }
 
     #[test]
