@@ -85,6 +85,10 @@ enum Command {
         /// The session frame to show (0-based, among its good frames).
         #[arg(long)]
         frame: Option<usize>,
+        /// Contacts looked for at once, 1 or 2 (as the panel's *contacts*;
+        /// default: the scene's, else 1).
+        #[arg(long, value_parser = clap::value_parser!(u8).range(1..=2))]
+        contacts: Option<u8>,
         /// The PNG to write.
         #[arg(long)]
         out: PathBuf,
@@ -308,10 +312,17 @@ fn run(cli: Cli) -> Result<()> {
             target,
             robot,
             frame,
+            contacts,
             out,
             width,
             height,
-        }) => screenshot(target.as_deref(), robot.as_deref(), frame, &out, [width, height]),
+        }) => screenshot(
+            target.as_deref(),
+            robot.as_deref(),
+            (frame, contacts),
+            &out,
+            [width, height],
+        ),
         Some(Command::RecordDemo { out, rate, seconds }) => record_demo(&out, rate, seconds),
         Some(Command::PreviewMcap {
             mcap,
@@ -560,11 +571,14 @@ fn surface(path: &Path, points: Option<usize>) -> Result<()> {
 fn screenshot(
     target: Option<&str>,
     robot: Option<&str>,
-    frame: Option<usize>,
+    (frame, contacts): (Option<usize>, Option<u8>),
     out: &Path,
     size: [u32; 2],
 ) -> Result<()> {
     let mut start = proprioscope::app::open_target_with(target, robot, &[])?;
+    if let Some(n) = contacts {
+        start.settings.config.contacts_at_once = usize::from(n);
+    }
     if let Some(session) = &mut start.session {
         session.frame = frame;
     } else if frame.is_some() {
@@ -695,7 +709,7 @@ fn without_gui(what: &str) -> Result<()> {
 }
 
 #[cfg(not(feature = "gui"))]
-fn screenshot(_: Option<&str>, _: Option<&str>, _: Option<usize>, _: &Path, _: [u32; 2]) -> Result<()> {
+fn screenshot(_: Option<&str>, _: Option<&str>, _: (Option<usize>, Option<u8>), _: &Path, _: [u32; 2]) -> Result<()> {
     without_gui("screenshot")
 }
 

@@ -7,6 +7,7 @@
 
 #[path = "common/app.rs"]
 mod app_common;
+mod common;
 
 use app_common::{app_harness, open_and_wait, settle};
 use eframe::egui;
@@ -136,4 +137,74 @@ fn the_two_as_one_scene_reports_one_contact_at_the_centre_of_force() {
     let pair = outcome.pair.clone().unwrap().unwrap();
     assert!(!pair.has_two(), "P(two) {}", pair.probability_two);
     harness.get_by_label_contains("one contact");
+}
+
+/// A session replayed with two contacts looked for: once its frames are
+/// smoothed, the pass over the second contacts marks the frames called
+/// two, as `estimate --contacts 2` does (the same pairs, to the
+/// micrometre), the timeline plots the probability of two and says two
+/// at a frame where both press, and the view draws both arrows there.
+#[test]
+fn a_session_shows_the_second_contacts_over_time() {
+    use proprioscope::app::Command;
+    use proprioscope::core::over_time::sequence::Temporal;
+    let session = common::temp_file("app-two-pushes.json", &common::two_push_session());
+    let out = session.with_extension("jsonl");
+    let (ok, _, err) = common::run_out(&[
+        "estimate",
+        session.to_str().unwrap(),
+        "--contacts",
+        "2",
+        "--temporal",
+        "smooth",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let cli: Vec<serde_json::Value> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let mut harness = app_harness();
+    open_and_wait(&mut harness, session.to_str().unwrap());
+    settle(&mut harness);
+    assert_eq!(
+        harness.state().model.replay.as_ref().unwrap().over_time,
+        Temporal::Smooth
+    );
+    let mut config = harness.state().model.config.clone();
+    config.contacts_at_once = 2;
+    harness.state_mut().apply(Command::SetConfig(config));
+    settle(&mut harness);
+    let app = harness.state();
+    let estimates = &app.session.estimates;
+    assert_eq!(estimates.len(), cli.len());
+    let mut called = 0;
+    for (i, (e, c)) in estimates.iter().zip(&cli).enumerate() {
+        let second = e.unwrap().second.filter(|s| s.called);
+        let theirs = c["contacts"].as_array().unwrap();
+        assert_eq!(second.is_some(), theirs.len() == 2, "frame {i}");
+        let Some(second) = second else { continue };
+        called += 1;
+        for ((_, point, _), c) in second.contacts.iter().zip(theirs) {
+            let p = c["point"].as_array().unwrap();
+            for (x, y) in point.to_array().iter().zip(p) {
+                assert!((x - y.as_f64().unwrap()).abs() < 1e-6, "frame {i}");
+            }
+        }
+    }
+    // Measured: 29 frames, as the command line (docs/validation.md).
+    assert!(called >= 25, "{called} frames called two");
+    // Frame 80 (0.8 s): both press.
+    harness.state_mut().apply(Command::SetFrame(80));
+    settle(&mut harness);
+    harness.get_by_label_contains("over time: two contacts");
+    let app = harness.state();
+    let over_time = app
+        .markers(&app.model.pose())
+        .into_iter()
+        .filter(|m| m.role == proprioscope::app::overlay::MarkerRole::OverTime)
+        .count();
+    assert_eq!(over_time, 2);
 }

@@ -8,11 +8,6 @@
 mod common;
 
 use glam::DVec3;
-use proprioscope::core::numerics::rng::Rng;
-use proprioscope::core::robot::builtin;
-use proprioscope::core::robot::kinematics::RobotPose;
-use proprioscope::core::robot::torque::joint_torques;
-use proprioscope::core::surface::sampling::{Surface, SurfaceRequest};
 
 /// The figures of the `two contacts:` line: frames called two where both
 /// press and six or more joints feel them (%), median error (mm), frames
@@ -32,66 +27,9 @@ fn two_contact_figures(out: &str) -> (f64, f64, f64) {
     (numbers[5], numbers[6], numbers[9])
 }
 
-/// A session on the built-in LWR held still at `q`: push A (link 5)
-/// alone from 0.2 s, B (link 7) joins from 0.6 s, A lets go at 1.0 s, B
-/// at 1.4 s; 100 frames a second, noise σ = 0.05 N·m (seed 3), every true
-/// contact in `truth_all`.
-fn generated_session() -> String {
-    let robot = builtin::lwr4plus_generated().unwrap();
-    let links = robot.default_candidate_links();
-    // The pushes stand on another seed's samples than the estimator's.
-    let places = Surface::sample(
-        &robot,
-        &SurfaceRequest {
-            links,
-            total_points: 400,
-            seed: 77,
-        },
-    )
-    .unwrap();
-    let q = [1.2, 0.3, 0.8, -1.6, -1.0, -0.5, 0.9];
-    let pose = RobotPose::new(&robot, &robot.joint_positions(&q, &[]).unwrap());
-    let on = |name: &str, nth: usize| {
-        let link = robot.link_id(name).unwrap();
-        (0..places.len()).filter(|&k| places.link[k] == link).nth(nth).unwrap()
-    };
-    let pushes = [
-        (on("lwr_5_link", 2), 25.0, 0.2, 1.0),
-        (on("lwr_7_link", 2), 20.0, 0.6, 1.4),
-    ];
-    let mut rng = Rng::new(3);
-    let frames: Vec<serde_json::Value> = (0..160)
-        .map(|i| {
-            let t = 0.01 * f64::from(i);
-            let mut tau = [0.0; 7];
-            let mut truth_all = Vec::new();
-            for &(k, f, on, off) in &pushes {
-                if t < on || t >= off {
-                    continue;
-                }
-                let link = places.link[k];
-                let point = pose.point_to_world(link, places.point_in_link[k]);
-                let normal = pose.world_from_link[link].transform_vector3(places.inward_normal_in_link[k]);
-                for (x, u) in tau.iter_mut().zip(joint_torques(&robot, &pose, link, point, normal)) {
-                    *x += f * u;
-                }
-                truth_all.push(serde_json::json!({
-                    "link": robot.links[link].name,
-                    "point": point.to_array(),
-                    "force": (normal * f).to_array(),
-                }));
-            }
-            let tau: Vec<f64> = tau.iter().map(|x| x + 0.05 * rng.normal()).collect();
-            let truth = truth_all.first().cloned().unwrap_or(serde_json::Value::Null);
-            serde_json::json!({"t": t, "q": q, "tau": tau, "truth": truth, "truth_all": truth_all})
-        })
-        .collect();
-    serde_json::json!({"format": "contact-session", "version": 1, "robot": "lwr4plus", "frames": frames}).to_string()
-}
-
 #[test]
 fn a_second_push_that_joins_the_first_is_found() {
-    let session = common::temp_file("two-pushes.json", &generated_session());
+    let session = common::temp_file("two-pushes.json", &common::two_push_session());
     let out_path = session.with_extension("jsonl");
     let (ok, out, err) = common::run_out(&[
         "estimate",
@@ -250,7 +188,7 @@ fn frame_contacts(path: &std::path::Path) -> Vec<(u64, serde_json::Value)> {
 /// bit, in every frame; two where both press, none where one does.
 #[test]
 fn a_second_push_is_followed_live_as_filtered() {
-    let session = common::temp_file("two-pushes-live.json", &generated_session());
+    let session = common::temp_file("two-pushes-live.json", &common::two_push_session());
     let filtered = session.with_extension("filtered.jsonl");
     let common_args = ["--contacts", "2", "--temporal", "filter", "--points", "2000"];
     let mut args = vec![

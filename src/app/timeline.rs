@@ -25,6 +25,8 @@ pub struct SessionPart {
     pub(crate) done: usize,
     /// Frames whose estimate failed, with why.
     pub(crate) failures: std::collections::BTreeMap<usize, String>,
+    /// Whether the pass over the second contacts is still to come.
+    pub(crate) second_pending: bool,
     pub(crate) generation: u64,
     pub(crate) key: Option<SessionKey>,
     pub(crate) loader: Option<Loader>,
@@ -58,6 +60,7 @@ impl SessionPart {
             estimates: Vec::new(),
             done: 0,
             failures: std::collections::BTreeMap::new(),
+            second_pending: false,
             generation: 0,
             key: None,
             loader: None,
@@ -288,6 +291,10 @@ impl ProprioscopeApp {
                 self.session.key = Some(key);
                 return;
             }
+            // Frames together, with two contacts looked for, end with a
+            // pass over the second contacts.
+            self.session.second_pending =
+                replay.over_time != Temporal::None && m.estimation_config().contacts_at_once >= 2;
             self.session.worker.start(EstimateJob {
                 generation: self.session.generation,
                 robot: m.robot.clone(),
@@ -372,6 +379,9 @@ impl ProprioscopeApp {
                         *slot = Some(e);
                     }
                 }
+                Err(_) if done.frame == crate::batch::SECOND_CONTACTS_DONE => {
+                    self.session.second_pending = false;
+                }
                 Err(e) if done.frame == crate::batch::EVERY_FRAME => {
                     let frames = self.session.estimates.len();
                     for frame in 0..frames {
@@ -447,7 +457,8 @@ impl ProprioscopeApp {
                 || self.live.view.is_some()
                 || (self.session.key.is_some()
                     && self.session.key == self.current_session_key()
-                    && self.session.done + self.session.failures.len() >= self.session.estimates.len()))
+                    && self.session.done + self.session.failures.len() >= self.session.estimates.len()
+                    && !self.session.second_pending))
     }
 
     /// Space plays or pauses, the arrow keys step, unless a text field or
@@ -477,6 +488,37 @@ impl ProprioscopeApp {
             ctx.request_repaint();
         }
         commands
+    }
+
+    /// The row's account of the frame on screen from the frames together.
+    fn over_time_label_ui(&self, ui: &mut egui::Ui) {
+        if let Some(e) = self.over_time_estimate() {
+            let p = e.contact_probability.unwrap_or(0.0);
+            let text = if e.verdict == Verdict::NoContact {
+                format!("over time: no contact (p = {p:.2})")
+            } else if let Some(two) = e.second.filter(|s| s.called) {
+                let name = |link: LinkId| self.model.robot.links.get(link).map_or("?", |l| l.name.as_str());
+                let [(a, _, fa), (b, _, fb)] = two.contacts;
+                format!(
+                    "over time: two contacts, {} {:.1} N and {} {:.1} N (p = {:.2})",
+                    name(a),
+                    fa.length(),
+                    name(b),
+                    fb.length(),
+                    two.probability_two
+                )
+            } else {
+                let link = self.model.robot.links.get(e.link).map_or("?", |l| l.name.as_str());
+                format!("over time: {link}, {:.1} N (p = {p:.2})", e.force_world.length())
+            };
+            let hover = format!(
+                "the white arrow: where the frames together place the contact; their 90 % credible set \
+             lies within {:.0} mm of its centre (a press's own uncertainty included)",
+                e.credible90_radius_m * 1e3
+            );
+            ui.colored_label(egui::Color32::from_rgb(90, 155, 255), text)
+                .on_hover_text(hover);
+        }
     }
 
     /// The timeline: transport, speed, loop, scrubbing, estimation
@@ -538,22 +580,7 @@ impl ProprioscopeApp {
                     frames.len()
                 ));
             }
-            if let Some(e) = self.over_time_estimate() {
-                let p = e.contact_probability.unwrap_or(0.0);
-                let text = if e.verdict == Verdict::NoContact {
-                    format!("over time: no contact (p = {p:.2})")
-                } else {
-                    let link = self.model.robot.links.get(e.link).map_or("?", |l| l.name.as_str());
-                    format!("over time: {link}, {:.1} N (p = {p:.2})", e.force_world.length())
-                };
-                let hover = format!(
-                    "the white arrow: where the frames together place the contact; their 90 % credible set \
-                     lies within {:.0} mm of its centre (a press's own uncertainty included)",
-                    e.credible90_radius_m * 1e3
-                );
-                ui.colored_label(egui::Color32::from_rgb(90, 155, 255), text)
-                    .on_hover_text(hover);
-            }
+            self.over_time_label_ui(ui);
         });
         let mut frame = replay.frame;
         ui.spacing_mut().slider_width = (ui.available_width() - 80.0).max(100.0);
@@ -766,6 +793,15 @@ impl ProprioscopeApp {
                     .filter_map(|(f, e)| Some([f.t, e.as_ref()?.contact_probability?]))
                     .collect(),
             ));
+            // A frame not searched for a second contact has none.
+            if self.model.config.contacts_at_once >= 2 {
+                probability_lines.push((
+                    "two contacts".to_owned(),
+                    sampled()
+                        .filter_map(|(f, e)| Some([f.t, e.as_ref()?.second.map_or(0.0, |s| s.probability_two)]))
+                        .collect(),
+                ));
+            }
         }
         let height = (ui.available_height() - 24.0).max(150.0);
         let mut clicked = None;

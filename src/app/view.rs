@@ -469,12 +469,21 @@ impl ViewPart {
         if let Some(e) = shown.over_time
             && e.verdict != Verdict::NoContact
         {
-            out.push(Marker {
-                role: MarkerRole::OverTime,
-                point_world: e.point_world,
-                force_world: e.force_world,
-            });
-            out.extend(overlay::tangential_marker(e.point_world, e.tangential_world));
+            // Where the frames together call two contacts, both are.
+            if let Some(two) = e.second.filter(|s| s.called) {
+                out.extend(two.contacts.map(|(_, point_world, force_world)| Marker {
+                    role: MarkerRole::OverTime,
+                    point_world,
+                    force_world,
+                }));
+            } else {
+                out.push(Marker {
+                    role: MarkerRole::OverTime,
+                    point_world: e.point_world,
+                    force_world: e.force_world,
+                });
+                out.extend(overlay::tangential_marker(e.point_world, e.tangential_world));
+            }
         }
         out
     }

@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
+use super::pairs::{PairSeen, SingleSeen, session_pairs_while};
 use super::{FrameEstimate, Latest, Serving, SessionData};
 use crate::core::config::estimator::EstimatorConfig;
 use crate::core::estimate::estimator::Estimator;
@@ -62,6 +63,12 @@ pub struct Estimated {
 /// [`Estimated::frame`] of a job that failed before any frame (its
 /// estimator could not be made): every frame failed with it.
 pub const EVERY_FRAME: usize = usize::MAX;
+
+/// [`Estimated::frame`] of the message that ends a session's pass over
+/// the second contacts (with two contacts looked for over time): every
+/// frame with an account has been sent again with it. Sent after the
+/// frames, whatever the pass found (its `estimate` says so in words).
+pub const SECOND_CONTACTS_DONE: usize = usize::MAX - 1;
 
 /// Frames estimated together (in parallel) between looks for a newer job.
 const BATCH_FRAMES: usize = 32;
@@ -169,13 +176,76 @@ fn serve(job: &EstimateJob, serving: &Serving<'_, EstimateJob, Estimated>) {
     }
 }
 
+/// A frame's estimate as sent and its single contact, kept for the pass
+/// over the second contacts (`None`: not estimated).
+type Kept = Option<(FrameEstimate, Option<SingleSeen>)>;
+
+/// The session's second contacts after its frames (`kept`, each frame's
+/// estimate as sent and its single contact): the pairs searched in order,
+/// the chain smoothed (filtered where the frames are), and every frame
+/// with a pair account sent again carrying it; what came of it, in words.
+/// A failed search leaves the frames as they were (logged); a newer job
+/// stops it.
+fn second_contacts(
+    job: &EstimateJob,
+    estimator: &Estimator,
+    sequence: &[SequenceFrame<'_>],
+    kept: &[Kept],
+    serving: &Serving<'_, EstimateJob, Estimated>,
+) -> String {
+    let singles: Vec<Option<SingleSeen>> = kept.iter().map(|k| k.and_then(|(_, single)| single)).collect();
+    let chain = (job.config.second_contact_chain(), job.over_time == Temporal::Smooth);
+    let pairs = match session_pairs_while(
+        estimator,
+        &job.robot,
+        sequence,
+        &singles,
+        &job.config.pair,
+        chain,
+        || !serving.should_stop(),
+    ) {
+        Ok(Some(pairs)) => pairs,
+        Ok(None) => return "stopped for a newer estimation".to_owned(),
+        Err((frame, e)) => {
+            log::error!("the second contact at session frame {frame}: {e}");
+            return format!("the second contact at frame {frame} could not be searched: {e}");
+        }
+    };
+    let mut called = 0;
+    for (frame, (pair, k)) in pairs.iter().zip(kept).enumerate() {
+        let (Some(pair), Some((estimate, _))) = (pair, k) else {
+            continue;
+        };
+        let second = PairSeen::of(pair);
+        called += usize::from(second.called);
+        let estimate = FrameEstimate {
+            second: Some(second),
+            ..*estimate
+        };
+        let sent = serving.send(Estimated {
+            generation: job.generation,
+            frame,
+            estimate: Ok(estimate),
+        });
+        if !sent {
+            return "stopped for a newer estimation".to_owned();
+        }
+    }
+    format!("two contacts in {called} frames")
+}
+
 /// Estimates `job`'s frames together (filtered or smoothed), in order,
 /// sending each as it is done; a newer job stops it between frames. A
 /// failure (or a panic) fails every frame not yet sent.
 fn estimate_together(job: &EstimateJob, estimator: &Estimator, serving: &Serving<'_, EstimateJob, Estimated>) {
     let frames = &job.session.frames;
     let sent = std::cell::RefCell::new(vec![false; frames.len()]);
-    let result = crate::io::guard::isolated(|| -> Result<bool, String> {
+    // With two contacts: each frame's estimate as sent and its single
+    // contact, for the pass over the second contacts once all are in.
+    let two = job.config.contacts_at_once >= 2;
+    let kept: std::cell::RefCell<Vec<Kept>> =
+        std::cell::RefCell::new(if two { vec![None; frames.len()] } else { Vec::new() });
+    let result = crate::io::guard::isolated(|| -> Result<String, String> {
         let positions = frames
             .iter()
             .map(|f| job.robot.joint_positions(&f.q, &[]).map_err(|e| e.to_string()))
@@ -202,13 +272,17 @@ fn estimate_together(job: &EstimateJob, estimator: &Estimator, serving: &Serving
             &sequence,
             || !serving.should_stop(),
             |frame, update, ms| {
+                let estimate = match frames.get(frame) {
+                    Some(f) => FrameEstimate::of_frame(&job.robot, &estimator.surface, &update, ms, &f.truth),
+                    None => FrameEstimate::of(&update, ms),
+                };
+                if let Some(slot) = kept.borrow_mut().get_mut(frame) {
+                    *slot = Some((estimate, SingleSeen::of(&update)));
+                }
                 serving.send(Estimated {
                     generation: job.generation,
                     frame,
-                    estimate: Ok(match frames.get(frame) {
-                        Some(f) => FrameEstimate::of_frame(&job.robot, &estimator.surface, &update, ms, &f.truth),
-                        None => FrameEstimate::of(&update, ms),
-                    }),
+                    estimate: Ok(estimate),
                 });
                 if let Some(s) = sent.borrow_mut().get_mut(frame) {
                     *s = true;
@@ -230,13 +304,23 @@ fn estimate_together(job: &EstimateJob, estimator: &Estimator, serving: &Serving
                 true
             },
         )
-        .map_err(|e| e.to_string())
+        .map_err(|e| e.to_string())?;
+        Ok(if two && !serving.should_stop() {
+            second_contacts(job, estimator, &sequence, &kept.borrow(), serving)
+        } else {
+            String::new()
+        })
     });
     if serving.should_stop() {
         return;
     }
     let failure = match result {
-        Ok(Ok(_)) => return,
+        Ok(Ok(said)) => {
+            if two {
+                second_contacts_done(job, serving, said);
+            }
+            return;
+        }
         Ok(Err(e)) => e,
         Err(panic) => format!("the estimator failed: {panic}"),
     };
@@ -251,4 +335,17 @@ fn estimate_together(job: &EstimateJob, estimator: &Estimator, serving: &Serving
             return;
         }
     }
+    if two {
+        second_contacts_done(job, serving, format!("no second contacts: {failure}"));
+    }
+}
+
+/// Says that the pass over the second contacts is over ([`SECOND_CONTACTS_DONE`]).
+fn second_contacts_done(job: &EstimateJob, serving: &Serving<'_, EstimateJob, Estimated>, said: String) {
+    serving.send(Estimated {
+        generation: job.generation,
+        frame: SECOND_CONTACTS_DONE,
+        estimate: Err(said),
+    });
+    serving.wake_now_and_then();
 }

@@ -13,7 +13,7 @@ mod latest;
 mod live;
 pub mod pairs;
 
-pub use estimate::{EVERY_FRAME, EstimateJob, Estimated, SessionWorker};
+pub use estimate::{EVERY_FRAME, EstimateJob, Estimated, SECOND_CONTACTS_DONE, SessionWorker};
 pub use latest::{Background, Latest, Serving};
 pub use live::{LiveFilterWorker, LiveJob};
 
@@ -147,6 +147,10 @@ pub struct FrameEstimate {
     pub truth_in_credible90: Option<bool>,
     /// The 90 % credible set's radius, m.
     pub credible90_radius_m: f64,
+    /// With two contacts looked for over time, the frame's account of a
+    /// second one (`None` where none was searched: no contact, or one
+    /// that explains the torques).
+    pub second: Option<pairs::PairSeen>,
 }
 
 impl FrameEstimate {
@@ -166,6 +170,7 @@ impl FrameEstimate {
             contact_probability: update.summary.contact_probability,
             truth_in_credible90: None,
             credible90_radius_m: update.summary.credible90.radius_m,
+            second: None,
         }
     }
 

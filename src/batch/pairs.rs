@@ -14,7 +14,7 @@ use crate::core::estimate::summary::Verdict;
 use crate::core::eval::metrics::percentile;
 use crate::core::over_time::frame::SequenceFrame;
 use crate::core::over_time::pairs::{ChainFilter, NO_PAIR_LOG_RATIO, PairTracker, SecondContactChain};
-use crate::core::robot::model::Robot;
+use crate::core::robot::model::{LinkId, Robot};
 use crate::io::session::ContactTruth;
 
 /// What the pair pass needs of a frame's single-contact estimate.
@@ -137,19 +137,37 @@ pub fn session_pairs(
     frames: &[SequenceFrame<'_>],
     singles: &[Option<SingleSeen>],
     pair_settings: &PairSettings,
-    (chain, smoothed): (SecondContactChain, bool),
+    chain: (SecondContactChain, bool),
 ) -> Result<Vec<Option<FramePair>>, (usize, EstimateError)> {
+    session_pairs_while(estimator, robot, frames, singles, pair_settings, chain, || true).map(Option::unwrap_or_default)
+}
+
+/// [`session_pairs`], asking `keep_going` before each frame's search:
+/// `None` once it says no (a newer job in the app).
+///
+/// # Errors
+/// A frame whose search fails, with its number.
+pub fn session_pairs_while(
+    estimator: &Estimator,
+    robot: &Robot,
+    frames: &[SequenceFrame<'_>],
+    singles: &[Option<SingleSeen>],
+    pair_settings: &PairSettings,
+    (chain, smoothed): (SecondContactChain, bool),
+    keep_going: impl Fn() -> bool,
+) -> Result<Option<Vec<Option<FramePair>>>, (usize, EstimateError)> {
     let mut follower = PairFollower::new();
-    let found = frames
-        .iter()
-        .zip(singles)
-        .enumerate()
-        .map(|(i, (frame, &single))| {
+    let mut found = Vec::with_capacity(frames.len());
+    for (i, (frame, &single)) in frames.iter().zip(singles).enumerate() {
+        if !keep_going() {
+            return Ok(None);
+        }
+        found.push(
             follower
                 .search(estimator, robot, frame, single, pair_settings)
-                .map_err(|e| (i, e))
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+                .map_err(|e| (i, e))?,
+        );
+    }
     let times: Vec<f64> = frames.iter().map(|f| f.t_secs).collect();
     let ratios: Vec<f64> = found.iter().map(|p| log_ratio(p.as_ref())).collect();
     let probabilities = if smoothed {
@@ -157,11 +175,41 @@ pub fn session_pairs(
     } else {
         chain.filter(&times, &ratios, pair_settings.prior_two)
     };
-    Ok(found
-        .into_iter()
-        .zip(probabilities)
-        .map(|(pair, probability_two)| pair.map(|pair| FramePair { pair, probability_two }))
-        .collect())
+    Ok(Some(
+        found
+            .into_iter()
+            .zip(probabilities)
+            .map(|(pair, probability_two)| pair.map(|pair| FramePair { pair, probability_two }))
+            .collect(),
+    ))
+}
+
+/// What the app's timeline keeps of a frame's two-contact account.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PairSeen {
+    /// Probability of two contacts given the frames estimated together.
+    pub probability_two: f64,
+    /// Whether two are called ([`FramePair::has_two`]).
+    pub called: bool,
+    /// Each contact's link, point (world frame, m) and push on the robot
+    /// (world frame, N), the one nearer the single contact first.
+    pub contacts: [(LinkId, DVec3, DVec3); 2],
+}
+
+impl PairSeen {
+    /// The compact form of a frame's account.
+    #[must_use]
+    pub fn of(pair: &FramePair) -> Self {
+        Self {
+            probability_two: pair.probability_two,
+            called: pair.has_two(),
+            contacts: pair
+                .pair
+                .contacts
+                .each_ref()
+                .map(|c| (c.placed.link, c.point_world, c.force_world)),
+        }
+    }
 }
 
 /// Second contacts of a live stream, a frame at a time: the searches as

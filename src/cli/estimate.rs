@@ -20,7 +20,6 @@ use proprioscope::core::eval::metrics::{
 use proprioscope::core::eval::slides::{MIN_SLIDE_M, SlidePath, SlideTracker};
 use proprioscope::core::over_time::bias::{estimate_drifting_bias, without_drifting_bias};
 use proprioscope::core::over_time::frame::SequenceFrame;
-use proprioscope::core::over_time::pairs::SecondContactChain;
 use proprioscope::core::over_time::sequence::{Temporal, automatic_temporal, estimate_sequence};
 use proprioscope::core::over_time::temporal::is_continuous_recording;
 use proprioscope::core::robot::model::Robot;
@@ -433,17 +432,8 @@ fn second_contacts(
         sequence,
         singles,
         &config.pair,
-        (chain_of(config), smoothed),
+        (config.second_contact_chain(), smoothed),
     )
-}
-
-/// The second contact's chain: the temporal model's onset and release
-/// rates.
-pub(super) fn chain_of(config: &EstimatorConfig) -> SecondContactChain {
-    SecondContactChain {
-        onset_per_s: config.temporal.onset_per_s,
-        release_per_s: config.temporal.release_per_s,
-    }
 }
 
 /// The session's frames as the sequence takes them.

@@ -301,7 +301,7 @@ fn start(args: &EstimateArgs, robot: Option<&str>, temporal: Temporal) -> Result
     };
     // A second contact is followed with the frames before it whatever
     // --temporal says of the first: a stream has no frames after.
-    let pairs = (config.contacts_at_once >= 2).then(|| LivePairs::new(config.pair, super::estimate::chain_of(&config)));
+    let pairs = (config.contacts_at_once >= 2).then(|| LivePairs::new(config.pair, config.second_contact_chain()));
     let foxglove = args.serve.is_some().then(|| {
         let painter = FoxglovePainter::new(&robot, &estimator, temporal != Temporal::None, args.tf_hz);
         (ArmScene::new(&robot), painter)

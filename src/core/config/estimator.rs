@@ -11,6 +11,7 @@ use crate::core::estimate::estimator::Estimator;
 use crate::core::estimate::pair::PairSettings;
 use crate::core::estimate::settings::{EstimatorSettings, Mode, ParticleSettings, Sampling};
 use crate::core::over_time::calibration::{CalibrationSettings, ObserverGain};
+use crate::core::over_time::pairs::SecondContactChain;
 use crate::core::over_time::sequence::Temporal;
 use crate::core::over_time::temporal::{TemporalError, TemporalModel, TemporalSettings};
 use crate::core::robot::model::{LinkId, Robot};
@@ -512,6 +513,16 @@ impl EstimatorConfig {
     /// Settings the model refuses.
     pub fn temporal_model(&self, surface: &Surface, patches: bool) -> Result<TemporalModel, BuildError> {
         Ok(TemporalModel::new(surface, self.temporal, patches)?.with_store_limit(self.store_bytes()))
+    }
+
+    /// Whether a second contact presses, over the frames: the temporal
+    /// model's onset and release rates.
+    #[must_use]
+    pub fn second_contact_chain(&self) -> SecondContactChain {
+        SecondContactChain {
+            onset_per_s: self.temporal.onset_per_s,
+            release_per_s: self.temporal.release_per_s,
+        }
     }
 
     /// What the smoother may hold: [`STORE_SHARE`] of
