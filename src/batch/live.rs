@@ -1,15 +1,18 @@
 //! A live session's frames filtered as they arrive, on a thread of their
 //! own: each frame with the frames before it (what `estimate --live`
-//! writes), for the app's timeline while a stream is listened to.
+//! writes, a second contact too when two are looked for), for the app's
+//! timeline while a stream is listened to.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, TryIter, channel};
 use std::time::Instant;
 
+use super::pairs::{LivePairs, PairSeen, SingleSeen};
 use super::{Estimated, FrameEstimate};
 use crate::core::config::estimator::EstimatorConfig;
 use crate::core::estimate::estimator::Estimator;
+use crate::core::over_time::frame::SequenceFrame;
 use crate::core::over_time::sequence::{StreamFilter, Temporal};
 use crate::core::over_time::temporal::TemporalModel;
 use crate::core::robot::model::{LinkId, Robot};
@@ -82,6 +85,8 @@ struct Running {
     estimator: Estimator,
     model: TemporalModel,
     filter: StreamFilter,
+    /// With two contacts looked for: the second followed frame by frame.
+    pairs: Option<LivePairs>,
     queue: VecDeque<Frame>,
     next: usize,
 }
@@ -158,11 +163,14 @@ fn begin(mut job: LiveJob) -> Result<Running, (u64, String)> {
     let (estimator, model) = made.and_then(|r| r).map_err(|e| (generation, e))?;
     // The frames move to the queue: a long session is not held twice.
     let queue = VecDeque::from(std::mem::take(&mut job.frames));
+    let pairs =
+        (job.config.contacts_at_once >= 2).then(|| LivePairs::new(job.config.pair, job.config.second_contact_chain()));
     Ok(Running {
         job,
         estimator,
         model,
         filter: StreamFilter::default(),
+        pairs,
         queue,
         next: 0,
     })
@@ -187,14 +195,27 @@ fn step(r: &mut Running, frame: &Frame) -> Estimated {
                 &frame.tau,
             )
             .map_err(|e| e.to_string())?;
+        // A second contact as `estimate --live --contacts 2` follows it.
+        let second = match r.pairs.as_mut() {
+            Some(pairs) => {
+                let at = SequenceFrame {
+                    t_secs: frame.t,
+                    joint_positions: &positions,
+                    tau: &frame.tau,
+                };
+                pairs
+                    .push(&r.estimator, &r.job.robot, &at, SingleSeen::of(&update))
+                    .map_err(|e| format!("the second contact: {e}"))?
+                    .as_ref()
+                    .map(PairSeen::of)
+            }
+            None => None,
+        };
         let ms = t0.elapsed().as_secs_f64() * 1e3;
-        Ok(FrameEstimate::of_frame(
-            &r.job.robot,
-            &r.estimator.surface,
-            &update,
-            ms,
-            &frame.truth,
-        ))
+        Ok(FrameEstimate {
+            second,
+            ..FrameEstimate::of_frame(&r.job.robot, &r.estimator.surface, &update, ms, &frame.truth)
+        })
     })
     .map_err(|message| format!("the estimator failed: {message}"))
     .and_then(|e| e);
@@ -209,7 +230,6 @@ fn step(r: &mut Running, frame: &Frame) -> Estimated {
 mod tests {
     use super::*;
     use crate::core::eval::synth::{SynthSettings, synthesize};
-    use crate::core::over_time::frame::SequenceFrame;
     use crate::core::over_time::sequence::{Temporal, estimate_sequence_while};
     use crate::io::session::Truth;
 
@@ -317,6 +337,110 @@ mod tests {
             assert_eq!(l.force_world, w.force_world, "frame {i}");
             assert_eq!(l.contact_probability, w.contact_probability, "frame {i}");
             assert_eq!(l.verdict, w.verdict, "frame {i}");
+        }
+    }
+
+    /// With two contacts looked for, each frame's second contact live is
+    /// the one the whole recording's pass gives filtered
+    /// ([`crate::batch::pairs::session_pairs`]), frame by frame.
+    #[test]
+    fn a_second_contact_live_is_the_filtered_pass() {
+        use crate::batch::pairs::{PairSeen, SingleSeen, session_pairs};
+        let robot = Arc::new(crate::core::robot::builtin::lwr4plus_generated().unwrap_or_else(|e| panic!("{e}")));
+        let links: Vec<_> = ["lwr_5_link", "lwr_7_link"]
+            .iter()
+            .filter_map(|l| robot.link_id(l).ok())
+            .collect();
+        let settings = SynthSettings {
+            duration_secs: 3.0,
+            rate_hz: 25.0,
+            press_secs: (1.0, 1.4),
+            gap_secs: (0.2, 0.3),
+            force_newtons: (15.0, 25.0),
+            motion_rad: 0.0,
+            contacts_at_once: 2,
+            ..SynthSettings::default()
+        };
+        let frames: Vec<Frame> = synthesize(&robot, &links, &settings, 3)
+            .unwrap_or_else(|e| panic!("{e}"))
+            .into_iter()
+            .map(|f| Frame {
+                t: f.t_secs,
+                q: f.q,
+                tau: f.tau,
+                truth: Truth::Unknown,
+                truth_all: Vec::new(),
+            })
+            .collect();
+        let config = EstimatorConfig {
+            surface_points: 1500,
+            contacts_at_once: 2,
+            ..EstimatorConfig::default()
+        };
+        let estimator = config
+            .estimator(&robot, links.clone(), Temporal::Filter)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let model = config
+            .temporal_model(&estimator.surface, estimator.uses_patches())
+            .unwrap_or_else(|e| panic!("{e}"));
+        let positions: Vec<Vec<f64>> = frames
+            .iter()
+            .map(|f| robot.joint_positions(&f.q, &[]).unwrap_or_default())
+            .collect();
+        let sequence: Vec<SequenceFrame> = frames
+            .iter()
+            .zip(&positions)
+            .map(|(f, p)| SequenceFrame {
+                t_secs: f.t,
+                joint_positions: p,
+                tau: &f.tau,
+            })
+            .collect();
+        let mut singles = vec![None; frames.len()];
+        estimate_sequence_while(
+            &estimator,
+            &robot,
+            (Some(&model), Temporal::Filter),
+            &sequence,
+            || true,
+            |i, update, _| singles[i] = SingleSeen::of(&update),
+            |_, _| false,
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+        let whole: Vec<Option<PairSeen>> = session_pairs(
+            &estimator,
+            &robot,
+            &sequence,
+            &singles,
+            &config.pair,
+            (config.second_contact_chain(), false),
+        )
+        .unwrap_or_else(|(i, e)| panic!("frame {i}: {e}"))
+        .iter()
+        .map(|p| p.as_ref().map(PairSeen::of))
+        .collect();
+        let worker = LiveFilterWorker::spawn(|| {});
+        worker.start(LiveJob {
+            generation: 1,
+            robot: robot.clone(),
+            frames: frames[..20].to_vec(),
+            config,
+            links,
+        });
+        worker.append(frames[20..].to_vec());
+        let mut live: Vec<Option<FrameEstimate>> = vec![None; frames.len()];
+        let started = Instant::now();
+        while live.iter().any(Option::is_none) {
+            assert!(started.elapsed().as_secs() < 120, "the stream was not estimated");
+            for done in worker.drain() {
+                live[done.frame] = Some(done.estimate.unwrap_or_else(|e| panic!("frame {}: {e}", done.frame)));
+            }
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        let searched = whole.iter().filter(|p| p.is_some()).count();
+        assert!(searched >= 5, "{searched} frames searched for a second contact");
+        for (i, (w, l)) in whole.iter().zip(&live).enumerate() {
+            assert_eq!(l.as_ref().and_then(|l| l.second), *w, "frame {i}");
         }
     }
 }
