@@ -15,6 +15,7 @@ use proprioscope::core::estimate::estimator::{Estimator, Update};
 use proprioscope::core::over_time::frame::SequenceFrame;
 use proprioscope::core::over_time::sequence::{SequenceError, StreamFilter, Temporal};
 use proprioscope::core::over_time::temporal::TemporalModel;
+use proprioscope::io::foxglove::painter::PairDrawn;
 use proprioscope::io::foxglove::serve::FoxgloveServer;
 use proprioscope::io::foxglove::{ArmScene, FoxglovePainter, frame_messages, opening};
 use proprioscope::io::live::{LiveEvent, LiveSource};
@@ -251,8 +252,9 @@ pub fn run(args: &EstimateArgs, address: &str) -> Result<()> {
                 }
                 let Some(l) = live.as_mut() else { continue };
                 match estimate_frame(l, done, &frame, temporal) {
-                    Ok((mut value, update, positions)) => {
+                    Ok((mut value, update, positions, pair)) => {
                         if let (Some(server), Some((scene, painter))) = (server.as_mut(), l.foxglove.as_mut()) {
+                            painter.set_pair(pair);
                             let drawn = painter.frame(&l.estimator, &update, &frame, &positions, seconds_ns(frame.t));
                             server.publish(&frame_messages(scene, &drawn))?;
                         }
@@ -322,13 +324,14 @@ fn seconds_ns(t: f64) -> i64 {
 }
 
 /// One frame's estimate as a JSON line (with the contact probability when
-/// filtered), the estimate, and the joint positions in the robot's order.
+/// filtered), the estimate, the joint positions in the robot's order, and
+/// both contacts (point and push, world frame) where two are called.
 fn estimate_frame(
     live: &mut Live,
     number: usize,
     frame: &proprioscope::io::session::Frame,
     temporal: Temporal,
-) -> Result<(serde_json::Value, Update, Vec<f64>)> {
+) -> Result<(serde_json::Value, Update, Vec<f64>, Option<PairDrawn>)> {
     let positions = live.robot.joint_positions(&frame.q, &[])?;
     let t0 = Instant::now();
     let update = match (temporal, live.model.as_ref()) {
@@ -378,5 +381,6 @@ fn estimate_frame(
     if let Some(pair) = &pair {
         line["contacts"] = super::estimate::pair_contacts_json(&live.robot, pair, line["contact_probability"].as_f64());
     }
-    Ok((line, update, positions))
+    let drawn = pair.map(|p| p.pair.contacts.each_ref().map(|c| (c.point_world, c.force_world)));
+    Ok((line, update, positions, drawn))
 }

@@ -35,7 +35,14 @@ pub struct FoxglovePainter {
     contact: Option<bool>,
     /// The heat and the arrows last sent.
     sent: (Option<Paint>, Option<Vec<Arrow>>),
+    /// Both contacts where the frame is called two
+    /// ([`FoxglovePainter::set_pair`]; boxed: most frames have none).
+    pair: Option<Box<PairDrawn>>,
 }
+
+/// Both contacts of a frame called two: each one's point and push on the
+/// arm, world frame, m and N.
+pub type PairDrawn = [(DVec3, DVec3); 2];
 
 /// Whether two heatmaps look the same: the same vertices painted, each
 /// within [`PAINT_VISIBLE`].
@@ -74,7 +81,14 @@ impl FoxglovePainter {
             over_time,
             contact: None,
             sent: (None, None),
+            pair: None,
         }
+    }
+
+    /// The next frame's two contacts where it is called two, drawn
+    /// instead of its single contact; `None` where it is not.
+    pub fn set_pair(&mut self, pair: Option<PairDrawn>) {
+        self.pair = pair.map(Box::new);
     }
 
     /// The frame's Foxglove part: `joint_positions` in the robot's order;
@@ -136,18 +150,25 @@ impl FoxglovePainter {
         }
     }
 
-    /// The frame's arrows: the true contacts, the estimate and, over time,
-    /// its friction where it reads.
+    /// The frame's arrows: the true contacts, the estimate (both contacts
+    /// where two are called) and, over time, its friction where it reads.
     fn arrows(&self, update: &Update, truths: &[ContactTruth]) -> Vec<Arrow> {
         let s = &update.summary;
         let mut arrows = Arrow::truths(truths);
-        if s.verdict != Verdict::NoContact {
+        let role = if self.over_time {
+            ArrowRole::OverTime
+        } else {
+            ArrowRole::Estimate
+        };
+        if let Some(pair) = self.pair.as_deref() {
+            arrows.extend(pair.map(|(point_world, force_world)| Arrow {
+                role,
+                point_world,
+                force_world,
+            }));
+        } else if s.verdict != Verdict::NoContact {
             arrows.push(Arrow {
-                role: if self.over_time {
-                    ArrowRole::OverTime
-                } else {
-                    ArrowRole::Estimate
-                },
+                role,
                 point_world: s.map.point_world,
                 force_world: s.map.force_world,
             });
@@ -161,5 +182,55 @@ impl FoxglovePainter {
             }
         }
         arrows
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::config::estimator::EstimatorConfig;
+    use crate::core::over_time::sequence::Temporal;
+    use crate::io::session::Truth;
+
+    /// Where a pair is set, the frame's arrows are both contacts instead
+    /// of its single one; unset, the single one again.
+    #[test]
+    fn a_pair_set_is_drawn_instead_of_the_single_contact() {
+        let robot = crate::core::robot::builtin::lwr4plus_generated().unwrap_or_else(|e| panic!("{e}"));
+        let config = EstimatorConfig {
+            surface_points: 600,
+            ..EstimatorConfig::default()
+        };
+        let estimator = config
+            .estimator(&robot, robot.default_candidate_links(), Temporal::None)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let q = vec![0.0; 7];
+        // The thesis' push on link 4 (its torques).
+        let tau = [0.09516, -0.53783, 0.09516, 0.01017, 0.0, 0.0, 0.0];
+        let update = estimator.update(&robot, &q, &tau).unwrap_or_else(|e| panic!("{e}"));
+        assert_ne!(update.summary.verdict, Verdict::NoContact);
+        let frame = Frame {
+            t: 0.0,
+            q: q.clone(),
+            tau: tau.to_vec(),
+            truth: Truth::NoContact,
+            truth_all: Vec::new(),
+        };
+        let mut painter = FoxglovePainter::new(&robot, &estimator, false, 0.0);
+        let points = |drawn: &FoxgloveFrame| -> Vec<DVec3> {
+            let arrows = drawn.arrows.as_ref().unwrap_or_else(|| panic!("no arrows sent"));
+            assert!(arrows.iter().all(|a| a.role == ArrowRole::Estimate), "{arrows:?}");
+            arrows.iter().map(|a| a.point_world).collect()
+        };
+        let second = 1_000_000_000;
+        let single = points(&painter.frame(&estimator, &update, &frame, &q, 0));
+        assert_eq!(single, [update.summary.map.point_world]);
+        let pair = [(DVec3::X, DVec3::Y), (DVec3::Z, DVec3::NEG_Y)];
+        painter.set_pair(Some(pair));
+        let two = points(&painter.frame(&estimator, &update, &frame, &q, second));
+        assert_eq!(two, [DVec3::X, DVec3::Z]);
+        painter.set_pair(None);
+        let again = points(&painter.frame(&estimator, &update, &frame, &q, 2 * second));
+        assert_eq!(again, single);
     }
 }
