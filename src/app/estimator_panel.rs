@@ -226,6 +226,8 @@ impl EstimatorPanel {
             "two contacts: the evidence calls two".to_owned()
         } else if pair.identifiable {
             "one contact: the evidence calls one".to_owned()
+        } else if pair.sensing_joints >= 6 && pair.contacts[0].placed.link == pair.contacts[1].placed.link {
+            "one contact: with friction, two on one link are not told from one pushing sideways".to_owned()
         } else {
             format!(
                 "one contact: a pair here is not identifiable ({} joints sense it)",

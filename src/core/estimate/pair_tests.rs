@@ -328,3 +328,70 @@ fn friction_at_both_contacts_explains_the_misfit_once() {
     // Friction explains most of the misfit of some pairs: the test sees it.
     assert!(most > 0.5, "{most}");
 }
+
+/// Two pushes on one link (the wrist, link 6, which six joints feel; the
+/// two truth samples farthest apart whose normals are 60° or more from
+/// parallel), the search started at one: without
+/// friction the pair can be told apart; with friction (μ 0.2) it is not
+/// identifiable, since one contact pushing sideways makes the link's
+/// every wrench but for its pitch.
+#[test]
+fn a_pair_on_one_link_is_not_identifiable_with_friction() {
+    let s = scene();
+    let link6 = s.robot.link_id("lwr_6_link").unwrap();
+    let on: Vec<usize> = (0..s.truths.len()).filter(|&k| s.truths.link[k] == link6).collect();
+    // Pushes whose normals are far from parallel (whose torques differ).
+    let across = |(a, b): &(usize, usize)| {
+        s.truths.inward_normal_in_link[*a]
+            .dot(s.truths.inward_normal_in_link[*b])
+            .abs()
+            < 0.5
+    };
+    let (a, b) = on
+        .iter()
+        .flat_map(|&a| on.iter().map(move |&b| (a, b)))
+        .filter(across)
+        .max_by(|x, y| {
+            let d = |(a, b): (usize, usize)| s.world_truth(a).distance(s.world_truth(b));
+            d(*x).total_cmp(&d(*y))
+        })
+        .unwrap();
+    assert!(s.world_truth(a).distance(s.world_truth(b)) > 0.08);
+    let tau = s.torques(&[(a, 20.0), (b, 20.0)], 3);
+    let posed = PosedSurface {
+        torque_model: &s.torque_model,
+        surface: &s.surface,
+    };
+    let start = PairStart::One {
+        point: s.nearest_sample(a),
+        force_newtons: 20.0,
+    };
+    let pair_with = |friction: f64| {
+        let settings = EstimatorSettings {
+            friction,
+            ..EstimatorSettings::exact(vec![SIGMA; 7])
+        };
+        let single = estimate(&posed, &tau, &settings, None).unwrap();
+        estimate_pair(
+            &posed,
+            &s.pose,
+            &tau,
+            &settings,
+            None,
+            &single,
+            &PairSettings::default(),
+            std::slice::from_ref(&start),
+        )
+        .unwrap()
+        .unwrap()
+    };
+    let links = |p: &PairEstimate| p.contacts.each_ref().map(|c| c.placed.link);
+    let frictionless = pair_with(0.0);
+    assert_eq!(links(&frictionless), [link6, link6]);
+    assert!(frictionless.identifiable);
+    let error_m = worst_error(&s, &frictionless, a, b);
+    assert!(error_m < 0.02, "{:.1} mm", error_m * 1e3);
+    let with_friction = pair_with(0.2);
+    assert_eq!(links(&with_friction), [link6, link6]);
+    assert!(!with_friction.identifiable && !with_friction.has_two());
+}
