@@ -139,19 +139,26 @@ fn streamed_session_is_estimated_live(listen: &str, name: &str) {
 }
 
 /// Live, the surface has fewer samples than for a file unless `--points`
-/// says (so that each frame keeps up with the arm), and the log says how
-/// many.
+/// says (so that each frame keeps up with the arm) or two contacts are
+/// looked for (a file's: the live surface finds half the pairs), and the
+/// log says how many.
 #[test]
 fn live_takes_the_live_surface_unless_points_are_given() {
-    use proprioscope::core::config::estimator::LIVE_SURFACE_POINTS;
+    use proprioscope::core::config::estimator::{DEFAULT_SURFACE_POINTS, LIVE_SURFACE_POINTS};
     let frame = r#"{"t": 0.0, "q": [0, 0, 0, 0, 0, 0, 0], "tau": [0.09516, -0.53783, 0.09516, 0.01017, 0, 0, 0]}"#;
-    for (points, want) in [(None, LIVE_SURFACE_POINTS), (Some("1200"), 1200)] {
+    for (points, contacts, want) in [
+        (None, "1", LIVE_SURFACE_POINTS),
+        (Some("1200"), "1", 1200),
+        (None, "2", DEFAULT_SURFACE_POINTS),
+    ] {
         let out = temp_file(&format!("live-points-{want}.jsonl"), "");
         let mut args = vec![
             "--live-frames",
             "1",
             "--temporal",
             "none",
+            "--contacts",
+            contacts,
             "--out",
             out.to_str().unwrap(),
         ];
@@ -171,5 +178,6 @@ fn live_takes_the_live_surface_unless_points_are_given() {
         assert!(ok, "{stderr}");
         assert!(stderr.contains(&format!(": {want} surface points on")), "{stderr}");
         assert_eq!(stderr.contains("--points to change"), points.is_none(), "{stderr}");
+        assert_eq!(stderr.contains("two contacts need them"), contacts == "2", "{stderr}");
     }
 }

@@ -15,7 +15,7 @@ use eframe::egui;
 
 use super::{Command, ProprioscopeApp};
 use crate::batch::SessionData;
-use crate::core::config::estimator::{DEFAULT_SURFACE_POINTS, LIVE_SURFACE_POINTS};
+use crate::core::config::estimator::{DEFAULT_SURFACE_POINTS, live_surface_points};
 use crate::io::live::{LiveEvent, LiveSource};
 use crate::io::session::Frame;
 
@@ -143,10 +143,12 @@ impl ProprioscopeApp {
                 let mut note = format!("listening on {}", source.address);
                 // A live frame has to be done before the next: a surface
                 // left at the default becomes the live one (as `estimate
-                // --live`); the N slider still sets it.
-                if self.model.config.surface_points == DEFAULT_SURFACE_POINTS {
-                    self.apply(Command::SetSurfacePoints(LIVE_SURFACE_POINTS));
-                    note = format!("{note}; {LIVE_SURFACE_POINTS} surface points, so that each frame keeps up live");
+                // --live`; two contacts keep a file's); the N slider
+                // still sets it.
+                let live_points = live_surface_points(self.model.config.contacts_at_once);
+                if self.model.config.surface_points == DEFAULT_SURFACE_POINTS && live_points != DEFAULT_SURFACE_POINTS {
+                    self.apply(Command::SetSurfacePoints(live_points));
+                    note = format!("{note}; {live_points} surface points, so that each frame keeps up live");
                 }
                 self.live.view = Some(LiveView {
                     source,

@@ -291,10 +291,10 @@ fn start(args: &EstimateArgs, robot: Option<&str>, temporal: Temporal) -> Result
         "{robot_name}: {} surface points on {} links{}",
         estimator.surface.len(),
         estimator.links.len(),
-        if args.estimator.points.is_none() {
-            " (fewer than for a file, so that a frame keeps up live; --points to change)"
-        } else {
-            ""
+        match (args.estimator.points, config.contacts_at_once >= 2) {
+            (Some(_), _) => "",
+            (None, false) => " (fewer than for a file, so that a frame keeps up live; --points to change)",
+            (None, true) => " (as for a file: two contacts need them; --points to change)",
         }
     );
     let model = match temporal {

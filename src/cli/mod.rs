@@ -16,7 +16,7 @@ use anyhow::{Result, bail};
 use glam::DVec3;
 use proprioscope::core::config::estimator::{
     BuildError, ConfigError, DEFAULT_FORCE_RANGE_NEWTONS, DEFAULT_SIGMA_NEWTON_METRES, DEFAULT_SURFACE_POINTS,
-    EstimatorConfig, Friction, LIVE_SURFACE_POINTS, ModeKind, Sigma, TorqueModel,
+    EstimatorConfig, Friction, ModeKind, Sigma, TorqueModel, live_surface_points,
 };
 use proprioscope::core::config::limits::{self, CountRange, Range};
 use proprioscope::core::estimate::estimator::Estimator;
@@ -369,9 +369,9 @@ impl EstimatorArgs {
     }
 
     /// [`EstimatorArgs::config`] for frames that arrive live: the surface
-    /// points [`LIVE_SURFACE_POINTS`] unless `--points` says.
+    /// points [`live_surface_points`] unless `--points` says.
     pub fn live_config(&self, temporal: &TemporalArgs) -> Result<EstimatorConfig> {
-        self.config_with(temporal, LIVE_SURFACE_POINTS)
+        self.config_with(temporal, live_surface_points(self.contacts))
     }
 
     fn config_with(&self, temporal: &TemporalArgs, default_points: usize) -> Result<EstimatorConfig> {

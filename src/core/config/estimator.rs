@@ -44,6 +44,22 @@ pub const DEFAULT_SURFACE_POINTS: usize = 5000;
 /// `docs/validation.md`, *Long recordings at robot rates*).
 pub const LIVE_SURFACE_POINTS: usize = 2500;
 
+/// Surface samples when nobody says and frames arrive live, with
+/// `contacts_at_once` contacts looked for: [`LIVE_SURFACE_POINTS`] for
+/// one; for two, a file's [`DEFAULT_SURFACE_POINTS`]: on the `../shared`
+/// two-contact example streamed live the live surface called two in 33
+/// of the 83 frames where both probes press, 5000 samples in 61, and a
+/// frame searched for a pair takes milliseconds either way
+/// (`docs/validation.md`, *Two contacts*).
+#[must_use]
+pub const fn live_surface_points(contacts_at_once: usize) -> usize {
+    if contacts_at_once >= 2 {
+        DEFAULT_SURFACE_POINTS
+    } else {
+        LIVE_SURFACE_POINTS
+    }
+}
+
 /// The likelihood σ: one value for every sensed joint, or one per joint.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Sigma {
