@@ -304,6 +304,20 @@ mod tests {
                 assert!((0.0..=1.0).contains(&p), "{r}: {p}");
             }
         }
+        // A live stream's times may be anything: backwards, repeated, not
+        // finite.
+        let mut live = ChainFilter::new(CHAIN, 0.1);
+        for (t, r) in [
+            (1.0, 3.0),
+            (0.5, -2.0),
+            (0.5, f64::NAN),
+            (f64::NAN, 4.0),
+            (f64::INFINITY, 1e308),
+            (-1e308, -1e308),
+        ] {
+            let p = live.push(t, r);
+            assert!((0.0..=1.0).contains(&p), "t {t}, ratio {r}: {p}");
+        }
     }
 
     #[test]
