@@ -462,7 +462,7 @@ fn smoothed_presses_are_fitted_with_their_friction() {
 /// friction, the frictionless one before. Measured (10 s at 50 Hz, 5000
 /// surface points, seeds 1–2): with tangential parts up to 30 % the
 /// median force error falls from 1.20 to 1.02 N (92 of 1000 frames take
-/// friction); without, 41 of 1000 frames do, 0.15 → 0.17 N. Before this
+/// friction); without, none does (0.15 N either way). Before this
 /// gate every frame took the friction model's force: on 20 s sessions
 /// without friction (`synth --seed 1|3`) 0.12 → 0.34 N and 0.11 → 0.35 N,
 /// now 0.12 and 0.12 N.
