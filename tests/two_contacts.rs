@@ -233,3 +233,42 @@ fn a_second_push_is_followed_live_as_filtered() {
         "two contacts in {one} % of the frames where one presses\n{out}"
     );
 }
+
+/// Frames alone (`--temporal none`), each frame's second contact is its
+/// own: the session's last 100 frames give the same `contacts` alone as
+/// within the whole session, to the bit, and both pushes are found.
+#[test]
+fn frames_alone_are_searched_on_their_own() {
+    let whole = common::two_push_session();
+    let mut part: serde_json::Value = serde_json::from_str(&whole).unwrap();
+    let frames = part["frames"].as_array_mut().unwrap();
+    frames.drain(..60);
+    let runs: Vec<Vec<(u64, serde_json::Value)>> = [("alone-whole", whole), ("alone-part", part.to_string())]
+        .iter()
+        .map(|(name, text)| {
+            let session = common::temp_file(&format!("{name}.json"), text);
+            let out = session.with_extension("jsonl");
+            let (ok, _, err) = common::run_out(&[
+                "estimate",
+                session.to_str().unwrap(),
+                "--contacts",
+                "2",
+                "--temporal",
+                "none",
+                "--points",
+                "2000",
+                "--out",
+                out.to_str().unwrap(),
+            ]);
+            assert!(ok, "{err}");
+            frame_contacts(&out)
+        })
+        .collect();
+    let (whole, part) = (&runs[0], &runs[1]);
+    assert_eq!((whole.len(), part.len()), (160, 100));
+    for ((_, w), (_, p)) in whole[60..].iter().zip(part) {
+        assert_eq!(w, p);
+    }
+    let pairs = part.iter().filter(|(_, c)| c.as_array().unwrap().len() == 2).count();
+    assert!(pairs >= 10, "{pairs} frames called two");
+}

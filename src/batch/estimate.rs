@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::pairs::{PairSeen, SingleSeen, session_pairs_while};
+use super::pairs::{PairSeen, PairsOver, SingleSeen, session_pairs_while};
 use super::{FrameEstimate, Latest, Serving, SessionData};
 use crate::core::config::estimator::EstimatorConfig;
 use crate::core::estimate::estimator::Estimator;
@@ -194,14 +194,19 @@ fn second_contacts(
     serving: &Serving<'_, EstimateJob, Estimated>,
 ) -> String {
     let singles: Vec<Option<SingleSeen>> = kept.iter().map(|k| k.and_then(|(_, single)| single)).collect();
-    let chain = (job.config.second_contact_chain(), job.over_time == Temporal::Smooth);
+    let chain = job.config.second_contact_chain();
+    let over = if job.over_time == Temporal::Smooth {
+        PairsOver::Smoothed(chain)
+    } else {
+        PairsOver::Filtered(chain)
+    };
     let pairs = match session_pairs_while(
         estimator,
         &job.robot,
         sequence,
         &singles,
         &job.config.pair,
-        chain,
+        over,
         || !serving.should_stop(),
     ) {
         Ok(Some(pairs)) => pairs,

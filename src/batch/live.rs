@@ -413,7 +413,7 @@ mod tests {
             &sequence,
             &singles,
             &config.pair,
-            (config.second_contact_chain(), false),
+            crate::batch::pairs::PairsOver::Filtered(config.second_contact_chain()),
         )
         .unwrap_or_else(|(i, e)| panic!("frame {i}: {e}"))
         .iter()

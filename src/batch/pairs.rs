@@ -1,9 +1,10 @@
 //! A session's second contacts, after its single-contact estimates: each
 //! poorly explained frame's two-contact search in order (each starts where the
 //! frames before left the contacts), then the chain of two states over
-//! the frames' evidence, smoothed over the whole session
-//! ([`crate::core::over_time::pairs`]); or, live, a frame at a time with
-//! the chain filtered ([`LivePairs`]).
+//! the frames' evidence, smoothed over the whole session or filtered
+//! ([`crate::core::over_time::pairs`]); live, a frame at a time with the
+//! chain filtered ([`LivePairs`]); frames alone, each searched on its own
+//! ([`PairsOver`]).
 
 use glam::DVec3;
 
@@ -123,11 +124,22 @@ fn log_ratio(pair: Option<&PairEstimate>) -> f64 {
     pair.map_or(NO_PAIR_LOG_RATIO, PairEstimate::log_evidence_ratio)
 }
 
+/// How a session's frames are taken together for their second contacts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PairsOver {
+    /// Each frame alone: searched from the coarse grid, its probability
+    /// of two its own (as the app's frame on screen).
+    Alone,
+    /// Each frame from the frames before: the searches in order, the
+    /// chain filtered (as [`LivePairs`]).
+    Filtered(SecondContactChain),
+    /// The whole session: the searches in order, the chain smoothed.
+    Smoothed(SecondContactChain),
+}
+
 /// Each frame's two-contact account (`None` for frames without contact),
-/// the searches run in order, `singles[i]` frame `i`'s single contact;
-/// the chain smoothed over the session, or (`smoothed` false) filtered:
-/// each frame's probability of two from it and the frames before, as
-/// [`LivePairs`] gives it.
+/// `singles[i]` frame `i`'s single contact, the frames taken together
+/// as `over` says.
 ///
 /// # Errors
 /// A frame whose search fails, with its number.
@@ -137,9 +149,9 @@ pub fn session_pairs(
     frames: &[SequenceFrame<'_>],
     singles: &[Option<SingleSeen>],
     pair_settings: &PairSettings,
-    chain: (SecondContactChain, bool),
+    over: PairsOver,
 ) -> Result<Vec<Option<FramePair>>, (usize, EstimateError)> {
-    session_pairs_while(estimator, robot, frames, singles, pair_settings, chain, || true).map(Option::unwrap_or_default)
+    session_pairs_while(estimator, robot, frames, singles, pair_settings, over, || true).map(Option::unwrap_or_default)
 }
 
 /// [`session_pairs`], asking `keep_going` before each frame's search:
@@ -153,7 +165,7 @@ pub fn session_pairs_while(
     frames: &[SequenceFrame<'_>],
     singles: &[Option<SingleSeen>],
     pair_settings: &PairSettings,
-    (chain, smoothed): (SecondContactChain, bool),
+    over: PairsOver,
     keep_going: impl Fn() -> bool,
 ) -> Result<Option<Vec<Option<FramePair>>>, (usize, EstimateError)> {
     let mut follower = PairFollower::new();
@@ -161,6 +173,10 @@ pub fn session_pairs_while(
     for (i, (frame, &single)) in frames.iter().zip(singles).enumerate() {
         if !keep_going() {
             return Ok(None);
+        }
+        if over == PairsOver::Alone {
+            // Nothing carries over from the frame before.
+            follower = PairFollower::new();
         }
         found.push(
             follower
@@ -170,10 +186,13 @@ pub fn session_pairs_while(
     }
     let times: Vec<f64> = frames.iter().map(|f| f.t_secs).collect();
     let ratios: Vec<f64> = found.iter().map(|p| log_ratio(p.as_ref())).collect();
-    let probabilities = if smoothed {
-        chain.smooth(&times, &ratios, pair_settings.prior_two)
-    } else {
-        chain.filter(&times, &ratios, pair_settings.prior_two)
+    let probabilities = match over {
+        PairsOver::Alone => found
+            .iter()
+            .map(|p| p.as_ref().map_or(0.0, |p| p.probability_two))
+            .collect(),
+        PairsOver::Filtered(chain) => chain.filter(&times, &ratios, pair_settings.prior_two),
+        PairsOver::Smoothed(chain) => chain.smooth(&times, &ratios, pair_settings.prior_two),
     };
     Ok(Some(
         found

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result};
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
-use proprioscope::batch::pairs::{FramePair, PairScore, SingleSeen, session_pairs};
+use proprioscope::batch::pairs::{FramePair, PairScore, PairsOver, SingleSeen, session_pairs};
 use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot, truth_in_link};
 use proprioscope::core::config::estimator::{EstimatorConfig, Friction};
 use proprioscope::core::config::limits;
@@ -413,10 +413,10 @@ fn report_slides(paths: &[SlidePath]) -> Result<()> {
     Ok(())
 }
 
-/// The session's second contacts ([`session_pairs`]), followed with the
-/// temporal model's onset and release rates: filtered where the single
-/// contact is (`--temporal filter`: each frame from the frames before, as
-/// live), else smoothed.
+/// The session's second contacts ([`session_pairs`]), the frames taken
+/// together as the single contacts are: each alone, filtered (each from
+/// the frames before, as live) or smoothed, the chain with the temporal
+/// model's onset and release rates.
 fn second_contacts(
     estimator: &Estimator,
     robot: &Robot,
@@ -425,15 +425,13 @@ fn second_contacts(
     sequence: &[SequenceFrame<'_>],
     singles: &[Option<SingleSeen>],
 ) -> Result<Vec<Option<FramePair>>, (usize, proprioscope::core::estimate::settings::EstimateError)> {
-    let smoothed = temporal != Temporal::Filter;
-    session_pairs(
-        estimator,
-        robot,
-        sequence,
-        singles,
-        &config.pair,
-        (config.second_contact_chain(), smoothed),
-    )
+    let chain = config.second_contact_chain();
+    let over = match temporal {
+        Temporal::None => PairsOver::Alone,
+        Temporal::Filter => PairsOver::Filtered(chain),
+        Temporal::Smooth => PairsOver::Smoothed(chain),
+    };
+    session_pairs(estimator, robot, sequence, singles, &config.pair, over)
 }
 
 /// The session's frames as the sequence takes them.
