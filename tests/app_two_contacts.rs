@@ -161,11 +161,7 @@ fn a_session_shows_the_second_contacts_over_time() {
         out.to_str().unwrap(),
     ]);
     assert!(ok, "{err}");
-    let cli: Vec<serde_json::Value> = std::fs::read_to_string(&out)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let cli = common::json_lines(&out);
     let mut harness = app_harness();
     open_and_wait(&mut harness, session.to_str().unwrap());
     settle(&mut harness);

@@ -172,13 +172,9 @@ fn a_synthesized_two_hand_session_is_estimated_and_scored() {
 
 /// Each line's frame number and `contacts` in an `estimate` output file.
 fn frame_contacts(path: &std::path::Path) -> Vec<(u64, serde_json::Value)> {
-    std::fs::read_to_string(path)
-        .unwrap()
-        .lines()
-        .map(|l| {
-            let v: serde_json::Value = serde_json::from_str(l).unwrap();
-            (v["frame"].as_u64().unwrap(), v["contacts"].clone())
-        })
+    common::json_lines(path)
+        .into_iter()
+        .map(|v| (v["frame"].as_u64().unwrap(), v["contacts"].clone()))
         .collect()
 }
 

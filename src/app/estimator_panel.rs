@@ -224,15 +224,13 @@ impl EstimatorPanel {
         let ratio = pair.log_evidence_ratio();
         ui.label(if pair.has_two() {
             "two contacts: the evidence calls two".to_owned()
-        } else if pair.identifiable {
-            "one contact: the evidence calls one".to_owned()
-        } else if pair.sensing_joints >= 6 && pair.contacts[0].placed.link == pair.contacts[1].placed.link {
-            "one contact: with friction, two on one link are not told from one pushing sideways".to_owned()
-        } else {
+        } else if let Some(why) = pair.unidentifiable {
             format!(
-                "one contact: a pair here is not identifiable ({} joints sense it)",
-                pair.sensing_joints
+                "one contact: a pair here is not identifiable ({})",
+                why.describe(pair.sensing_joints)
             )
+        } else {
+            "one contact: the evidence calls one".to_owned()
         })
         .on_hover_text(
             "The evidence of two contacts against one: each marginal likelihood over the places and \

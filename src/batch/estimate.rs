@@ -194,12 +194,7 @@ fn second_contacts(
     serving: &Serving<'_, EstimateJob, Estimated>,
 ) -> String {
     let singles: Vec<Option<SingleSeen>> = kept.iter().map(|k| k.and_then(|(_, single)| single)).collect();
-    let chain = job.config.second_contact_chain();
-    let over = if job.over_time == Temporal::Smooth {
-        PairsOver::Smoothed(chain)
-    } else {
-        PairsOver::Filtered(chain)
-    };
+    let over = PairsOver::of(job.over_time, job.config.second_contact_chain());
     let pairs = match session_pairs_while(
         estimator,
         &job.robot,

@@ -8,11 +8,10 @@ use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, TryIter, channel};
 use std::time::Instant;
 
-use super::pairs::{LivePairs, PairSeen, SingleSeen};
+use super::pairs::{LivePairs, PairSeen};
 use super::{Estimated, FrameEstimate};
 use crate::core::config::estimator::EstimatorConfig;
 use crate::core::estimate::estimator::Estimator;
-use crate::core::over_time::frame::SequenceFrame;
 use crate::core::over_time::sequence::{StreamFilter, Temporal};
 use crate::core::over_time::temporal::TemporalModel;
 use crate::core::robot::model::{LinkId, Robot};
@@ -197,18 +196,11 @@ fn step(r: &mut Running, frame: &Frame) -> Estimated {
             .map_err(|e| e.to_string())?;
         // A second contact as `estimate --live --contacts 2` follows it.
         let second = match r.pairs.as_mut() {
-            Some(pairs) => {
-                let at = SequenceFrame {
-                    t_secs: frame.t,
-                    joint_positions: &positions,
-                    tau: &frame.tau,
-                };
-                pairs
-                    .push(&r.estimator, &r.job.robot, &at, SingleSeen::of(&update))
-                    .map_err(|e| format!("the second contact: {e}"))?
-                    .as_ref()
-                    .map(PairSeen::of)
-            }
+            Some(pairs) => pairs
+                .push(&r.estimator, &r.job.robot, (frame, &positions), &update)
+                .map_err(|e| format!("the second contact: {e}"))?
+                .as_ref()
+                .map(PairSeen::of),
             None => None,
         };
         let ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -229,28 +221,22 @@ fn step(r: &mut Running, frame: &Frame) -> Estimated {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::core::estimate::estimator::Update;
     use crate::core::eval::synth::{SynthSettings, synthesize};
+    use crate::core::over_time::frame::SequenceFrame;
     use crate::core::over_time::sequence::{Temporal, estimate_sequence_while};
     use crate::io::session::Truth;
 
-    /// Frames given in pieces as they "arrive" are estimated as the
-    /// filter estimates the whole recording: the same places, forces and
-    /// contact probabilities, frame by frame.
-    #[test]
-    fn a_stream_in_pieces_is_filtered_as_the_whole_recording() {
+    /// The generated LWR and its links named `links`.
+    fn lwr(links: &[&str]) -> (Arc<Robot>, Vec<LinkId>) {
         let robot = Arc::new(crate::core::robot::builtin::lwr4plus_generated().unwrap_or_else(|e| panic!("{e}")));
-        let links: Vec<_> = ["lwr_5_link", "lwr_6_link"]
-            .iter()
-            .filter_map(|l| robot.link_id(l).ok())
-            .collect();
-        let settings = SynthSettings {
-            duration_secs: 2.0,
-            rate_hz: 25.0,
-            press_secs: (0.5, 0.8),
-            gap_secs: (0.2, 0.3),
-            ..SynthSettings::default()
-        };
-        let frames: Vec<Frame> = synthesize(&robot, &links, &settings, 5)
+        let links = links.iter().filter_map(|l| robot.link_id(l).ok()).collect();
+        (robot, links)
+    }
+
+    /// A synthesized session's frames (seed `seed`), as a stream sends them.
+    fn frames_of(robot: &Robot, links: &[LinkId], settings: &SynthSettings, seed: u64) -> Vec<Frame> {
+        synthesize(robot, links, settings, seed)
             .unwrap_or_else(|e| panic!("{e}"))
             .into_iter()
             .map(|f| Frame {
@@ -260,16 +246,21 @@ mod tests {
                 truth: Truth::Unknown,
                 truth_all: Vec::new(),
             })
-            .collect();
-        assert_eq!(frames.len(), 50);
-        let config = EstimatorConfig {
-            surface_points: 600,
-            ..EstimatorConfig::default()
-        };
+            .collect()
+    }
 
-        // The whole recording at once.
+    /// The whole recording filtered at once: `each` gets every frame's
+    /// update with the frames as the sequence takes them; the estimator
+    /// made for it.
+    fn filtered_whole(
+        (robot, links): (&Robot, &[LinkId]),
+        config: &EstimatorConfig,
+        frames: &[Frame],
+        mut each: impl FnMut(usize, Update),
+        after: impl FnOnce(&Estimator, &[SequenceFrame]),
+    ) {
         let estimator = config
-            .estimator(&robot, links.clone(), Temporal::Filter)
+            .estimator(robot, links.to_vec(), Temporal::Filter)
             .unwrap_or_else(|e| panic!("{e}"));
         let model = config
             .temporal_model(&estimator.surface, estimator.uses_patches())
@@ -287,17 +278,62 @@ mod tests {
                 tau: &f.tau,
             })
             .collect();
-        let mut whole = Vec::new();
         estimate_sequence_while(
             &estimator,
-            &robot,
+            robot,
             (Some(&model), Temporal::Filter),
             &sequence,
             || true,
-            |_, update, _| whole.push(FrameEstimate::of(&update, 0.0)),
+            |i, update, _| each(i, update),
             |_, _| false,
         )
         .unwrap_or_else(|e| panic!("{e}"));
+        after(&estimator, &sequence);
+    }
+
+    /// Every frame of generation `generation` that `worker` sends, until
+    /// it has sent `frames`.
+    fn collect_live(worker: &LiveFilterWorker, generation: u64, frames: usize) -> Vec<FrameEstimate> {
+        let mut live: Vec<Option<FrameEstimate>> = vec![None; frames];
+        let started = Instant::now();
+        while live.iter().any(Option::is_none) {
+            assert!(started.elapsed().as_secs() < 120, "the stream was not estimated");
+            for done in worker.drain().filter(|d| d.generation == generation) {
+                let estimate = done.estimate.unwrap_or_else(|e| panic!("frame {}: {e}", done.frame));
+                live[done.frame] = Some(estimate);
+            }
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        live.into_iter().flatten().collect()
+    }
+
+    /// Frames given in pieces as they "arrive" are estimated as the
+    /// filter estimates the whole recording: the same places, forces and
+    /// contact probabilities, frame by frame.
+    #[test]
+    fn a_stream_in_pieces_is_filtered_as_the_whole_recording() {
+        let (robot, links) = lwr(&["lwr_5_link", "lwr_6_link"]);
+        let settings = SynthSettings {
+            duration_secs: 2.0,
+            rate_hz: 25.0,
+            press_secs: (0.5, 0.8),
+            gap_secs: (0.2, 0.3),
+            ..SynthSettings::default()
+        };
+        let frames = frames_of(&robot, &links, &settings, 5);
+        assert_eq!(frames.len(), 50);
+        let config = EstimatorConfig {
+            surface_points: 600,
+            ..EstimatorConfig::default()
+        };
+        let mut whole = Vec::new();
+        filtered_whole(
+            (&robot, &links),
+            &config,
+            &frames,
+            |_, update| whole.push(FrameEstimate::of(&update, 0.0)),
+            |_, _| {},
+        );
 
         // The same frames arriving in pieces, after a first job that a
         // second replaces.
@@ -313,18 +349,7 @@ mod tests {
         worker.start(job(2, &frames[..12]));
         worker.append(frames[12..30].to_vec());
         worker.append(frames[30..].to_vec());
-        let mut live: Vec<Option<FrameEstimate>> = vec![None; frames.len()];
-        let started = Instant::now();
-        while live.iter().any(Option::is_none) {
-            assert!(started.elapsed().as_secs() < 120, "the stream was not estimated");
-            for done in worker.drain() {
-                if done.generation == 2 {
-                    let estimate = done.estimate.unwrap_or_else(|e| panic!("frame {}: {e}", done.frame));
-                    live[done.frame] = Some(estimate);
-                }
-            }
-            std::thread::sleep(std::time::Duration::from_millis(5));
-        }
+        let live = collect_live(&worker, 2, frames.len());
         assert_eq!(whole.len(), frames.len());
         let contacts = whole.iter().filter(|e| e.contact_probability > Some(0.5)).count();
         assert!(
@@ -332,7 +357,6 @@ mod tests {
             "{contacts} contact frames: the comparison would say little"
         );
         for (i, (w, l)) in whole.iter().zip(&live).enumerate() {
-            let l = l.as_ref().unwrap_or_else(|| panic!("frame {i}"));
             assert_eq!(l.point_world, w.point_world, "frame {i}");
             assert_eq!(l.force_world, w.force_world, "frame {i}");
             assert_eq!(l.contact_probability, w.contact_probability, "frame {i}");
@@ -345,12 +369,8 @@ mod tests {
     /// ([`crate::batch::pairs::session_pairs`]), frame by frame.
     #[test]
     fn a_second_contact_live_is_the_filtered_pass() {
-        use crate::batch::pairs::{PairSeen, SingleSeen, session_pairs};
-        let robot = Arc::new(crate::core::robot::builtin::lwr4plus_generated().unwrap_or_else(|e| panic!("{e}")));
-        let links: Vec<_> = ["lwr_5_link", "lwr_7_link"]
-            .iter()
-            .filter_map(|l| robot.link_id(l).ok())
-            .collect();
+        use crate::batch::pairs::{PairSeen, PairsOver, SingleSeen, session_pairs};
+        let (robot, links) = lwr(&["lwr_5_link", "lwr_7_link"]);
         let settings = SynthSettings {
             duration_secs: 3.0,
             rate_hz: 25.0,
@@ -361,86 +381,43 @@ mod tests {
             contacts_at_once: 2,
             ..SynthSettings::default()
         };
-        let frames: Vec<Frame> = synthesize(&robot, &links, &settings, 3)
-            .unwrap_or_else(|e| panic!("{e}"))
-            .into_iter()
-            .map(|f| Frame {
-                t: f.t_secs,
-                q: f.q,
-                tau: f.tau,
-                truth: Truth::Unknown,
-                truth_all: Vec::new(),
-            })
-            .collect();
+        let frames = frames_of(&robot, &links, &settings, 3);
         let config = EstimatorConfig {
             surface_points: 1500,
             contacts_at_once: 2,
             ..EstimatorConfig::default()
         };
-        let estimator = config
-            .estimator(&robot, links.clone(), Temporal::Filter)
-            .unwrap_or_else(|e| panic!("{e}"));
-        let model = config
-            .temporal_model(&estimator.surface, estimator.uses_patches())
-            .unwrap_or_else(|e| panic!("{e}"));
-        let positions: Vec<Vec<f64>> = frames
-            .iter()
-            .map(|f| robot.joint_positions(&f.q, &[]).unwrap_or_default())
-            .collect();
-        let sequence: Vec<SequenceFrame> = frames
-            .iter()
-            .zip(&positions)
-            .map(|(f, p)| SequenceFrame {
-                t_secs: f.t,
-                joint_positions: p,
-                tau: &f.tau,
-            })
-            .collect();
-        let mut singles = vec![None; frames.len()];
-        estimate_sequence_while(
-            &estimator,
-            &robot,
-            (Some(&model), Temporal::Filter),
-            &sequence,
-            || true,
-            |i, update, _| singles[i] = SingleSeen::of(&update),
-            |_, _| false,
-        )
-        .unwrap_or_else(|e| panic!("{e}"));
-        let whole: Vec<Option<PairSeen>> = session_pairs(
-            &estimator,
-            &robot,
-            &sequence,
-            &singles,
-            &config.pair,
-            crate::batch::pairs::PairsOver::Filtered(config.second_contact_chain()),
-        )
-        .unwrap_or_else(|(i, e)| panic!("frame {i}: {e}"))
-        .iter()
-        .map(|p| p.as_ref().map(PairSeen::of))
-        .collect();
+        // Written by the filter, read by the pass after it.
+        let singles = std::cell::RefCell::new(vec![None; frames.len()]);
+        let mut whole: Vec<Option<PairSeen>> = Vec::new();
+        filtered_whole(
+            (&robot, &links),
+            &config,
+            &frames,
+            |i, update| singles.borrow_mut()[i] = SingleSeen::of(&update),
+            |estimator, sequence| {
+                let over = PairsOver::Filtered(config.second_contact_chain());
+                whole = session_pairs(estimator, &robot, sequence, &singles.borrow(), &config.pair, over)
+                    .unwrap_or_else(|(i, e)| panic!("frame {i}: {e}"))
+                    .iter()
+                    .map(|p| p.as_ref().map(PairSeen::of))
+                    .collect();
+            },
+        );
         let worker = LiveFilterWorker::spawn(|| {});
         worker.start(LiveJob {
             generation: 1,
             robot: robot.clone(),
             frames: frames[..20].to_vec(),
-            config,
+            config: config.clone(),
             links,
         });
         worker.append(frames[20..].to_vec());
-        let mut live: Vec<Option<FrameEstimate>> = vec![None; frames.len()];
-        let started = Instant::now();
-        while live.iter().any(Option::is_none) {
-            assert!(started.elapsed().as_secs() < 120, "the stream was not estimated");
-            for done in worker.drain() {
-                live[done.frame] = Some(done.estimate.unwrap_or_else(|e| panic!("frame {}: {e}", done.frame)));
-            }
-            std::thread::sleep(std::time::Duration::from_millis(5));
-        }
+        let live = collect_live(&worker, 1, frames.len());
         let searched = whole.iter().filter(|p| p.is_some()).count();
         assert!(searched >= 5, "{searched} frames searched for a second contact");
         for (i, (w, l)) in whole.iter().zip(&live).enumerate() {
-            assert_eq!(l.as_ref().and_then(|l| l.second), *w, "frame {i}");
+            assert_eq!(l.second, *w, "frame {i}");
         }
     }
 }

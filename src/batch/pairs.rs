@@ -15,8 +15,9 @@ use crate::core::estimate::summary::Verdict;
 use crate::core::eval::metrics::percentile;
 use crate::core::over_time::frame::SequenceFrame;
 use crate::core::over_time::pairs::{ChainFilter, NO_PAIR_LOG_RATIO, PairTracker, SecondContactChain};
+use crate::core::over_time::sequence::Temporal;
 use crate::core::robot::model::{LinkId, Robot};
-use crate::io::session::ContactTruth;
+use crate::io::session::{ContactTruth, Frame};
 
 /// What the pair pass needs of a frame's single-contact estimate.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,7 +58,7 @@ impl FramePair {
     /// over the session, and identifiable.
     #[must_use]
     pub fn has_two(&self) -> bool {
-        self.pair.identifiable && self.probability_two > 0.5
+        self.pair.identifiable() && self.probability_two > 0.5
     }
 }
 
@@ -127,14 +128,27 @@ fn log_ratio(pair: Option<&PairEstimate>) -> f64 {
 /// How a session's frames are taken together for their second contacts.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum PairsOver {
-    /// Each frame alone: searched from the coarse grid, its probability
-    /// of two its own (as the app's frame on screen).
+    /// Each frame alone: searched from the coarse grid (as the app's
+    /// frame on screen is), its probability of two its own.
     Alone,
     /// Each frame from the frames before: the searches in order, the
     /// chain filtered (as [`LivePairs`]).
     Filtered(SecondContactChain),
     /// The whole session: the searches in order, the chain smoothed.
     Smoothed(SecondContactChain),
+}
+
+impl PairsOver {
+    /// As the single contacts are taken over time (`temporal`), with
+    /// `chain` where frames are taken together.
+    #[must_use]
+    pub fn of(temporal: Temporal, chain: SecondContactChain) -> Self {
+        match temporal {
+            Temporal::None => Self::Alone,
+            Temporal::Filter => Self::Filtered(chain),
+            Temporal::Smooth => Self::Smoothed(chain),
+        }
+    }
 }
 
 /// Each frame's two-contact account (`None` for frames without contact),
@@ -254,7 +268,8 @@ impl LivePairs {
     }
 
     /// The next frame's two-contact account (`None` where it is not
-    /// searched), given its single contact.
+    /// searched): the stream's `frame`, its joint positions in the
+    /// robot's order, and its single-contact `update`.
     ///
     /// # Errors
     /// The frame's search failing; the stream goes on from the next frame
@@ -263,10 +278,17 @@ impl LivePairs {
         &mut self,
         estimator: &Estimator,
         robot: &Robot,
-        frame: &SequenceFrame<'_>,
-        single: Option<SingleSeen>,
+        (frame, joint_positions): (&Frame, &[f64]),
+        update: &Update,
     ) -> Result<Option<FramePair>, EstimateError> {
-        let found = self.follower.search(estimator, robot, frame, single, &self.settings);
+        let frame = SequenceFrame {
+            t_secs: frame.t,
+            joint_positions,
+            tau: &frame.tau,
+        };
+        let found = self
+            .follower
+            .search(estimator, robot, &frame, SingleSeen::of(update), &self.settings);
         let pair = found.as_ref().ok().and_then(Option::as_ref);
         let probability_two = self.filter.push(frame.t_secs, log_ratio(pair));
         Ok(found?.map(|pair| FramePair { pair, probability_two }))

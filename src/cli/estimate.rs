@@ -425,12 +425,7 @@ fn second_contacts(
     sequence: &[SequenceFrame<'_>],
     singles: &[Option<SingleSeen>],
 ) -> Result<Vec<Option<FramePair>>, (usize, proprioscope::core::estimate::settings::EstimateError)> {
-    let chain = config.second_contact_chain();
-    let over = match temporal {
-        Temporal::None => PairsOver::Alone,
-        Temporal::Filter => PairsOver::Filtered(chain),
-        Temporal::Smooth => PairsOver::Smoothed(chain),
-    };
+    let over = PairsOver::of(temporal, config.second_contact_chain());
     session_pairs(estimator, robot, sequence, singles, &config.pair, over)
 }
 

@@ -8,11 +8,10 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
-use proprioscope::batch::pairs::{LivePairs, SingleSeen};
+use proprioscope::batch::pairs::LivePairs;
 use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot};
 use proprioscope::core::config::limits;
 use proprioscope::core::estimate::estimator::{Estimator, Update};
-use proprioscope::core::over_time::frame::SequenceFrame;
 use proprioscope::core::over_time::sequence::{SequenceError, StreamFilter, Temporal};
 use proprioscope::core::over_time::temporal::TemporalModel;
 use proprioscope::io::foxglove::painter::PairDrawn;
@@ -354,17 +353,10 @@ fn estimate_frame(
     };
     let single_ms = t0.elapsed().as_secs_f64() * 1e3;
     let pair = match live.pairs.as_mut() {
-        Some(pairs) => {
-            let at = SequenceFrame {
-                t_secs: frame.t,
-                joint_positions: &positions,
-                tau: &frame.tau,
-            };
-            pairs
-                .push(&live.estimator, &live.robot, &at, SingleSeen::of(&update))
-                .context("the second contact's search")?
-                .filter(proprioscope::batch::pairs::FramePair::has_two)
-        }
+        Some(pairs) => pairs
+            .push(&live.estimator, &live.robot, (frame, &positions), &update)
+            .context("the second contact's search")?
+            .filter(proprioscope::batch::pairs::FramePair::has_two),
         None => None,
     };
     // The frame's whole cost, its second contact's search included.

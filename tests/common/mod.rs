@@ -17,6 +17,15 @@ pub struct Ran {
     pub err: String,
 }
 
+/// The JSON lines of an `estimate --out` file, each parsed.
+pub fn json_lines(path: &std::path::Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
 /// Runs `proprioscope args…` in the repository root with `env` set.
 pub fn run_with_env(args: &[&str], env: &[(&str, &str)]) -> Ran {
     let mut command = Command::new(env!("CARGO_BIN_EXE_proprioscope"));

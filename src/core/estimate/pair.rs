@@ -131,12 +131,42 @@ pub struct PairEstimate {
     pub residual_chi2: f64,
     /// Sensed joints that feel either contact.
     pub sensing_joints: usize,
-    /// Whether the torques can tell the pair's six unknowns apart (see
-    /// the module docs).
-    pub identifiable: bool,
+    /// Why the torques cannot tell the pair's six unknowns apart (see the
+    /// module docs); `None` where they can.
+    pub unidentifiable: Option<Unidentifiable>,
+}
+
+/// Why a pair is not identifiable (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Unidentifiable {
+    /// Fewer than six sensed joints feel either contact.
+    FewJoints,
+    /// The two contacts' torques per newton point the same way.
+    SameTorques,
+    /// Both on one link where contacts have friction: one contact
+    /// pushing sideways makes the same torques but for one number.
+    OneLinkWithFriction,
+}
+
+impl Unidentifiable {
+    /// In words, for a pair felt by `sensing_joints` joints.
+    #[must_use]
+    pub fn describe(self, sensing_joints: usize) -> String {
+        match self {
+            Self::FewJoints => format!("{sensing_joints} joints sense the pair"),
+            Self::SameTorques => "its two pushes make the same torques".to_owned(),
+            Self::OneLinkWithFriction => "with friction, two on one link are one pushing sideways".to_owned(),
+        }
+    }
 }
 
 impl PairEstimate {
+    /// Whether the torques can tell the pair's six unknowns apart.
+    #[must_use]
+    pub fn identifiable(&self) -> bool {
+        self.unidentifiable.is_none()
+    }
+
     /// ln of the evidence ratio `Z₂ / Z₁` (without the prior).
     #[must_use]
     pub fn log_evidence_ratio(&self) -> f64 {
@@ -147,7 +177,7 @@ impl PairEstimate {
     /// one, and identifiable.
     #[must_use]
     pub fn has_two(&self) -> bool {
-        self.identifiable && self.probability_two > 0.5
+        self.identifiable() && self.probability_two > 0.5
     }
 }
 
@@ -635,9 +665,15 @@ pub fn estimate_pair(
     };
     let odds = (pair.prior_two / (1.0 - pair.prior_two)).ln() + log_evidence_two - log_evidence_one;
     let sensing_joints = sensing(posed, a.placed.link, b.placed.link);
-    let identifiable = sensing_joints >= 6
-        && weighted_cosine(&a.placed.torques, &b.placed.torques, &search.weights).abs() < COLLINEAR_COSINE
-        && !(settings.friction > 0.0 && a.placed.link == b.placed.link);
+    let unidentifiable = if sensing_joints < 6 {
+        Some(Unidentifiable::FewJoints)
+    } else if weighted_cosine(&a.placed.torques, &b.placed.torques, &search.weights).abs() >= COLLINEAR_COSINE {
+        Some(Unidentifiable::SameTorques)
+    } else if settings.friction > 0.0 && a.placed.link == b.placed.link {
+        Some(Unidentifiable::OneLinkWithFriction)
+    } else {
+        None
+    };
     let world = |k: usize| -> DVec3 {
         match (surface.link.get(k), surface.point_in_link.get(k)) {
             (Some(&link), Some(&p)) => pose.point_to_world(link, p),
@@ -668,7 +704,7 @@ pub fn estimate_pair(
         probability_two: logistic(odds),
         residual_chi2,
         sensing_joints,
-        identifiable,
+        unidentifiable,
     }))
 }
 

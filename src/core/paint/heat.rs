@@ -161,10 +161,9 @@ pub fn contacts_heat(pair: &PairEstimate, surface: &Surface, log_scale: bool, th
         "each contact given the other, per cm² ({})",
         if log_scale { "log" } else { "linear" }
     );
-    heat.legend.note = Some(if pair.identifiable {
-        format!("P(two contacts) = {:.2}", pair.probability_two)
-    } else {
-        format!("not identifiable ({} joints sense the pair)", pair.sensing_joints)
+    heat.legend.note = Some(match pair.unidentifiable {
+        None => format!("P(two contacts) = {:.2}", pair.probability_two),
+        Some(why) => format!("not identifiable ({})", why.describe(pair.sensing_joints)),
     });
     heat
 }
