@@ -10,8 +10,8 @@ mod common;
 use glam::DVec3;
 
 /// The figures of the `two contacts:` line: frames called two where both
-/// press and six or more joints feel them (%), median error (mm), frames
-/// called two where one presses (%).
+/// press and six or more joints feel them (%), median error (mm; NaN where
+/// none is called two), frames called two where one presses (%).
 fn two_contact_figures(out: &str) -> (f64, f64, f64) {
     let line = out
         .lines()
@@ -22,7 +22,12 @@ fn two_contact_figures(out: &str) -> (f64, f64, f64) {
         .filter_map(|w| w.parse().ok())
         .collect();
     // called, of, share (all; then where six or more joints feel the
-    // pair: called, of, share), error; called, of, share.
+    // pair: called, of, share), error (none where no frame is called
+    // two); called, of, share.
+    if line.contains("no error measured") {
+        assert_eq!(numbers.len(), 9, "{line}");
+        return (numbers[5], f64::NAN, numbers[8]);
+    }
     assert_eq!(numbers.len(), 10, "{line}");
     (numbers[5], numbers[6], numbers[9])
 }
@@ -91,6 +96,42 @@ fn the_shared_two_contact_example() {
     assert!(both >= 70.0, "{out}");
     assert!(error_mm <= 30.0, "{out}");
     assert!(one <= 2.0, "{out}");
+}
+
+/// The share of one-press frames called two (%), from the `two
+/// contacts:` line of a session where one contact presses at a time.
+fn one_press_share(out: &str) -> f64 {
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("two contacts: no frame where two press"))
+        .unwrap_or_else(|| panic!("no one-contact line in:\n{out}"));
+    let numbers: Vec<f64> = line
+        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    // called, of, share.
+    assert_eq!(numbers.len(), 3, "{line}");
+    numbers[2]
+}
+
+#[test]
+#[ignore = "needs ../shared"]
+fn one_push_on_the_shared_examples_is_seldom_called_two() {
+    // Measured (docs/validation.md, *Two contacts*): 0.0 % on each but the
+    // link 6 slide, 0.4 % there; before the confirmation by a contact's
+    // own joints, 5.0 %, 5.5 %, 29.6 % and 0.7 %.
+    for (name, most) in [
+        ("lwr4plus_dyn_example_link6", 2.0),
+        ("lwr4plus_slide_example_link4", 2.0),
+        ("lwr4plus_slide_example", 3.0),
+        ("lwr4plus_observer_example_link", 2.0),
+    ] {
+        let session = format!("../shared/sessions/{name}.session.json");
+        let (ok, out, err) = common::run_out(&["estimate", &session, "--contacts", "2", "--temporal", "smooth"]);
+        assert!(ok, "{name}: {err}");
+        let share = one_press_share(&out);
+        assert!(share <= most, "{name}: {share} %\n{out}");
+    }
 }
 
 #[test]

@@ -36,7 +36,13 @@
 //! (its pitch, the moment along its own force), so a pair there is one
 //! contact's friction, or a model error, told apart by that number alone
 //! (on the `../shared` observer link-side example, smoothed, 26 of its 35
-//! false pairs were on link 6 twice).
+//! false pairs were on link 6 twice). For the same reason, where contacts
+//! have friction, so is a pair whose contact farther out is not confirmed
+//! by its own joints (those that do not feel the other's link): where all
+//! of them, or all but one, read it within the noise, its torques fall on
+//! the other contact's joints, where that contact's friction frees two
+//! more unknowns (the false pairs of the `../shared` slides and dynamic
+//! link-6 example sat there).
 
 use glam::DVec3;
 
@@ -54,10 +60,21 @@ use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::LinkId;
 use crate::core::robot::torque::weighted_dot;
 
-/// Conditional searches after the single contact's: the second contact
-/// given the first, the first given the second, the second again. More
-/// rounds moved no place of the shared two-contact example.
+/// Conditional searches after the single contact's at most: the second
+/// contact given the first, the first given the second, the second
+/// again, until one is found where it was ([`PAIR_SETTLED_M`]).
 pub const PAIR_ROUNDS: usize = 7;
+
+/// The alternation ends once a contact found again lies within this of
+/// where it was found the round before on the same link, m: the polish
+/// on the continuous surface takes it from there.
+pub const PAIR_SETTLED_M: f64 = 0.005;
+
+/// Whether `now` is `before` found again: the same link, within
+/// [`PAIR_SETTLED_M`].
+fn settled(before: &Placed, now: &Placed) -> bool {
+    before.link == now.link && before.point_in_link.distance(now.point_in_link) <= PAIR_SETTLED_M
+}
 
 /// Rounds of the continuous polish of both places at most.
 pub const POLISH_ROUNDS: usize = 20;
@@ -146,6 +163,13 @@ pub enum Unidentifiable {
     /// Both on one link where contacts have friction: one contact
     /// pushing sideways makes the same torques but for one number.
     OneLinkWithFriction,
+    /// Where contacts have friction, a contact that its own joints (those
+    /// that do not feel the other contact's link) do not confirm: none of
+    /// them, or only one of several, reads it above the noise. Its
+    /// torques fall on the other contact's joints, where that contact's
+    /// friction frees two more unknowns: the pair is one contact pushing
+    /// sideways, or a model error, told apart by one reading or none.
+    Unconfirmed,
 }
 
 impl Unidentifiable {
@@ -156,6 +180,7 @@ impl Unidentifiable {
             Self::FewJoints => format!("{sensing_joints} joints sense the pair"),
             Self::SameTorques => "its two pushes make the same torques".to_owned(),
             Self::OneLinkWithFriction => "with friction, two on one link are one pushing sideways".to_owned(),
+            Self::Unconfirmed => "one push is not felt by the joints that only it moves".to_owned(),
         }
     }
 }
@@ -252,6 +277,13 @@ pub enum PairStart {
     },
     /// Both contacts as an earlier frame left them.
     Both(Box<[Placed; 2]>),
+}
+
+/// Where one search of a frame's pair begins: both places, or one
+/// place that the alternation starts from.
+enum Seed {
+    Pair([Placed; 2]),
+    From(Placed),
 }
 
 /// One contact with the other held: where, and ln of the one-contact
@@ -382,6 +414,25 @@ impl Search<'_> {
                 peak - samples_peak
             });
         log_evidence(single, self.ln_prior_norm) + peak_from_samples
+    }
+
+    /// Why the pair `a`, `b`, felt by `sensing_joints` sensed joints,
+    /// cannot be told apart by the torques (see the module docs).
+    fn unidentifiable(&self, sensing_joints: usize, a: &Placed, b: &Placed) -> Option<Unidentifiable> {
+        let friction = self.settings.friction > 0.0;
+        if sensing_joints < 6 {
+            Some(Unidentifiable::FewJoints)
+        } else if weighted_cosine(&a.torques, &b.torques, &self.weights).abs() >= COLLINEAR_COSINE {
+            Some(Unidentifiable::SameTorques)
+        } else if friction && a.link == b.link {
+            Some(Unidentifiable::OneLinkWithFriction)
+        } else if friction
+            && !(confirmed(self.posed, a, b, &self.weights) && confirmed(self.posed, b, a, &self.weights))
+        {
+            Some(Unidentifiable::Unconfirmed)
+        } else {
+            None
+        }
     }
 
     /// Sample `k` pushed with `f` newtons.
@@ -533,16 +584,24 @@ impl Search<'_> {
         let mut a = start;
         let mut b: Option<Placed> = None;
         for round in 0..PAIR_ROUNDS {
-            if round % 2 == 0 {
-                let Some(found) = self.conditional(&a)? else {
-                    return Ok(None);
-                };
-                b = Some(found.placed);
+            let (given, moving) = if round % 2 == 0 {
+                (&a, b.as_ref())
             } else if let Some(other) = &b {
-                let Some(found) = self.conditional(other)? else {
-                    return Ok(None);
-                };
+                (other, Some(&a))
+            } else {
+                break;
+            };
+            let Some(found) = self.conditional(given)? else {
+                return Ok(None);
+            };
+            let settled = round >= 2 && moving.is_some_and(|m| settled(m, &found.placed));
+            if round % 2 == 0 {
+                b = Some(found.placed);
+            } else {
                 a = found.placed;
+            }
+            if settled {
+                break;
             }
         }
         Ok(b.map(|b| [a, b]))
@@ -619,45 +678,47 @@ pub fn estimate_pair(
     // searched whole (a two-contact frame's single contact can lie on
     // neither push, and a search started there stays near it); the pair
     // with the larger evidence is kept.
-    // The starts are taken in the order given, and the search stops at
-    // the first whose pair explains the torques within the noise (a
-    // residual χ² no larger than the joints': what the noise alone gives
-    // on average): a pair followed from the last frame usually does.
+    // The starts are taken in the order given (the coarse pair's contacts
+    // one after the other), and the search stops at the first whose pair
+    // explains the torques within the noise (a residual χ² no larger
+    // than the joints': what the noise alone gives on average): a pair
+    // followed from the last frame usually does.
     let mut best: Option<(f64, f64, [Conditional; 2])> = None;
-    for start in starts_given {
-        let places: Vec<[Placed; 2]> = match start {
-            PairStart::Both(both) => vec![(**both).clone()],
-            PairStart::One { point, force_newtons } => search
-                .alternate(search.at_sample(*point, *force_newtons))?
-                .into_iter()
-                .collect(),
+    'starts: for start in starts_given {
+        let seeds: Vec<Seed> = match start {
+            PairStart::Both(both) => vec![Seed::Pair((**both).clone())],
+            PairStart::One { point, force_newtons } => vec![Seed::From(search.at_sample(*point, *force_newtons))],
             PairStart::Unknown => {
-                let mut seeds: Vec<(usize, f64)> = coarse_pair(posed, tau, &search.weights, search.force_range())
+                let coarse = coarse_pair(posed, tau, &search.weights, search.force_range());
+                let mut seeds: Vec<Seed> = coarse
                     .into_iter()
                     .flat_map(|(i, fi, j, fj)| [(i, fi), (j, fj)])
+                    .map(|(k, f)| Seed::From(search.at_sample(k, f)))
                     .collect();
                 if seeds.is_empty() {
-                    seeds.push((first, single.force_newtons.get(first).copied().unwrap_or(0.0)));
+                    let f = single.force_newtons.get(first).copied().unwrap_or(0.0);
+                    seeds.push(Seed::From(search.at_sample(first, f)));
                 }
-                let mut found = Vec::new();
-                for (k, f) in seeds {
-                    found.extend(search.alternate(search.at_sample(k, f))?);
-                }
-                found
+                seeds
             }
         };
-        for places in places {
-            if let Some((z, residual, pair)) = search.evaluate(places)?
+        for seed in seeds {
+            let places = match seed {
+                Seed::Pair(places) => Some(places),
+                Seed::From(one) => search.alternate(one)?,
+            };
+            if let Some(places) = places
+                && let Some((z, residual, pair)) = search.evaluate(places)?
                 && best.as_ref().is_none_or(|(top, ..)| z > *top)
             {
                 best = Some((z, residual, pair));
             }
-        }
-        if best
-            .as_ref()
-            .is_some_and(|(_, residual, _)| *residual <= tau.len() as f64)
-        {
-            break;
+            if best
+                .as_ref()
+                .is_some_and(|(_, residual, _)| *residual <= tau.len() as f64)
+            {
+                break 'starts;
+            }
         }
     }
     let Some((log_evidence_two, residual_chi2, [a, b])) = best else {
@@ -665,15 +726,7 @@ pub fn estimate_pair(
     };
     let odds = (pair.prior_two / (1.0 - pair.prior_two)).ln() + log_evidence_two - log_evidence_one;
     let sensing_joints = sensing(posed, a.placed.link, b.placed.link);
-    let unidentifiable = if sensing_joints < 6 {
-        Some(Unidentifiable::FewJoints)
-    } else if weighted_cosine(&a.placed.torques, &b.placed.torques, &search.weights).abs() >= COLLINEAR_COSINE {
-        Some(Unidentifiable::SameTorques)
-    } else if settings.friction > 0.0 && a.placed.link == b.placed.link {
-        Some(Unidentifiable::OneLinkWithFriction)
-    } else {
-        None
-    };
+    let unidentifiable = search.unidentifiable(sensing_joints, &a.placed, &b.placed);
     let world = |k: usize| -> DVec3 {
         match (surface.link.get(k), surface.point_in_link.get(k)) {
             (Some(&link), Some(&p)) => pose.point_to_world(link, p),
@@ -720,18 +773,21 @@ pub fn log_evidence(posterior: &Posterior, ln_prior_norm: f64) -> f64 {
     }
 }
 
-/// Pairs of the coarse grid the search starts from (each from either
-/// contact). Starts from the best three pairs were tried: on ten firm
-/// pushes on links 5 and 7 they found no more pairs, and no nearer.
-pub const COARSE_STARTS: usize = 1;
+/// A joint feels a contact when the contact's torque there is at least
+/// this many noise σ. The false second contacts of the `../shared`
+/// link-4 slide sat on link 6 where joints 5 and 6 read 0.1–0.2 σ of
+/// them: pairs that their own joints do not confirm.
+pub const FELT_SIGMAS: f64 = 1.0;
 
 /// Samples of the coarse grid the pair search starts from.
 pub const COARSE_SAMPLES: usize = 256;
 
-/// The best [`COARSE_STARTS`] pairs `(i, f_i, j, f_j)`, best first, of
-/// an evenly strided subset of the samples (at most [`COARSE_SAMPLES`]), every pair tried with both
+/// The best pair `(i, f_i, j, f_j)` of an evenly strided subset of the
+/// samples (at most [`COARSE_SAMPLES`]), every pair tried with both
 /// magnitudes fitted within `force_range` (least squares in the noise's
-/// metric, the box's edges where the free optimum lies outside).
+/// metric, the box's edges where the free optimum lies outside). Starts
+/// from the best three pairs were tried: on ten firm pushes on links 5
+/// and 7 they found no more pairs, and no nearer.
 fn coarse_pair(
     posed: &PosedSurface<'_>,
     tau: &[f64],
@@ -745,33 +801,66 @@ fn coarse_pair(
         return Vec::new();
     }
     let points: Vec<usize> = (0..m).map(|i| i * n / m).collect();
-    let units: Vec<Vec<f64>> = points
-        .iter()
-        .map(|&k| {
-            let mut u = vec![0.0; joints];
-            posed.unit_torques_into(k, &mut u);
-            // Scaled by √w: plain dot products below.
-            u.iter_mut().zip(weights).for_each(|(x, w)| *x *= w.sqrt());
-            u
-        })
-        .collect();
-    let t: Vec<f64> = tau.iter().zip(weights).map(|(x, w)| x * w.sqrt()).collect();
-    let dot = |p: &[f64], q: &[f64]| -> f64 { p.iter().zip(q).map(|(x, y)| x * y).sum() };
-    let a: Vec<f64> = units.iter().map(|u| dot(u, u)).collect();
-    let b: Vec<f64> = units.iter().map(|u| dot(u, &t)).collect();
-    let mut best: Vec<(f64, usize, f64, usize, f64)> = Vec::with_capacity(COARSE_STARTS + 1);
+    // The samples' torques per newton scaled by √w (plain dot products
+    // below), a column per joint: one sample's dot products with all
+    // later ones run down the columns.
+    let roots: Vec<f64> = weights.iter().map(|w| w.sqrt()).collect();
+    let mut columns = vec![vec![0.0; m]; joints];
+    let mut u = vec![0.0; joints];
+    for (slot, &k) in points.iter().enumerate() {
+        posed.unit_torques_into(k, &mut u);
+        for ((column, x), root) in columns.iter_mut().zip(&u).zip(&roots) {
+            if let Some(cell) = column.get_mut(slot) {
+                *cell = x * root;
+            }
+        }
+    }
+    let t: Vec<f64> = tau.iter().zip(&roots).map(|(x, root)| x * root).collect();
+    // Σ over the joints, in their order, of `f(column)` for every sample.
+    let per_sample = |f: &dyn Fn(usize, &[f64]) -> Vec<f64>| -> Vec<f64> {
+        columns
+            .iter()
+            .enumerate()
+            .fold(vec![0.0; m], |mut sum, (joint, column)| {
+                sum.iter_mut().zip(f(joint, column)).for_each(|(s, x)| *s += x);
+                sum
+            })
+    };
+    let a = per_sample(&|_, column| column.iter().map(|x| x * x).collect());
+    let b = per_sample(&|joint, column| {
+        let tj = t.get(joint).copied().unwrap_or(0.0);
+        column.iter().map(|x| x * tj).collect()
+    });
+    let mut c = vec![0.0; m];
+    let mut best: Option<(f64, usize, f64, usize, f64)> = None;
     for i in 0..m {
-        for j in i + 1..m {
-            let (Some(ui), Some(uj)) = (units.get(i), units.get(j)) else {
+        let later = i + 1..m;
+        let (Some(c_later), Some(&ai), Some(&bi)) = (c.get_mut(later.clone()), a.get(i), b.get(i)) else {
+            continue;
+        };
+        c_later.fill(0.0);
+        for column in &columns {
+            let (Some(&x), Some(ys)) = (column.get(i), column.get(later.clone())) else {
                 continue;
             };
-            let (ai, aj, bi, bj) = (a[i], a[j], b[i], b[j]);
-            let c = dot(ui, uj);
-            let (fi, fj, gain) = best_magnitudes([ai, c, aj], [bi, bj], force_range);
-            if best.len() < COARSE_STARTS || best.last().is_some_and(|(g, ..)| gain > *g) {
-                let at = best.partition_point(|(g, ..)| *g >= gain);
-                best.insert(at, (gain, points[i], fi, points[j], fj));
-                best.truncate(COARSE_STARTS);
+            c_later.iter_mut().zip(ys).for_each(|(cj, y)| *cj += x * y);
+        }
+        let later_samples = a.iter().zip(&b).skip(i + 1).zip(c_later.iter());
+        for (j, ((&aj, &bj), &cij)) in (i + 1..).zip(later_samples) {
+            // The free optimum's gain `bᵀH⁻¹b` bounds the box's: a pair
+            // that cannot beat the best so far is not fitted.
+            let det = ai * aj - cij * cij;
+            if let Some((top, ..)) = best
+                && det > 1e-12 * (ai * aj).max(f64::MIN_POSITIVE)
+                && (bi * bi * aj - 2.0 * bi * bj * cij + bj * bj * ai) / det < top - 1e-9 * top.abs().max(1.0)
+            {
+                continue;
+            }
+            let (fi, fj, gain) = best_magnitudes([ai, cij, aj], [bi, bj], force_range);
+            if best.is_none_or(|(top, ..)| gain > top)
+                && let (Some(&pi), Some(&pj)) = (points.get(i), points.get(j))
+            {
+                best = Some((gain, pi, fi, pj, fj));
             }
         }
     }
@@ -818,6 +907,33 @@ fn sensing(posed: &PosedSurface<'_>, a: LinkId, b: LinkId) -> usize {
         }
     }
     felt.iter().filter(|&&f| f).count()
+}
+
+/// Whether `one`'s own joints (those that do not feel `other`'s link)
+/// confirm it: at least one, and all but one at most, read it above the
+/// noise ([`FELT_SIGMAS`], `weights` = 1/σ²). True where it has no such
+/// joint (a link nearer the base). Each own joint that reads nothing of
+/// it is a constraint it happens to meet: two of them leave it one free
+/// unknown, spent on the other contact's joints.
+fn confirmed(posed: &PosedSurface<'_>, one: &Placed, other: &Placed, weights: &[f64]) -> bool {
+    let joints = |link: LinkId| -> Vec<usize> {
+        posed
+            .torque_model
+            .twists(link)
+            .iter()
+            .map(|twist| twist.sensed_index)
+            .collect()
+    };
+    let theirs = joints(other.link);
+    let own: Vec<usize> = joints(one.link).into_iter().filter(|j| !theirs.contains(j)).collect();
+    let felt = own
+        .iter()
+        .filter(|&&j| match (one.torques.get(j), weights.get(j)) {
+            (Some(t), Some(w)) => t.abs() * w.sqrt() >= FELT_SIGMAS,
+            _ => false,
+        })
+        .count();
+    own.is_empty() || (felt >= 1 && own.len() - felt <= 1)
 }
 
 /// `⟨x, y⟩ / (|x| |y|)` in the metric `Σ w x y` (0 for a zero vector).

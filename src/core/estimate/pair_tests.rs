@@ -396,3 +396,104 @@ fn a_pair_on_one_link_is_not_identifiable_with_friction() {
     assert_eq!(with_friction.unidentifiable, Some(Unidentifiable::OneLinkWithFriction));
     assert!(!with_friction.has_two());
 }
+
+/// A contact at `link` whose torques are `sigmas` noise σ on each joint.
+fn placed_with(s: &Scene, link: &str, sigmas: [f64; 7]) -> Placed {
+    Placed {
+        point: 0,
+        link: s.robot.link_id(link).unwrap(),
+        location: None,
+        point_in_link: DVec3::ZERO,
+        inward_normal_in_link: DVec3::X,
+        force_newtons: 10.0,
+        torques: sigmas.iter().map(|x| x * SIGMA).collect(),
+    }
+}
+
+#[test]
+fn a_push_its_own_joints_do_not_feel_is_unconfirmed() {
+    let s = scene();
+    let posed = PosedSurface {
+        torque_model: &s.torque_model,
+        surface: &s.surface,
+    };
+    let weights = EstimatorSettings::exact(vec![SIGMA; 7]).weights();
+    let check = |one: &Placed, other: &Placed| confirmed(&posed, one, other, &weights);
+    let near = placed_with(&s, "lwr_4_link", [20.0, 90.0, 8.0, 3.0, 0.0, 0.0, 0.0]);
+    // Link 6 beyond link 4: joints 5 and 6 are its own. The false pairs
+    // of the shared link-4 slide read 0.1–0.2 σ there.
+    let ghost = placed_with(&s, "lwr_6_link", [2.0, 8.0, 3.0, 6.0, -0.2, 0.1, 0.0]);
+    assert!(!check(&ghost, &near));
+    // A link nearer the base has no joint of its own to confirm it.
+    assert!(check(&near, &ghost));
+    // One own joint of two that reads it is enough; a push through an
+    // axis leaves the other at nothing.
+    let felt_once = placed_with(&s, "lwr_6_link", [2.0, 8.0, 3.0, 6.0, -1.5, 0.1, 0.0]);
+    assert!(check(&felt_once, &near));
+    // Link 7 beyond link 3 has four own joints (4 to 7): read on one of
+    // them only, it is not confirmed; on three, it is.
+    let far = placed_with(&s, "lwr_3_link", [20.0, 90.0, 8.0, 0.0, 0.0, 0.0, 0.0]);
+    let once = placed_with(&s, "lwr_7_link", [2.0, 8.0, 3.0, 6.0, 0.3, 0.2, 0.1]);
+    assert!(!check(&once, &far));
+    let thrice = placed_with(&s, "lwr_7_link", [2.0, 8.0, 3.0, 6.0, 2.0, 0.2, -4.0]);
+    assert!(check(&thrice, &far));
+}
+
+/// Every pair of the coarse grid fitted, the best kept: what
+/// [`coarse_pair`] gives without its bound.
+fn coarse_pair_of_all(
+    posed: &PosedSurface<'_>,
+    tau: &[f64],
+    weights: &[f64],
+    range: (f64, f64),
+) -> (usize, usize, f64) {
+    let n = posed.points();
+    let m = n.min(COARSE_SAMPLES);
+    let points: Vec<usize> = (0..m).map(|i| i * n / m).collect();
+    let scaled = |k: usize| -> Vec<f64> {
+        let mut u = vec![0.0; posed.joints()];
+        posed.unit_torques_into(k, &mut u);
+        u.iter().zip(weights).map(|(x, w)| x * w.sqrt()).collect()
+    };
+    let units: Vec<Vec<f64>> = points.iter().map(|&k| scaled(k)).collect();
+    let t: Vec<f64> = tau.iter().zip(weights).map(|(x, w)| x * w.sqrt()).collect();
+    let dot = |p: &[f64], q: &[f64]| -> f64 { p.iter().zip(q).map(|(x, y)| x * y).sum() };
+    let mut best = (0, 0, f64::NEG_INFINITY);
+    for i in 0..m {
+        for j in i + 1..m {
+            let h = [
+                dot(&units[i], &units[i]),
+                dot(&units[i], &units[j]),
+                dot(&units[j], &units[j]),
+            ];
+            let (_, _, gain) = best_magnitudes(h, [dot(&units[i], &t), dot(&units[j], &t)], range);
+            if gain > best.2 {
+                best = (points[i], points[j], gain);
+            }
+        }
+    }
+    best
+}
+
+#[test]
+fn the_coarse_grid_keeps_the_best_of_every_pair() {
+    let s = scene();
+    let posed = PosedSurface {
+        torque_model: &s.torque_model,
+        surface: &s.surface,
+    };
+    let settings = EstimatorSettings::exact(vec![SIGMA; 7]);
+    let weights = settings.weights();
+    let range = (settings.force_min_newtons, settings.force_max_newtons);
+    for (nth, (a, b, tau)) in two_push_frames(&s).into_iter().enumerate() {
+        // Two pushes, one push, and noise alone.
+        let one = s.torques(&[(a, 15.0)], 100 + nth as u64);
+        let none = s.torques(&[(b, 0.0)], 200 + nth as u64);
+        for tau in [tau, one, none] {
+            let found = coarse_pair(&posed, &tau, &weights, range);
+            let (i, j, _) = coarse_pair_of_all(&posed, &tau, &weights, range);
+            assert_eq!(found.len(), 1);
+            assert_eq!((found[0].0, found[0].2), (i, j), "frame {nth}");
+        }
+    }
+}
