@@ -6,9 +6,11 @@
 //! chain filtered ([`LivePairs`]); frames alone, each searched on its own
 //! ([`PairsOver`]).
 
+use std::time::Instant;
+
 use glam::DVec3;
 
-use crate::core::estimate::estimator::{Estimator, Update};
+use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms};
 use crate::core::estimate::pair::{PairEstimate, PairSettings};
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Verdict;
@@ -182,8 +184,31 @@ pub fn session_pairs_while(
     over: PairsOver,
     keep_going: impl Fn() -> bool,
 ) -> Result<Option<Vec<Option<FramePair>>>, (usize, EstimateError)> {
+    session_pairs_timed(estimator, robot, frames, singles, pair_settings, over, keep_going)
+        .map(|found| found.map(|(pairs, _)| pairs))
+}
+
+/// Each frame's two-contact account and its search time, ms.
+pub type TimedPairs = (Vec<Option<FramePair>>, Vec<f64>);
+
+/// [`session_pairs_while`], with each frame's search time, ms (next to nothing for a
+/// frame not searched): what a frame's update costs under the
+/// two-contact model beyond its single contact's.
+///
+/// # Errors
+/// A frame whose search fails, with its number.
+pub fn session_pairs_timed(
+    estimator: &Estimator,
+    robot: &Robot,
+    frames: &[SequenceFrame<'_>],
+    singles: &[Option<SingleSeen>],
+    pair_settings: &PairSettings,
+    over: PairsOver,
+    keep_going: impl Fn() -> bool,
+) -> Result<Option<TimedPairs>, (usize, EstimateError)> {
     let mut follower = PairFollower::new();
     let mut found = Vec::with_capacity(frames.len());
+    let mut search_ms = Vec::with_capacity(frames.len());
     for (i, (frame, &single)) in frames.iter().zip(singles).enumerate() {
         if !keep_going() {
             return Ok(None);
@@ -192,11 +217,13 @@ pub fn session_pairs_while(
             // Nothing carries over from the frame before.
             follower = PairFollower::new();
         }
+        let t0 = Instant::now();
         found.push(
             follower
                 .search(estimator, robot, frame, single, pair_settings)
                 .map_err(|e| (i, e))?,
         );
+        search_ms.push(elapsed_ms(t0));
     }
     let times: Vec<f64> = frames.iter().map(|f| f.t_secs).collect();
     let ratios: Vec<f64> = found.iter().map(|p| log_ratio(p.as_ref())).collect();
@@ -208,13 +235,12 @@ pub fn session_pairs_while(
         PairsOver::Filtered(chain) => chain.filter(&times, &ratios, pair_settings.prior_two),
         PairsOver::Smoothed(chain) => chain.smooth(&times, &ratios, pair_settings.prior_two),
     };
-    Ok(Some(
-        found
-            .into_iter()
-            .zip(probabilities)
-            .map(|(pair, probability_two)| pair.map(|pair| FramePair { pair, probability_two }))
-            .collect(),
-    ))
+    let pairs = found
+        .into_iter()
+        .zip(probabilities)
+        .map(|(pair, probability_two)| pair.map(|pair| FramePair { pair, probability_two }))
+        .collect();
+    Ok(Some((pairs, search_ms)))
 }
 
 /// What the app's timeline keeps of a frame's two-contact account.

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result};
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
-use proprioscope::batch::pairs::{FramePair, PairScore, PairsOver, SingleSeen, session_pairs};
+use proprioscope::batch::pairs::{FramePair, PairScore, PairsOver, SingleSeen, TimedPairs, session_pairs_timed};
 use proprioscope::batch::{FrameEstimate, frame_outcome, session_robot, truth_in_link};
 use proprioscope::core::config::estimator::{EstimatorConfig, Friction};
 use proprioscope::core::config::limits;
@@ -354,10 +354,22 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     written?;
     bar.finish_and_clear();
     if two_contacts {
-        let pairs = args
+        let (pairs, search_ms) = args
             .estimator
             .with_threads(|| second_contacts(&estimator, &robot, &config, temporal, &sequence, &singles))?
             .map_err(|(n, e)| anyhow::anyhow!("{}: frame {n}: {e}", session.path.display()))?;
+        // A frame's update under the two-contact model includes its
+        // search, as live.
+        for (n, search) in search_ms.iter().enumerate() {
+            if let Some(ms) = times_ms.get_mut(n) {
+                *ms += search;
+            }
+            if let Some(line) = pending.get_mut(n)
+                && let Some(update_ms) = line.get("update_ms").and_then(serde_json::Value::as_f64)
+            {
+                line["update_ms"] = serde_json::json!(update_ms + search);
+            }
+        }
         write_with_second_contacts(&robot, &session, &pairs, (&mut pending, &mut messages), out.as_mut())?;
     }
     if let Some(out) = out {
@@ -413,10 +425,11 @@ fn report_slides(paths: &[SlidePath]) -> Result<()> {
     Ok(())
 }
 
-/// The session's second contacts ([`session_pairs`]), the frames taken
-/// together as the single contacts are: each alone, filtered (each from
-/// the frames before, as live) or smoothed, the chain with the temporal
-/// model's onset and release rates.
+/// The session's second contacts ([`session_pairs_timed`]), the frames
+/// taken together as the single contacts are: each alone, filtered (each
+/// from the frames before, as live) or smoothed, the chain with the
+/// temporal model's onset and release rates; with each frame's search
+/// time, ms.
 fn second_contacts(
     estimator: &Estimator,
     robot: &Robot,
@@ -424,9 +437,9 @@ fn second_contacts(
     temporal: Temporal,
     sequence: &[SequenceFrame<'_>],
     singles: &[Option<SingleSeen>],
-) -> Result<Vec<Option<FramePair>>, (usize, proprioscope::core::estimate::settings::EstimateError)> {
+) -> Result<TimedPairs, (usize, proprioscope::core::estimate::settings::EstimateError)> {
     let over = PairsOver::of(temporal, config.second_contact_chain());
-    session_pairs(estimator, robot, sequence, singles, &config.pair, over)
+    session_pairs_timed(estimator, robot, sequence, singles, &config.pair, over, || true).map(Option::unwrap_or_default)
 }
 
 /// The session's frames as the sequence takes them.
@@ -619,8 +632,9 @@ fn report(session: &Session, verdicts: &[usize; 3], times_ms: &[f64], called: &[
     } else {
         let mean = times_ms.iter().sum::<f64>() / times_ms.len() as f64;
         outln!(
-            "update time: mean {mean:.3} ms, median {:.3} ms",
-            percentile(times_ms, 0.5)
+            "update time: mean {mean:.3} ms, median {:.3} ms, p99 {:.3} ms",
+            percentile(times_ms, 0.5),
+            percentile(times_ms, 0.99)
         );
     }
     let truth: Vec<Option<bool>> = session.frames.iter().map(|f| f.truth.has_contact()).collect();
