@@ -49,7 +49,7 @@ fn a_second_push_that_joins_the_first_is_found() {
     assert!(ok, "{err}");
     let (both, error_mm, one) = two_contact_figures(&out);
     // Measured: 72.5 % (the frames whose single contact is poorly
-    // explained), 6.8 mm, 0 % (docs/validation.md, *Two contacts*).
+    // explained), 7.3 mm, 0 % (docs/validation.md, *Two contacts*).
     assert!(
         both >= 65.0,
         "two contacts in {both} % of the frames where both press\n{out}"
@@ -92,7 +92,7 @@ fn the_shared_two_contact_example() {
     ]);
     assert!(ok, "{err}");
     let (both, error_mm, one) = two_contact_figures(&out);
-    // Measured: 74.7 %, 26.5 mm, 0.0 % (docs/validation.md, *Two contacts*).
+    // Measured: 74.7 %, 26.9 mm, 0.0 % (docs/validation.md, *Two contacts*).
     assert!(both >= 70.0, "{out}");
     assert!(error_mm <= 30.0, "{out}");
     assert!(one <= 2.0, "{out}");
