@@ -28,7 +28,11 @@
 //!
 //! Two contacts have six unknowns (two surface coordinates and a
 //! magnitude each). Where fewer than six sensed joints feel either of
-//! them, or their torques per newton point the same way, the pair is
+//! them, fewer than three feel one of them (its three unknowns then take
+//! up any torques on its joints: on the `../shared` observer link-side
+//! example, filtered, 119 of 123 false pairs put a push on link 1 or 2 to
+//! take up the model error there), or their torques per newton point the
+//! same way, the pair is
 //! [`PairEstimate::identifiable`] `false`: the report says so rather than
 //! call it a confident pair. So is a pair on one link where contacts have
 //! friction (μ > 0): the joints feel only the link's net wrench, and one
@@ -158,6 +162,13 @@ pub struct PairEstimate {
 pub enum Unidentifiable {
     /// Fewer than six sensed joints feel either contact.
     FewJoints,
+    /// One contact's link is felt by fewer than three sensed joints: its
+    /// place and magnitude (three unknowns) take up any torques there,
+    /// as a model error near the base.
+    FewJointsForOne {
+        /// Sensed joints that feel that contact's link.
+        joints: usize,
+    },
     /// The two contacts' torques per newton point the same way.
     SameTorques,
     /// Both on one link where contacts have friction: one contact
@@ -178,6 +189,7 @@ impl Unidentifiable {
     pub fn describe(self, sensing_joints: usize) -> String {
         match self {
             Self::FewJoints => format!("{sensing_joints} joints sense the pair"),
+            Self::FewJointsForOne { joints } => format!("one push is felt by {joints} joints only"),
             Self::SameTorques => "its two pushes make the same torques".to_owned(),
             Self::OneLinkWithFriction => "with friction, two on one link are one pushing sideways".to_owned(),
             Self::Unconfirmed => "one push is not felt by the joints that only it moves".to_owned(),
@@ -420,8 +432,11 @@ impl Search<'_> {
     /// cannot be told apart by the torques (see the module docs).
     fn unidentifiable(&self, sensing_joints: usize, a: &Placed, b: &Placed) -> Option<Unidentifiable> {
         let friction = self.settings.friction > 0.0;
+        let fewest = sensing(self.posed, a.link, a.link).min(sensing(self.posed, b.link, b.link));
         if sensing_joints < 6 {
             Some(Unidentifiable::FewJoints)
+        } else if fewest < 3 {
+            Some(Unidentifiable::FewJointsForOne { joints: fewest })
         } else if weighted_cosine(&a.torques, &b.torques, &self.weights).abs() >= COLLINEAR_COSINE {
             Some(Unidentifiable::SameTorques)
         } else if friction && a.link == b.link {

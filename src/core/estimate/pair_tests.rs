@@ -497,3 +497,35 @@ fn the_coarse_grid_keeps_the_best_of_every_pair() {
         }
     }
 }
+
+#[test]
+fn a_push_on_a_link_two_joints_feel_is_not_placed_in_a_pair() {
+    let s = scene();
+    let posed = PosedSurface {
+        torque_model: &s.torque_model,
+        surface: &s.surface,
+    };
+    let settings = EstimatorSettings::exact(vec![SIGMA; 7]);
+    let pair_settings = PairSettings::default();
+    let tau = vec![0.0; 7];
+    let search = Search {
+        posed: &posed,
+        tau: &tau,
+        settings: &settings,
+        hierarchy: None,
+        pair: &pair_settings,
+        weights: settings.weights(),
+        ln_prior_norm: 0.0,
+    };
+    let why = |a: &Placed, b: &Placed| search.unidentifiable(sensing(&posed, a.link, b.link), a, b);
+    // The false pairs of the shared observer link-side example, filtered:
+    // a push on link 2 taking up the model error of joints 1 and 2 beside
+    // the probe on link 6.
+    let base = placed_with(&s, "lwr_2_link", [40.0, -60.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    let probe = placed_with(&s, "lwr_6_link", [10.0, 30.0, -20.0, 15.0, 8.0, 5.0, 0.0]);
+    assert_eq!(why(&base, &probe), Some(Unidentifiable::FewJointsForOne { joints: 2 }));
+    assert_eq!(why(&probe, &base), Some(Unidentifiable::FewJointsForOne { joints: 2 }));
+    // Link 3 is felt by three joints: its pair with the probe stands.
+    let third = placed_with(&s, "lwr_3_link", [40.0, -60.0, 25.0, 0.0, 0.0, 0.0, 0.0]);
+    assert_eq!(why(&third, &probe), None);
+}
