@@ -166,6 +166,33 @@ fn a_point_away_from_both_is_not_a_match() {
     );
 }
 
+#[test]
+fn each_contact_is_scored_beside_the_other_and_alone() {
+    let mut score = proprioscope::batch::pairs::PairScore::default();
+    let truth = |link: &str, x: f64| proprioscope::io::session::ContactTruth {
+        link: link.into(),
+        point: [x, 0.0, 0.0],
+        force: [0.0; 3],
+    };
+    // Both press and two are called: the estimates are matched crosswise.
+    score.add(
+        &[truth("a", 0.0), truth("b", 1.0)],
+        7,
+        Some([DVec3::new(1.03, 0.0, 0.0), DVec3::new(0.01, 0.0, 0.0)]),
+    );
+    // Each alone, its single contact 2 and 5 cm off; a frame without a
+    // single contact and one where both press are not scored alone.
+    score.add_single(&[truth("a", 0.0)], Some(DVec3::new(0.02, 0.0, 0.0)));
+    score.add_single(&[truth("b", 1.0)], Some(DVec3::new(1.05, 0.0, 0.0)));
+    score.add_single(&[truth("b", 1.0)], None);
+    score.add_single(&[truth("a", 0.0), truth("b", 1.0)], Some(DVec3::ZERO));
+    let medians = |link: &str| score.by_link[link].medians_m();
+    let close = |(x, y): (f64, f64), (u, v): (f64, f64)| (x - u).abs() < 1e-12 && (y - v).abs() < 1e-12;
+    assert!(close(medians("a"), (0.01, 0.02)), "{:?}", score.by_link);
+    assert!(close(medians("b"), (0.03, 0.05)), "{:?}", score.by_link);
+    assert_eq!(score.by_link["b"].alone_m.len(), 1);
+}
+
 /// `synth --contacts 2` writes a session where a second hand presses with
 /// the first (every true contact in `truth_all`), and `estimate --contacts
 /// 2` on it calls no second contact where one presses, keeps detecting

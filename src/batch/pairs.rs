@@ -6,6 +6,7 @@
 //! chain filtered ([`LivePairs`]); frames alone, each searched on its own
 //! ([`PairsOver`]).
 
+use std::collections::BTreeMap;
 use std::time::Instant;
 
 use glam::DVec3;
@@ -348,6 +349,29 @@ pub struct PairScore {
     /// distance from the estimate matched to it, m (truths matched to
     /// estimates by the smaller total distance).
     pub both_errors_m: Vec<f64>,
+    /// Each true contact's errors by its link's name: where both press
+    /// and two are called, and where it presses alone.
+    pub by_link: BTreeMap<String, LinkErrors>,
+}
+
+/// One link's true contacts' errors, m.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LinkErrors {
+    /// Where another contact presses too and two are called: its
+    /// distance from the estimate matched to it.
+    pub with_other_m: Vec<f64>,
+    /// Where it presses alone: its distance from the single contact.
+    pub alone_m: Vec<f64>,
+}
+
+impl LinkErrors {
+    /// The medians of [`LinkErrors::with_other_m`] and
+    /// [`LinkErrors::alone_m`], m (NaN without any).
+    #[must_use]
+    pub fn medians_m(&self) -> (f64, f64) {
+        let median = |v: &[f64]| if v.is_empty() { f64::NAN } else { percentile(v, 0.5) };
+        (median(&self.with_other_m), median(&self.alone_m))
+    }
 }
 
 impl PairScore {
@@ -362,6 +386,7 @@ impl PairScore {
                 self.one_called_two += usize::from(two.is_some());
             }
             [a, b] => {
+                let both_truths = [a, b];
                 self.both_frames += 1;
                 let identifiable = sensing_joints >= 6;
                 self.both_identifiable += usize::from(identifiable);
@@ -377,9 +402,26 @@ impl PairScore {
                         crossed
                     };
                     self.both_errors_m.extend(pick);
+                    for (truth, error) in both_truths.into_iter().zip(pick) {
+                        self.by_link
+                            .entry(truth.link.clone())
+                            .or_default()
+                            .with_other_m
+                            .push(error);
+                    }
                 }
             }
             _ => {}
+        }
+    }
+
+    /// Adds a frame's single contact (its world point, `None` where no
+    /// contact is called) against its true contacts: scored where one
+    /// presses alone.
+    pub fn add_single(&mut self, truths: &[ContactTruth], single: Option<DVec3>) {
+        if let ([truth], Some(point)) = (truths, single) {
+            let error = DVec3::from_array(truth.point).distance(point);
+            self.by_link.entry(truth.link.clone()).or_default().alone_m.push(error);
         }
     }
 

@@ -299,6 +299,8 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     let mut written: Result<()> = Ok(());
     let two_contacts = config.contacts_at_once >= 2;
     let (mut singles, mut pending, mut messages) = (Vec::new(), Vec::new(), Vec::new());
+    // Each frame's single contact (world point), scored where one presses.
+    let mut single_points = Vec::new();
     args.estimator.with_threads(|| {
         estimate_sequence(
             &estimator,
@@ -328,6 +330,8 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
                 if two_contacts {
                     // The frame's output waits for the session's second contacts.
                     singles.push(SingleSeen::of(&update));
+                    single_points
+                        .push((update.summary.verdict != Verdict::NoContact).then_some(update.summary.map.point_world));
                     if let Some(w) = out.as_mut().filter(|o| o.is_mcap()) {
                         let q = positions.get(n).map_or(&[][..], Vec::as_slice);
                         messages.push(w.message(&estimator, &robot, (frame, q), &update, origin_ns.unwrap_or(0)));
@@ -370,7 +374,13 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
                 line["update_ms"] = serde_json::json!(update_ms + search);
             }
         }
-        write_with_second_contacts(&robot, &session, &pairs, (&mut pending, &mut messages), out.as_mut())?;
+        write_with_second_contacts(
+            &robot,
+            &session,
+            (&pairs, &single_points),
+            (&mut pending, &mut messages),
+            out.as_mut(),
+        )?;
     }
     if let Some(out) = out {
         out.finish()?;
@@ -461,11 +471,11 @@ fn frame_sequence<'a>(session: &Session, positions: &'a [Vec<f64>], taus: &'a [V
 fn write_with_second_contacts(
     robot: &Robot,
     session: &Session,
-    pairs: &[Option<FramePair>],
+    (pairs, singles): (&[Option<FramePair>], &[Option<DVec3>]),
     (lines, messages): (&mut [serde_json::Value], &mut [EstimateMessage]),
     out: Option<&mut Out>,
 ) -> Result<()> {
-    let score = add_second_contacts(robot, session, pairs, lines);
+    let score = add_second_contacts(robot, session, (pairs, singles), lines);
     // An MCAP frame called two carries both contacts of the pair.
     let named = |c: &proprioscope::core::estimate::pair::PairContact| {
         (
@@ -524,13 +534,13 @@ fn write_with_second_contacts(
 fn add_second_contacts(
     robot: &Robot,
     session: &Session,
-    pairs: &[Option<FramePair>],
+    (pairs, singles): (&[Option<FramePair>], &[Option<DVec3>]),
     lines: &mut [serde_json::Value],
 ) -> PairScore {
     let mut score = PairScore::default();
-    for ((line, pair), frame) in lines.iter_mut().zip(pairs).zip(&session.frames) {
+    for (n, (pair, frame)) in pairs.iter().zip(&session.frames).enumerate() {
         let two = pair.as_ref().filter(|p| p.has_two());
-        if let Some(p) = two {
+        if let (Some(p), Some(line)) = (two, lines.get_mut(n)) {
             line["contacts"] = pair_contacts_json(robot, p, line["contact_probability"].as_f64());
         }
         let truths = frame.true_contacts();
@@ -539,6 +549,7 @@ fn add_second_contacts(
             sensing_joints(robot, &truths),
             two.map(|p| p.pair.contacts.each_ref().map(|c| c.point_world)),
         );
+        score.add_single(&truths, singles.get(n).copied().flatten());
     }
     score
 }
@@ -614,6 +625,28 @@ fn report_pairs(score: &PairScore) -> Result<()> {
         score.both_identifiable_called_two,
         score.both_identifiable,
         share(score.both_identifiable_called_two, score.both_identifiable),
+    )?;
+    // Each true contact's error beside the other against alone: what the
+    // second contact costs the first.
+    let mm = |m: f64| {
+        if m.is_nan() {
+            "–".to_owned()
+        } else {
+            format!("{:.1}", 1e3 * m)
+        }
+    };
+    let each: Vec<String> = score
+        .by_link
+        .iter()
+        .map(|(link, errors)| {
+            let (with_other, alone) = errors.medians_m();
+            format!("{link} {} / {} mm", mm(with_other), mm(alone))
+        })
+        .collect();
+    writeln!(
+        out,
+        "each contact's median error, called two where both press / alone: {}",
+        each.join(", ")
     )?;
     Ok(())
 }
