@@ -80,6 +80,33 @@ fn a_second_push_that_joins_the_first_is_found() {
 }
 
 #[test]
+fn a_session_written_to_mcap_is_scored_as_to_json_lines() {
+    let session = common::temp_file("two-pushes-mcap.json", &common::two_push_session());
+    let run = |out: &str| {
+        let out_path = session.with_extension(out);
+        let (ok, stdout, err) = common::run_out(&[
+            "estimate",
+            session.to_str().unwrap(),
+            "--contacts",
+            "2",
+            "--temporal",
+            "smooth",
+            "--out",
+            out_path.to_str().unwrap(),
+        ]);
+        assert!(ok, "{err}");
+        stdout
+            .lines()
+            .filter(|l| l.starts_with("two contacts:") || l.starts_with("each contact's"))
+            .map(str::to_owned)
+            .collect::<Vec<_>>()
+    };
+    let json = run("jsonl");
+    assert_eq!(json.len(), 2, "{json:?}");
+    assert_eq!(run("mcap"), json);
+}
+
+#[test]
 #[ignore = "needs ../shared"]
 fn the_shared_two_contact_example() {
     let (ok, out, err) = common::run_out(&[
