@@ -75,8 +75,26 @@ fn a_second_push_that_joins_the_first_is_found() {
             assert!((0.0..=1.0).contains(&p), "{c}");
             assert!(c["credible90_radius_m"].as_f64().unwrap() >= 0.0, "{c}");
         }
+        // A searched frame says what its pair search found: two called
+        // only where more probable than one and identifiable.
+        let verdict = &v["two_contacts"];
+        if contacts.len() == 2 {
+            assert_eq!(verdict["identifiable"], true, "{v}");
+            assert!(verdict["probability"].as_f64().unwrap() > 0.5, "{v}");
+            assert!(verdict["unidentifiable"].is_null(), "{v}");
+        }
+        if !verdict.is_null() {
+            let p = verdict["probability"].as_f64().unwrap();
+            assert!((0.0..=1.0).contains(&p), "{v}");
+            assert!(verdict["log_evidence_ratio"].is_number(), "{v}");
+            assert_eq!(verdict["identifiable"], verdict["unidentifiable"].is_null(), "{v}");
+        }
     }
     assert!(counts.iter().all(|&n| n > 0), "lines with 0, 1, 2 contacts: {counts:?}");
+    assert!(
+        text.lines().any(|l| l.contains("\"two_contacts\"")),
+        "no frame searched"
+    );
 }
 
 #[test]

@@ -540,6 +540,9 @@ fn add_second_contacts(
     let mut score = PairScore::default();
     for (n, (pair, frame)) in pairs.iter().zip(&session.frames).enumerate() {
         let two = pair.as_ref().filter(|p| p.has_two());
+        if let (Some(found), Some(line)) = (pair, lines.get_mut(n)) {
+            line["two_contacts"] = pair_verdict_json(found);
+        }
         if let (Some(p), Some(line)) = (two, lines.get_mut(n)) {
             line["contacts"] = pair_contacts_json(robot, p, line["contact_probability"].as_f64());
         }
@@ -552,6 +555,18 @@ fn add_second_contacts(
         score.add_single(&truths, singles.get(n).copied().flatten());
     }
     score
+}
+
+/// A searched frame's `two_contacts`: the probability of two over the
+/// frames taken together, the frame's own evidence ratio `ln Z₂/Z₁`,
+/// and whether the pair is identifiable (if not, why).
+pub(super) fn pair_verdict_json(pair: &FramePair) -> serde_json::Value {
+    serde_json::json!({
+        "probability": pair.probability_two,
+        "log_evidence_ratio": pair.pair.log_evidence_ratio(),
+        "identifiable": pair.pair.identifiable(),
+        "unidentifiable": pair.pair.unidentifiable.map(|u| u.describe(pair.pair.sensing_joints)),
+    })
 }
 
 /// A frame's `contacts` where two are called: each with its probability

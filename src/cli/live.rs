@@ -352,13 +352,13 @@ fn estimate_frame(
             })?,
     };
     let single_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let pair = match live.pairs.as_mut() {
+    let searched = match live.pairs.as_mut() {
         Some(pairs) => pairs
             .push(&live.estimator, &live.robot, (frame, &positions), &update)
-            .context("the second contact's search")?
-            .filter(proprioscope::batch::pairs::FramePair::has_two),
+            .context("the second contact's search")?,
         None => None,
     };
+    let pair = searched.clone().filter(proprioscope::batch::pairs::FramePair::has_two);
     // The frame's whole cost, its second contact's search included.
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     let outcome = frame_outcome(&live.robot, &FrameEstimate::of(&update, single_ms), &frame.truth);
@@ -370,6 +370,9 @@ fn estimate_frame(
         ms,
         outcome.as_ref(),
     );
+    if let Some(found) = &searched {
+        line["two_contacts"] = super::estimate::pair_verdict_json(found);
+    }
     if let Some(pair) = &pair {
         line["contacts"] = super::estimate::pair_contacts_json(&live.robot, pair, line["contact_probability"].as_f64());
     }
