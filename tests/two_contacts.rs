@@ -32,11 +32,10 @@ fn two_contact_figures(out: &str) -> (f64, f64, f64) {
     (numbers[5], numbers[6], numbers[9])
 }
 
-#[test]
-fn a_second_push_that_joins_the_first_is_found() {
-    let session = common::temp_file("two-pushes.json", &common::two_push_session());
-    let out_path = session.with_extension("jsonl");
-    let (ok, out, err) = common::run_out(&[
+/// `estimate SESSION --contacts 2 --temporal smooth --out OUT`: its
+/// standard output.
+fn smoothed_pairs(session: &std::path::Path, out: &std::path::Path) -> String {
+    let (ok, stdout, err) = common::run_out(&[
         "estimate",
         session.to_str().unwrap(),
         "--contacts",
@@ -44,9 +43,17 @@ fn a_second_push_that_joins_the_first_is_found() {
         "--temporal",
         "smooth",
         "--out",
-        out_path.to_str().unwrap(),
+        out.to_str().unwrap(),
     ]);
     assert!(ok, "{err}");
+    stdout
+}
+
+#[test]
+fn a_second_push_that_joins_the_first_is_found() {
+    let session = common::temp_file("two-pushes.json", &common::two_push_session());
+    let out_path = session.with_extension("jsonl");
+    let out = smoothed_pairs(&session, &out_path);
     let (both, error_mm, one) = two_contact_figures(&out);
     // Measured: 72.5 % (the frames whose single contact is poorly
     // explained), 7.3 mm, 0 % (docs/validation.md, *Two contacts*).
@@ -101,19 +108,7 @@ fn a_second_push_that_joins_the_first_is_found() {
 fn a_session_written_to_mcap_is_scored_as_to_json_lines() {
     let session = common::temp_file("two-pushes-mcap.json", &common::two_push_session());
     let run = |out: &str| {
-        let out_path = session.with_extension(out);
-        let (ok, stdout, err) = common::run_out(&[
-            "estimate",
-            session.to_str().unwrap(),
-            "--contacts",
-            "2",
-            "--temporal",
-            "smooth",
-            "--out",
-            out_path.to_str().unwrap(),
-        ]);
-        assert!(ok, "{err}");
-        stdout
+        smoothed_pairs(&session, &session.with_extension(out))
             .lines()
             .filter(|l| l.starts_with("two contacts:") || l.starts_with("each contact's"))
             .map(str::to_owned)

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::pairs::{PairSeen, PairsOver, SingleSeen, session_pairs_while};
+use super::pairs::{PairSeen, PairsOver, SingleSeen, session_pairs_timed};
 use super::{FrameEstimate, Latest, Serving, SessionData};
 use crate::core::config::estimator::EstimatorConfig;
 use crate::core::estimate::estimator::Estimator;
@@ -195,7 +195,7 @@ fn second_contacts(
 ) -> String {
     let singles: Vec<Option<SingleSeen>> = kept.iter().map(|k| k.and_then(|(_, single)| single)).collect();
     let over = PairsOver::of(job.over_time, job.config.second_contact_chain());
-    let pairs = match session_pairs_while(
+    let pairs = match session_pairs_timed(
         estimator,
         &job.robot,
         sequence,
@@ -204,7 +204,7 @@ fn second_contacts(
         over,
         || !serving.should_stop(),
     ) {
-        Ok(Some(pairs)) => pairs,
+        Ok(Some((pairs, _))) => pairs,
         Ok(None) => return "stopped for a newer estimation".to_owned(),
         Err((frame, e)) => {
             log::error!("the second contact at session frame {frame}: {e}");

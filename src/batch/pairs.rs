@@ -168,33 +168,18 @@ pub fn session_pairs(
     pair_settings: &PairSettings,
     over: PairsOver,
 ) -> Result<Vec<Option<FramePair>>, (usize, EstimateError)> {
-    session_pairs_while(estimator, robot, frames, singles, pair_settings, over, || true).map(Option::unwrap_or_default)
-}
-
-/// [`session_pairs`], asking `keep_going` before each frame's search:
-/// `None` once it says no (a newer job in the app).
-///
-/// # Errors
-/// A frame whose search fails, with its number.
-pub fn session_pairs_while(
-    estimator: &Estimator,
-    robot: &Robot,
-    frames: &[SequenceFrame<'_>],
-    singles: &[Option<SingleSeen>],
-    pair_settings: &PairSettings,
-    over: PairsOver,
-    keep_going: impl Fn() -> bool,
-) -> Result<Option<Vec<Option<FramePair>>>, (usize, EstimateError)> {
-    session_pairs_timed(estimator, robot, frames, singles, pair_settings, over, keep_going)
-        .map(|found| found.map(|(pairs, _)| pairs))
+    session_pairs_timed(estimator, robot, frames, singles, pair_settings, over, || true)
+        .map(|found| found.map(|(pairs, _)| pairs).unwrap_or_default())
 }
 
 /// Each frame's two-contact account and its search time, ms.
 pub type TimedPairs = (Vec<Option<FramePair>>, Vec<f64>);
 
-/// [`session_pairs_while`], with each frame's search time, ms (next to nothing for a
-/// frame not searched): what a frame's update costs under the
-/// two-contact model beyond its single contact's.
+/// [`session_pairs`], asking `keep_going` before each frame's search
+/// (`None` once it says no: a newer job in the app), with each frame's
+/// search time, ms (next to nothing for a frame not searched): what a
+/// frame's update costs under the two-contact model beyond its single
+/// contact's.
 ///
 /// # Errors
 /// A frame whose search fails, with its number.

@@ -542,9 +542,9 @@ fn add_second_contacts(
         let two = pair.as_ref().filter(|p| p.has_two());
         if let (Some(found), Some(line)) = (pair, lines.get_mut(n)) {
             line["two_contacts"] = pair_verdict_json(found);
-        }
-        if let (Some(p), Some(line)) = (two, lines.get_mut(n)) {
-            line["contacts"] = pair_contacts_json(robot, p, line["contact_probability"].as_f64());
+            if found.has_two() {
+                line["contacts"] = pair_contacts_json(robot, found, line["contact_probability"].as_f64());
+            }
         }
         let truths = frame.true_contacts();
         score.add(

@@ -831,21 +831,14 @@ fn coarse_pair(
         }
     }
     let t: Vec<f64> = tau.iter().zip(&roots).map(|(x, root)| x * root).collect();
-    // Σ over the joints, in their order, of `f(column)` for every sample.
-    let per_sample = |f: &dyn Fn(usize, &[f64]) -> Vec<f64>| -> Vec<f64> {
-        columns
-            .iter()
-            .enumerate()
-            .fold(vec![0.0; m], |mut sum, (joint, column)| {
-                sum.iter_mut().zip(f(joint, column)).for_each(|(s, x)| *s += x);
-                sum
-            })
-    };
-    let a = per_sample(&|_, column| column.iter().map(|x| x * x).collect());
-    let b = per_sample(&|joint, column| {
-        let tj = t.get(joint).copied().unwrap_or(0.0);
-        column.iter().map(|x| x * tj).collect()
-    });
+    // Each sample's `⟨u, u⟩` and `⟨u, τ⟩`, summed over the joints in order.
+    let (mut a, mut b) = (vec![0.0; m], vec![0.0; m]);
+    for (column, tj) in columns.iter().zip(&t) {
+        for ((aa, bb), x) in a.iter_mut().zip(b.iter_mut()).zip(column) {
+            *aa += x * x;
+            *bb += x * tj;
+        }
+    }
     let mut c = vec![0.0; m];
     let mut best: Option<(f64, usize, f64, usize, f64)> = None;
     for i in 0..m {

@@ -66,6 +66,14 @@ impl Scene {
         tau.iter().map(|t| t + SIGMA * rng.normal()).collect()
     }
 
+    /// The surface posed at the scene's configuration.
+    fn posed(&self) -> PosedSurface<'_> {
+        PosedSurface {
+            torque_model: &self.torque_model,
+            surface: &self.surface,
+        }
+    }
+
     fn world_truth(&self, k: usize) -> DVec3 {
         self.pose
             .point_to_world(self.truths.link[k], self.truths.point_in_link[k])
@@ -94,10 +102,7 @@ impl Scene {
 
     fn pair_from(&self, tau: &[f64], start: &PairStart) -> Option<PairEstimate> {
         let settings = EstimatorSettings::exact(vec![SIGMA; 7]);
-        let posed = PosedSurface {
-            torque_model: &self.torque_model,
-            surface: &self.surface,
-        };
+        let posed = self.posed();
         let single = estimate(&posed, tau, &settings, None).unwrap();
         estimate_pair(
             &posed,
@@ -178,10 +183,7 @@ fn two_pushes_are_followed_from_frame_to_frame() {
             let link = s.truths.link[k];
             let p = s.truths.point_in_link[k];
             let n = s.truths.inward_normal_in_link[k];
-            let posed = PosedSurface {
-                torque_model: &s.torque_model,
-                surface: &s.surface,
-            };
+            let posed = s.posed();
             Placed {
                 point: s.nearest_sample(k),
                 link,
@@ -285,10 +287,7 @@ fn friction_at_both_contacts_explains_the_misfit_once() {
         friction: 0.5,
         ..EstimatorSettings::exact(vec![SIGMA; 7])
     };
-    let posed = PosedSurface {
-        torque_model: &s.torque_model,
-        surface: &s.surface,
-    };
+    let posed = s.posed();
     let pair_settings = PairSettings::default();
     let mut rng = Rng::new(3);
     let (mut pairs, mut most) = (0, 0.0_f64);
@@ -358,10 +357,7 @@ fn a_pair_on_one_link_is_not_identifiable_with_friction() {
         .unwrap();
     assert!(s.world_truth(a).distance(s.world_truth(b)) > 0.08);
     let tau = s.torques(&[(a, 20.0), (b, 20.0)], 3);
-    let posed = PosedSurface {
-        torque_model: &s.torque_model,
-        surface: &s.surface,
-    };
+    let posed = s.posed();
     let start = PairStart::One {
         point: s.nearest_sample(a),
         force_newtons: 20.0,
@@ -413,10 +409,7 @@ fn placed_with(s: &Scene, link: &str, sigmas: [f64; 7]) -> Placed {
 #[test]
 fn a_push_its_own_joints_do_not_feel_is_unconfirmed() {
     let s = scene();
-    let posed = PosedSurface {
-        torque_model: &s.torque_model,
-        surface: &s.surface,
-    };
+    let posed = s.posed();
     let weights = EstimatorSettings::exact(vec![SIGMA; 7]).weights();
     let check = |one: &Placed, other: &Placed| confirmed(&posed, one, other, &weights);
     let near = placed_with(&s, "lwr_4_link", [20.0, 90.0, 8.0, 3.0, 0.0, 0.0, 0.0]);
@@ -478,10 +471,7 @@ fn coarse_pair_of_all(
 #[test]
 fn the_coarse_grid_keeps_the_best_of_every_pair() {
     let s = scene();
-    let posed = PosedSurface {
-        torque_model: &s.torque_model,
-        surface: &s.surface,
-    };
+    let posed = s.posed();
     let settings = EstimatorSettings::exact(vec![SIGMA; 7]);
     let weights = settings.weights();
     let range = (settings.force_min_newtons, settings.force_max_newtons);
@@ -501,10 +491,7 @@ fn the_coarse_grid_keeps_the_best_of_every_pair() {
 #[test]
 fn a_push_on_a_link_two_joints_feel_is_not_placed_in_a_pair() {
     let s = scene();
-    let posed = PosedSurface {
-        torque_model: &s.torque_model,
-        surface: &s.surface,
-    };
+    let posed = s.posed();
     let settings = EstimatorSettings::exact(vec![SIGMA; 7]);
     let pair_settings = PairSettings::default();
     let tau = vec![0.0; 7];
