@@ -379,3 +379,63 @@ fn frames_alone_are_searched_on_their_own() {
     let pairs = part.iter().filter(|(_, c)| c.as_array().unwrap().len() == 2).count();
     assert!(pairs >= 10, "{pairs} frames called two");
 }
+
+/// `bench --session` on a session with two true contacts at once scores
+/// its smoothed two-contact search at each surface seed, as `estimate
+/// --contacts 2 --temporal smooth` does at that seed; a session without
+/// them gets no such table.
+#[test]
+fn bench_scores_the_pair_search_at_each_surface_seed() {
+    let session = common::temp_file("two-pushes-bench.json", &common::two_push_session());
+    let path = session.to_str().unwrap();
+    let (ok, bench, err) = common::run_out(&["bench", "--sessions-only", "--seeds", "0,1", "--session", path]);
+    assert!(ok, "{err}");
+    let rows: Vec<Vec<String>> = bench
+        .lines()
+        .skip_while(|l| !l.starts_with("| surface seed | both press: called two |"))
+        .skip(2)
+        .take_while(|l| l.starts_with('|'))
+        .map(|l| l.split('|').map(|c| c.trim().to_owned()).collect())
+        .collect();
+    assert_eq!(rows.len(), 3, "two seeds and the medians:\n{bench}");
+    assert_eq!(rows[2][1], "median over seeds", "{bench}");
+    for (seed, row) in ["0", "1"].into_iter().zip(&rows) {
+        assert_eq!(row[1], seed, "{bench}");
+        let (ok, out, err) = common::run_out(&[
+            "estimate",
+            path,
+            "--contacts",
+            "2",
+            "--temporal",
+            "smooth",
+            "--seed",
+            seed,
+        ]);
+        assert!(ok, "{err}");
+        let line = out.lines().find(|l| l.starts_with("two contacts:")).unwrap();
+        // "called in K of N frames where both press", "median error E mm",
+        // "in K of N frames where one presses", as the row has them.
+        let both = row[2].split(" (").next().unwrap();
+        assert!(
+            line.contains(&format!("called in {both} frames where both press")),
+            "{line}\n{bench}"
+        );
+        assert!(line.contains(&format!("median error {} mm", row[3])), "{line}\n{bench}");
+        let one = row[4].split(" (").next().unwrap();
+        assert!(
+            line.contains(&format!("in {one} frames where one presses")),
+            "{line}\n{bench}"
+        );
+    }
+    let single = common::temp_file("one-push-bench.session.json", common::THESIS_SESSION);
+    let (ok, bench, err) = common::run_out(&[
+        "bench",
+        "--sessions-only",
+        "--seeds",
+        "0",
+        "--session",
+        single.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(!bench.contains("Two contacts, smoothed"), "{bench}");
+}

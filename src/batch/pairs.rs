@@ -400,6 +400,25 @@ impl PairScore {
         }
     }
 
+    /// Adds a frame: its true contacts, its two-contact account (`None`
+    /// where it was not searched) and its single contact's world point
+    /// (`None` where no contact is called).
+    pub fn add_frame(
+        &mut self,
+        robot: &Robot,
+        truths: &[ContactTruth],
+        pair: Option<&FramePair>,
+        single: Option<DVec3>,
+    ) {
+        let two = pair.filter(|p| p.has_two());
+        self.add(
+            truths,
+            sensing_joints(robot, truths),
+            two.map(|p| p.pair.contacts.each_ref().map(|c| c.point_world)),
+        );
+        self.add_single(truths, single);
+    }
+
     /// Adds a frame's single contact (its world point, `None` where no
     /// contact is called) against its true contacts: scored where one
     /// presses alone.
@@ -419,4 +438,19 @@ impl PairScore {
             percentile(&self.both_errors_m, 0.5)
         }
     }
+}
+
+/// Sensed joints that feel any of `truths` (links unknown to the robot
+/// feel none).
+#[must_use]
+pub fn sensing_joints(robot: &Robot, truths: &[ContactTruth]) -> usize {
+    let mut joints: Vec<usize> = truths
+        .iter()
+        .filter_map(|t| robot.link_id(&t.link).ok())
+        .flat_map(|link| robot.path_joints(link))
+        .filter(|j| robot.sensed().contains(j))
+        .collect();
+    joints.sort_unstable();
+    joints.dedup();
+    joints.len()
 }

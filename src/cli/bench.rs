@@ -380,6 +380,9 @@ struct SessionRun {
     /// Frames alone: each frame's posterior, refinement and summary
     /// times, µs (empty over time, where the stages interleave).
     stage_times_us: Vec<[f64; 3]>,
+    /// Smoothed, on a session with two true contacts at once: the
+    /// two-contact search's score at each surface seed.
+    pair_scores: Vec<(u64, proprioscope::batch::pairs::PairScore)>,
 }
 
 /// Per-frame p50/p99 and the spread of the median error over surface
@@ -390,6 +393,7 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
     use proprioscope::io::session::Session;
     let session = Session::read(path)?;
     let robot = session_robot(&session, None, &args.package_paths, &[])?;
+    let two_contacts = super::bench_pairs::has_two_contacts(&session);
     let mut runs = Vec::new();
     let coarser = args
         .session_points
@@ -424,6 +428,7 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
             held: 0,
             owned: 0,
             stage_times_us: Vec::new(),
+            pair_scores: Vec::new(),
         };
         let positions = session
             .frames
@@ -456,6 +461,7 @@ fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
                 seed,
                 sigma: args.noise,
                 repeat: args.repeat,
+                pairs: two_contacts && temporal == Temporal::Smooth && points == 5000,
             };
             seed_run(&how, &session, &sequence, &truth, &mut run)?;
         }
@@ -521,6 +527,9 @@ fn session_text(
         );
     }
     stage_text(runs, &mut out);
+    for r in runs.iter().filter(|r| !r.pair_scores.is_empty()) {
+        out.push_str(&super::bench_pairs::pairs_text(&r.pair_scores));
+    }
     out
 }
 
@@ -571,6 +580,8 @@ struct How<'a> {
     sigma: f64,
     /// Runs over the session in a row; each frame is timed by its fastest.
     repeat: u32,
+    /// Whether to search the frames for second contacts and score them.
+    pairs: bool,
 }
 
 /// Runs `how` over `sequence` on one thread and adds its times, errors
@@ -621,7 +632,11 @@ fn seed_run(
         })?;
     }
     let (mut errors, mut called) = (Vec::new(), Vec::new());
+    let mut singles = super::bench_pairs::Singles::default();
     run_once(&mut |i, update, ms| {
+        if how.pairs {
+            singles.push(&update);
+        }
         let us = keep_fastest(&mut fastest_us, i, ms * 1e3);
         run.times_us.push(us);
         if let Some(stages) = keep_fastest_stages(&mut fastest_stages_us, i, update.stages.as_ref()) {
@@ -649,6 +664,10 @@ fn seed_run(
     run.false_alarms += found.false_alarms;
     run.quiet_frames += found.quiet_frames;
     run.medians_m.push(percentile(&errors, 0.5));
+    if how.pairs {
+        let score = super::bench_pairs::score_smoothed(&estimator, robot, session, sequence, &singles)?;
+        run.pair_scores.push((how.seed, score));
+    }
     Ok(())
 }
 

@@ -539,20 +539,18 @@ fn add_second_contacts(
 ) -> PairScore {
     let mut score = PairScore::default();
     for (n, (pair, frame)) in pairs.iter().zip(&session.frames).enumerate() {
-        let two = pair.as_ref().filter(|p| p.has_two());
         if let (Some(found), Some(line)) = (pair, lines.get_mut(n)) {
             line["two_contacts"] = pair_verdict_json(found);
             if found.has_two() {
                 line["contacts"] = pair_contacts_json(robot, found, line["contact_probability"].as_f64());
             }
         }
-        let truths = frame.true_contacts();
-        score.add(
-            &truths,
-            sensing_joints(robot, &truths),
-            two.map(|p| p.pair.contacts.each_ref().map(|c| c.point_world)),
+        score.add_frame(
+            robot,
+            &frame.true_contacts(),
+            pair.as_ref(),
+            singles.get(n).copied().flatten(),
         );
-        score.add_single(&truths, singles.get(n).copied().flatten());
     }
     score
 }
@@ -593,20 +591,6 @@ pub(super) fn pair_contacts_json(
         })
         .collect();
     serde_json::json!(entries)
-}
-
-/// Sensed joints that feel any of `truths` (links unknown to the robot
-/// feel none).
-fn sensing_joints(robot: &Robot, truths: &[proprioscope::io::session::ContactTruth]) -> usize {
-    let mut joints: Vec<usize> = truths
-        .iter()
-        .filter_map(|t| robot.link_id(&t.link).ok())
-        .flat_map(|link| robot.path_joints(link))
-        .filter(|j| robot.sensed().contains(j))
-        .collect();
-    joints.sort_unstable();
-    joints.dedup();
-    joints.len()
 }
 
 /// What `--contacts 2` found, scored against the session's `truth_all`.

@@ -1,6 +1,7 @@
 //! Headless commands that run the estimator.
 
 pub mod bench;
+pub mod bench_pairs;
 pub mod bench_recording;
 pub mod calibrate;
 pub mod estimate;
