@@ -46,7 +46,9 @@
 //! of them, or all but one, read it within the noise, its torques fall on
 //! the other contact's joints, where that contact's friction frees two
 //! more unknowns (the false pairs of the `../shared` slides and dynamic
-//! link-6 example sat there).
+//! link-6 example sat there); and so is a pair one of whose contacts
+//! alone, pushing sideways at its place, explains the torques within the
+//! noise (the other is its friction, on whichever link).
 
 use glam::DVec3;
 
@@ -181,6 +183,12 @@ pub enum Unidentifiable {
     /// friction frees two more unknowns: the pair is one contact pushing
     /// sideways, or a model error, told apart by one reading or none.
     Unconfirmed,
+    /// Where contacts have friction, one of the two alone, pushing
+    /// sideways at its place, explains the torques within the noise: the
+    /// other push is its friction (on the `../shared` two-contact example,
+    /// surface seed 1, a 4–5 N push on link 5 beside the link-7 probe
+    /// while that probe's force turned 12° as it drifted).
+    OneExplains,
 }
 
 impl Unidentifiable {
@@ -193,6 +201,7 @@ impl Unidentifiable {
             Self::SameTorques => "its two pushes make the same torques".to_owned(),
             Self::OneLinkWithFriction => "with friction, two on one link are one pushing sideways".to_owned(),
             Self::Unconfirmed => "one push is not felt by the joints that only it moves".to_owned(),
+            Self::OneExplains => "one push alone, with friction, explains the torques".to_owned(),
         }
     }
 }
@@ -445,9 +454,19 @@ impl Search<'_> {
             && !(confirmed(self.posed, a, b, &self.weights) && confirmed(self.posed, b, a, &self.weights))
         {
             Some(Unidentifiable::Unconfirmed)
+        } else if friction && (self.explains_alone(a) || self.explains_alone(b)) {
+            Some(Unidentifiable::OneExplains)
         } else {
             None
         }
+    }
+
+    /// Whether `one` alone, with the friction model's force at its place,
+    /// leaves a residual χ² no larger than the joints' count: what the
+    /// noise alone gives on average.
+    fn explains_alone(&self, one: &Placed) -> bool {
+        self.friction_on(one, self.tau)
+            .is_some_and(|(torques, _)| self.chi2(&minus(self.tau, &torques)) <= self.tau.len() as f64)
     }
 
     /// Sample `k` pushed with `f` newtons.

@@ -516,3 +516,73 @@ fn a_push_on_a_link_two_joints_feel_is_not_placed_in_a_pair() {
     let third = placed_with(&s, "lwr_3_link", [40.0, -60.0, 25.0, 0.0, 0.0, 0.0, 0.0]);
     assert_eq!(why(&third, &probe), None);
 }
+
+/// Truth sample `k` pushed with `f` newtons along its normal, placed
+/// exactly (not at a sample of the searched surface).
+fn at_truth_exactly(s: &Scene, k: usize, f: f64) -> Placed {
+    let link = s.truths.link[k];
+    let point_in_link = s.truths.point_in_link[k];
+    let normal = s.truths.inward_normal_in_link[k];
+    Placed {
+        point: s.nearest_sample(k),
+        link,
+        location: None,
+        point_in_link,
+        inward_normal_in_link: normal,
+        force_newtons: f,
+        torques: s.torque_model.torques(link, point_in_link, normal * f),
+    }
+}
+
+#[test]
+fn a_push_beside_one_that_explains_alone_with_friction_is_not_a_pair() {
+    let s = scene();
+    let posed = s.posed();
+    let settings = EstimatorSettings {
+        friction: 0.2,
+        ..EstimatorSettings::exact(vec![SIGMA; 7])
+    };
+    let pair_settings = PairSettings::default();
+    let search_on = |tau: &[f64], check: &dyn Fn(&Search<'_>)| {
+        let search = Search {
+            posed: &posed,
+            tau,
+            settings: &settings,
+            hierarchy: None,
+            pair: &pair_settings,
+            weights: settings.weights(),
+            ln_prior_norm: 0.0,
+        };
+        check(&search);
+    };
+    // The shared example's false pairs (surface seed 1): the link-7 probe
+    // alone, 11 N, its force turned by about 12° (a tangential force of
+    // 0.2 of the push), beside which the search put a 4–5 N push on link 5.
+    let probe = s.truth_on("lwr_7_link", 0);
+    let (link, p) = (s.truths.link[probe], s.truths.point_in_link[probe]);
+    let normal = s.truths.inward_normal_in_link[probe];
+    let (tangent, _) = normal.any_orthonormal_pair();
+    let mut rng = Rng::new(5);
+    let tau: Vec<f64> = s
+        .torque_model
+        .torques(link, p, normal * 11.0 + tangent * 2.2)
+        .iter()
+        .map(|t| t + SIGMA * rng.normal())
+        .collect();
+    let alone = at_truth_exactly(&s, probe, 11.0);
+    let ghost = at_truth_exactly(&s, s.truth_on("lwr_5_link", 0), 4.5);
+    search_on(&tau, &|search| {
+        assert!(search.explains_alone(&alone));
+        let why = search.unidentifiable(sensing(&posed, alone.link, ghost.link), &alone, &ghost);
+        assert_eq!(why, Some(Unidentifiable::OneExplains));
+    });
+    // Two firm pushes: neither alone explains them, with friction or not.
+    for (a, b, tau) in two_push_frames(&s).into_iter().take(3) {
+        let (a, b) = (at_truth_exactly(&s, a, 25.0), at_truth_exactly(&s, b, 20.0));
+        search_on(&tau, &|search| {
+            assert!(!search.explains_alone(&a) && !search.explains_alone(&b));
+            let why = search.unidentifiable(sensing(&posed, a.link, b.link), &a, &b);
+            assert_ne!(why, Some(Unidentifiable::OneExplains));
+        });
+    }
+}
