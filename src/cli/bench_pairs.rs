@@ -18,6 +18,8 @@ use proprioscope::core::over_time::frame::SequenceFrame;
 use proprioscope::core::robot::model::Robot;
 use proprioscope::io::session::Session;
 
+use super::estimate::{each_contact_text, mm};
+
 /// Whether any frame of `session` has two true contacts.
 #[must_use]
 pub fn has_two_contacts(session: &Session) -> bool {
@@ -83,22 +85,7 @@ pub fn pairs_text(scores: &[(u64, PairScore)]) -> String {
     out.push_str("| surface seed | both press: called two | median error [mm] | one presses: called two | each contact, with the other / alone [mm] |\n");
     out.push_str("|---:|---:|---:|---:|---|\n");
     let share = |k: usize, n: usize| if n > 0 { 100.0 * k as f64 / n as f64 } else { f64::NAN };
-    let mm = |m: f64| {
-        if m.is_nan() {
-            "–".to_owned()
-        } else {
-            format!("{:.1}", 1e3 * m)
-        }
-    };
     for (seed, score) in scores {
-        let each: Vec<String> = score
-            .by_link
-            .iter()
-            .map(|(link, errors)| {
-                let (with_other, alone) = errors.medians_m();
-                format!("{link} {} / {}", mm(with_other), mm(alone))
-            })
-            .collect();
         let _ = writeln!(
             out,
             "| {seed} | {} of {} ({:.1} %) | {} | {} of {} ({:.1} %) | {} |",
@@ -109,7 +96,7 @@ pub fn pairs_text(scores: &[(u64, PairScore)]) -> String {
             score.one_called_two,
             score.one_frames,
             share(score.one_called_two, score.one_frames),
-            each.join(", ")
+            each_contact_text(score, "")
         );
     }
     let median = |values: Vec<f64>| {

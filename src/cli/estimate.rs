@@ -627,27 +627,35 @@ fn report_pairs(score: &PairScore) -> Result<()> {
     )?;
     // Each true contact's error beside the other against alone: what the
     // second contact costs the first.
-    let mm = |m: f64| {
-        if m.is_nan() {
-            "–".to_owned()
-        } else {
-            format!("{:.1}", 1e3 * m)
-        }
-    };
+    writeln!(
+        out,
+        "each contact's median error, called two where both press / alone: {}",
+        each_contact_text(score, " mm")
+    )?;
+    Ok(())
+}
+
+/// A length in m as mm to a tenth, or a dash for NaN (none measured).
+pub(super) fn mm(m: f64) -> String {
+    if m.is_nan() {
+        "–".to_owned()
+    } else {
+        format!("{:.1}", 1e3 * m)
+    }
+}
+
+/// Each true contact's median error where both press and two are
+/// called / where it presses alone, by link, each followed by `unit`.
+pub(super) fn each_contact_text(score: &PairScore, unit: &str) -> String {
     let each: Vec<String> = score
         .by_link
         .iter()
         .map(|(link, errors)| {
             let (with_other, alone) = errors.medians_m();
-            format!("{link} {} / {} mm", mm(with_other), mm(alone))
+            format!("{link} {} / {}{unit}", mm(with_other), mm(alone))
         })
         .collect();
-    writeln!(
-        out,
-        "each contact's median error, called two where both press / alone: {}",
-        each.join(", ")
-    )?;
-    Ok(())
+    each.join(", ")
 }
 
 /// The verdict counts, times and detection record of a run.

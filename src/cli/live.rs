@@ -358,7 +358,7 @@ fn estimate_frame(
             .context("the second contact's search")?,
         None => None,
     };
-    let pair = searched.clone().filter(proprioscope::batch::pairs::FramePair::has_two);
+    let pair = searched.as_ref().filter(|p| p.has_two());
     // The frame's whole cost, its second contact's search included.
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     let outcome = frame_outcome(&live.robot, &FrameEstimate::of(&update, single_ms), &frame.truth);
@@ -373,7 +373,7 @@ fn estimate_frame(
     if let Some(found) = &searched {
         line["two_contacts"] = super::estimate::pair_verdict_json(found);
     }
-    if let Some(pair) = &pair {
+    if let Some(pair) = pair {
         line["contacts"] = super::estimate::pair_contacts_json(&live.robot, pair, line["contact_probability"].as_f64());
     }
     let drawn = pair.map(|p| p.pair.contacts.each_ref().map(|c| (c.point_world, c.force_world)));

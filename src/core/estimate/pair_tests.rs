@@ -127,6 +127,25 @@ impl Scene {
     }
 }
 
+/// The search of one frame's torques `tau` (no phases, no prior norm):
+/// what the tests of its parts run on.
+fn search_of<'a>(
+    posed: &'a PosedSurface<'a>,
+    tau: &'a [f64],
+    settings: &'a EstimatorSettings,
+    pair: &'a PairSettings,
+) -> Search<'a> {
+    Search {
+        posed,
+        tau,
+        settings,
+        hierarchy: None,
+        pair,
+        weights: settings.weights(),
+        ln_prior_norm: 0.0,
+    }
+}
+
 /// Two firm pushes on links 5 and 7 (another surface seed's samples,
 /// so on no sample of the searched surface) in ten frames: their truth
 /// samples and torques.
@@ -304,15 +323,7 @@ fn friction_at_both_contacts_explains_the_misfit_once() {
             .iter()
             .map(|u| u * force.length() + SIGMA * rng.normal())
             .collect();
-        let search = Search {
-            posed: &posed,
-            tau: &tau,
-            settings: &settings,
-            hierarchy: None,
-            pair: &pair_settings,
-            weights: settings.weights(),
-            ln_prior_norm: 0.0,
-        };
+        let search = search_of(&posed, &tau, &settings, &pair_settings);
         let a = search.at_sample(s.nearest_sample(k), 15.0);
         for b in (0..s.surface.len()).filter(|&b| s.surface.link[b] == link).step_by(7) {
             let b = search.at_sample(b, rng.uniform_in(1.0, 15.0));
@@ -495,15 +506,7 @@ fn a_push_on_a_link_two_joints_feel_is_not_placed_in_a_pair() {
     let settings = EstimatorSettings::exact(vec![SIGMA; 7]);
     let pair_settings = PairSettings::default();
     let tau = vec![0.0; 7];
-    let search = Search {
-        posed: &posed,
-        tau: &tau,
-        settings: &settings,
-        hierarchy: None,
-        pair: &pair_settings,
-        weights: settings.weights(),
-        ln_prior_norm: 0.0,
-    };
+    let search = search_of(&posed, &tau, &settings, &pair_settings);
     let why = |a: &Placed, b: &Placed| search.unidentifiable(sensing(&posed, a.link, b.link), a, b);
     // The false pairs of the shared observer link-side example, filtered:
     // a push on link 2 taking up the model error of joints 1 and 2 beside
@@ -543,46 +546,33 @@ fn a_push_beside_one_that_explains_alone_with_friction_is_not_a_pair() {
         ..EstimatorSettings::exact(vec![SIGMA; 7])
     };
     let pair_settings = PairSettings::default();
-    let search_on = |tau: &[f64], check: &dyn Fn(&Search<'_>)| {
-        let search = Search {
-            posed: &posed,
-            tau,
-            settings: &settings,
-            hierarchy: None,
-            pair: &pair_settings,
-            weights: settings.weights(),
-            ln_prior_norm: 0.0,
-        };
-        check(&search);
-    };
     // The shared example's false pairs (surface seed 1): the link-7 probe
     // alone, 11 N, its force turned by about 12° (a tangential force of
     // 0.2 of the push), beside which the search put a 4–5 N push on link 5.
+    // Its torques from the robot's Jacobian, not the searched model's.
     let probe = s.truth_on("lwr_7_link", 0);
-    let (link, p) = (s.truths.link[probe], s.truths.point_in_link[probe]);
+    let link = s.truths.link[probe];
     let normal = s.truths.inward_normal_in_link[probe];
     let (tangent, _) = normal.any_orthonormal_pair();
+    let point = s.pose.point_to_world(link, s.truths.point_in_link[probe]);
+    let force = s.pose.world_from_link[link].transform_vector3(normal * 11.0 + tangent * 2.2);
     let mut rng = Rng::new(5);
-    let tau: Vec<f64> = s
-        .torque_model
-        .torques(link, p, normal * 11.0 + tangent * 2.2)
+    let tau: Vec<f64> = joint_torques(&s.robot, &s.pose, link, point, force.normalize())
         .iter()
-        .map(|t| t + SIGMA * rng.normal())
+        .map(|u| u * force.length() + SIGMA * rng.normal())
         .collect();
+    let search = search_of(&posed, &tau, &settings, &pair_settings);
     let alone = at_truth_exactly(&s, probe, 11.0);
     let ghost = at_truth_exactly(&s, s.truth_on("lwr_5_link", 0), 4.5);
-    search_on(&tau, &|search| {
-        assert!(search.explains_alone(&alone));
-        let why = search.unidentifiable(sensing(&posed, alone.link, ghost.link), &alone, &ghost);
-        assert_eq!(why, Some(Unidentifiable::OneExplains));
-    });
-    // Two firm pushes: neither alone explains them, with friction or not.
+    assert!(search.explains_alone(&alone));
+    let why = search.unidentifiable(sensing(&posed, alone.link, ghost.link), &alone, &ghost);
+    assert_eq!(why, Some(Unidentifiable::OneExplains));
+    // Two firm pushes along their normals: neither alone explains them.
     for (a, b, tau) in two_push_frames(&s).into_iter().take(3) {
+        let search = search_of(&posed, &tau, &settings, &pair_settings);
         let (a, b) = (at_truth_exactly(&s, a, 25.0), at_truth_exactly(&s, b, 20.0));
-        search_on(&tau, &|search| {
-            assert!(!search.explains_alone(&a) && !search.explains_alone(&b));
-            let why = search.unidentifiable(sensing(&posed, a.link, b.link), &a, &b);
-            assert_ne!(why, Some(Unidentifiable::OneExplains));
-        });
+        assert!(!search.explains_alone(&a) && !search.explains_alone(&b));
+        let why = search.unidentifiable(sensing(&posed, a.link, b.link), &a, &b);
+        assert_ne!(why, Some(Unidentifiable::OneExplains));
     }
 }
