@@ -18,6 +18,8 @@ use proprioscope::core::eval::metrics::{
     FrameOutcome, Metrics, detection, metrics, metrics_by_sensing_joints, percentile,
 };
 use proprioscope::core::eval::slides::{MIN_SLIDE_M, SlidePath, SlideTracker};
+
+use super::press_gaps::{report_gaps, session_gaps};
 use proprioscope::core::over_time::bias::{estimate_drifting_bias, without_drifting_bias};
 use proprioscope::core::over_time::frame::SequenceFrame;
 use proprioscope::core::over_time::sequence::{Temporal, automatic_temporal, estimate_sequence};
@@ -96,6 +98,12 @@ pub struct EstimateArgs {
     /// with its σ where `--sigma auto`.
     #[arg(long)]
     pub calibration: Option<PathBuf>,
+    /// Where the session has truth: fit each true press again from the
+    /// estimate's places and from the true ones, and print both fits'
+    /// costs and errors (a press the search lost costs far less from the
+    /// truth).
+    #[arg(long)]
+    pub press_gaps: bool,
     /// Topics of a recording.
     #[command(flatten)]
     pub topics: TopicArgs,
@@ -296,6 +304,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     let mut verdicts = [0usize; 3];
     let mut called = Vec::with_capacity(session.frames.len());
     let mut slides = SlideTracker::default();
+    let mut press_places = Vec::new();
     let mut written: Result<()> = Ok(());
     let two_contacts = config.contacts_at_once >= 2;
     let (mut singles, mut pending, mut messages) = (Vec::new(), Vec::new(), Vec::new());
@@ -321,6 +330,9 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
                 called.push(update.summary.verdict != Verdict::NoContact);
                 let (true_place, estimated_place) = slide_places(&robot, &update, &frame.truth);
                 slides.push(frame.t, true_place, estimated_place);
+                if args.press_gaps {
+                    press_places.push((true_place, estimated_place));
+                }
                 let outcome = frame_outcome(
                     &robot,
                     &FrameEstimate::of_frame(&robot, &estimator.surface, &update, ms, &frame.truth),
@@ -390,6 +402,18 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
         print_metrics(&outcomes)?;
     }
     report_slides(&slides.finish())?;
+    if args.press_gaps {
+        let gaps = args.estimator.with_threads(|| {
+            session_gaps(
+                &estimator,
+                &robot,
+                &sequence,
+                &press_places,
+                config.temporal.slide_m_per_sqrt_s,
+            )
+        })?;
+        report_gaps(&robot, &gaps, estimator.settings.friction)?;
+    }
     Ok(())
 }
 

@@ -8,6 +8,7 @@ pub mod estimate;
 pub mod estimate_out;
 pub mod live;
 pub mod output;
+pub mod press_gaps;
 pub mod synth;
 pub mod topics;
 
