@@ -9,7 +9,7 @@ use anyhow::Result;
 use glam::DVec3;
 use proprioscope::core::estimate::estimator::Estimator;
 use proprioscope::core::estimate::press::FRICTION_GAIN;
-use proprioscope::core::eval::press_gap::{GapFrame, PressGap, press_gap};
+use proprioscope::core::eval::press_gap::{GapFrame, PressFit, PressGap, press_gap};
 use proprioscope::core::over_time::frame::SequenceFrame;
 use proprioscope::core::robot::model::Robot;
 
@@ -79,8 +79,8 @@ pub fn report_gaps(robot: &Robot, gaps: &[PressGap], friction: f64) -> Result<()
         "| start [s] | frames | link | from the estimate: −2 ln L | its median error [mm] | from the truth: −2 ln L | its median error [mm] | lost |"
     )?;
     writeln!(out, "|---:|---:|---|---:|---:|---:|---:|---|")?;
-    let fit = |f: Option<_>| match f {
-        Some(proprioscope::core::eval::press_gap::PressFit {
+    let fit = |f: Option<PressFit>| match f {
+        Some(PressFit {
             cost,
             median_error_m,
             kinetic_friction,

@@ -15,7 +15,6 @@ use crate::core::geometry::shell::MeshPoint;
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::{LinkId, Robot};
 use crate::core::robot::torque::TorqueModel;
-use crate::core::surface::sampling::Surface;
 
 /// One press fitted from one set of places.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -100,7 +99,11 @@ pub fn press_gap(
     let fit_from = |places: &[DVec3]| -> Option<PressFit> {
         let starts: Vec<MeshPoint> = places
             .iter()
-            .map(|&p| Some(locate(shape, nearest_sample(surface, link, p)?, p)))
+            .map(|&p| {
+                // The walk to the point starts at the sample whose patch holds it.
+                let from = surface.location.get(surface.owner(link, p)?)?;
+                Some(locate(shape, *from, p))
+            })
             .collect::<Option<_>>()?;
         let press: Vec<PressFrame> = frames
             .iter()
@@ -151,23 +154,6 @@ pub fn press_gap(
         from_estimate: estimated.as_deref().and_then(&fit_from),
         from_truth: fit_from(&truths),
     })
-}
-
-/// The sample of `link` nearest `point_in_link`: where a walk to that
-/// point starts.
-fn nearest_sample(surface: &Surface, link: LinkId, point_in_link: DVec3) -> Option<MeshPoint> {
-    let k = (0..surface.len())
-        .filter(|&k| surface.link.get(k) == Some(&link))
-        .min_by(|&a, &b| {
-            let d = |k: usize| {
-                surface
-                    .point_in_link
-                    .get(k)
-                    .map_or(f64::INFINITY, |p| p.distance(point_in_link))
-            };
-            d(a).total_cmp(&d(b))
-        })?;
-    surface.location.get(k).copied()
 }
 
 #[cfg(test)]
