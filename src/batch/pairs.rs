@@ -12,7 +12,7 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms};
-use crate::core::estimate::pair::{PairEstimate, PairSettings};
+use crate::core::estimate::pair::{HeldPush, PairEstimate, PairSettings, Unidentifiable};
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Verdict;
 use crate::core::eval::metrics::percentile;
@@ -32,6 +32,9 @@ pub struct SingleSeen {
     /// Whether the single contact explains the torques (its verdict is
     /// "contact", not "poorly explained").
     pub explained: bool,
+    /// The single contact as a push its link holds (`None` where the
+    /// pose has no such link).
+    pub push: Option<HeldPush>,
 }
 
 impl SingleSeen {
@@ -39,10 +42,19 @@ impl SingleSeen {
     #[must_use]
     pub fn of(update: &Update) -> Option<Self> {
         let s = &update.summary;
+        let push = update.pose.world_from_link.get(s.map.link).map(|world_from_link| {
+            let link_from_world = world_from_link.inverse();
+            HeldPush {
+                link: s.map.link,
+                point_in_link: link_from_world.transform_point3(s.map.point_world),
+                force_in_link: link_from_world.transform_vector3(s.map.force_world),
+            }
+        });
         (s.verdict != Verdict::NoContact).then_some(Self {
             point: s.map.point,
             force_newtons: s.map.force_newtons,
             explained: s.verdict == Verdict::Contact,
+            push,
         })
     }
 }
@@ -71,6 +83,9 @@ impl FramePair {
 #[derive(Debug, Clone, Default)]
 pub struct PairFollower {
     tracker: PairTracker,
+    /// The last single contact that explained its frame, while contact
+    /// lasts.
+    held: Option<HeldPush>,
 }
 
 impl PairFollower {
@@ -95,6 +110,7 @@ impl PairFollower {
     ) -> Result<Option<PairEstimate>, EstimateError> {
         let Some(single) = single else {
             self.tracker.observe(None, None);
+            self.held = None;
             return Ok(None);
         };
         // One contact that explains the torques (the fit test) is not
@@ -103,6 +119,7 @@ impl PairFollower {
         // up the misfit (`docs/decisions.md`, *Two contacts*).
         if single.explained {
             self.tracker.observe(Some((single.point, single.force_newtons)), None);
+            self.held = single.push;
             return Ok(None);
         }
         let mut pair = estimator.pair_at(
@@ -112,6 +129,21 @@ impl PairFollower {
             pair_settings,
             &self.tracker.starts(),
         )?;
+        // A pair is not identifiable where the last push to explain its
+        // frame alone still explains this one, its force's direction
+        // kept: a slide whose kinetic friction drags beyond the friction
+        // cone a frame is fitted with, which a pair flanking its link
+        // explains better than any single contact of that cone (the
+        // `../shared` link 6 slide, 1.285–1.325 s). The search itself runs
+        // as before: the frames after it start where it left the pair.
+        if let Some(pair) = pair.as_mut()
+            && pair.unidentifiable.is_none()
+            && self
+                .held
+                .is_some_and(|held| estimator.held_push_explains(robot, frame.joint_positions, frame.tau, &held))
+        {
+            pair.unidentifiable = Some(Unidentifiable::HeldExplains);
+        }
         // A session keeps each pair's summary, not its posteriors over
         // the surface: memory stays flat in the frames searched.
         for contact in pair.iter_mut().flat_map(|p| p.contacts.iter_mut()) {

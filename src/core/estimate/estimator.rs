@@ -11,18 +11,20 @@ use glam::DVec3;
 
 use crate::core::estimate::contact::{PatchForms, PosedSurface};
 use crate::core::estimate::measurement::Measurement;
-use crate::core::estimate::pair::{PairEstimate, PairSettings, PairStart, estimate_pair};
+use crate::core::estimate::pair::{HeldPush, PairEstimate, PairSettings, PairStart, estimate_pair};
 use crate::core::estimate::phases::{PhaseHierarchy, link_ranges};
 use crate::core::estimate::posterior::{Posterior, estimate_keeping_forms};
 use crate::core::estimate::press::{PlaceSpread, PressFrame, PressSettings, locate, press_spreads};
 use crate::core::estimate::refine::{contact_at_offsets, refine};
 use crate::core::estimate::settings::{EstimateError, EstimatorSettings, Mode};
-use crate::core::estimate::summary::{NO_CONTACT_P, PlacedContact, Refinement, Summary, Verdict, summarize_refined};
+use crate::core::estimate::summary::{
+    NO_CONTACT_P, POOR_FIT_P, PlacedContact, Refinement, Summary, Verdict, summarize_refined,
+};
 use crate::core::geometry::shell::MeshPoint;
 use crate::core::numerics::special::chi_square_survival;
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::{LinkId, Robot};
-use crate::core::robot::torque::TorqueModel;
+use crate::core::robot::torque::{TorqueModel, weighted_dot};
 use crate::core::surface::sampling::{LinkShape, Surface, SurfaceError, SurfaceRequest};
 
 /// Everything fixed across updates.
@@ -205,6 +207,37 @@ impl Estimator {
             pair,
             starts,
         )
+    }
+
+    /// Whether `held`, a push that explained an earlier frame, explains
+    /// the torques `tau` at `joint_positions` as well: with its force's
+    /// direction in its link's frame kept and its magnitude fitted (at
+    /// least 0), the residual passes the fit test ([`POOR_FIT_P`]). A
+    /// sliding contact's kinetic friction drags at up to half its push,
+    /// beyond the friction cone a frame alone is fitted with: the press
+    /// fit finds it, and the frames that follow keep it.
+    #[must_use]
+    pub fn held_push_explains(&self, robot: &Robot, joint_positions: &[f64], tau: &[f64], held: &HeldPush) -> bool {
+        let length = held.force_in_link.length();
+        if !(length > 0.0 && length.is_finite()) {
+            return false;
+        }
+        let pose = RobotPose::new(robot, joint_positions);
+        let torque_model = TorqueModel::new(robot, &pose, &self.links);
+        let per_newton = torque_model.torques(held.link, held.point_in_link, held.force_in_link / length);
+        let weights = self.settings.weights();
+        if per_newton.len() != tau.len() || weights.len() != tau.len() {
+            return false;
+        }
+        let along = weighted_dot(&weights, tau, &per_newton);
+        let norm = weighted_dot(&weights, &per_newton, &per_newton);
+        if !(norm > 0.0 && norm.is_finite()) {
+            return false;
+        }
+        let newtons = (along / norm).max(0.0);
+        let left: Vec<f64> = tau.iter().zip(&per_newton).map(|(t, u)| t - newtons * u).collect();
+        let chi2 = weighted_dot(&weights, &left, &left);
+        chi2.is_finite() && chi_square_survival(chi2, tau.len().saturating_sub(1)) >= POOR_FIT_P
     }
 
     /// A frame's summary from its own posterior: the contact refined
@@ -438,3 +471,95 @@ pub(crate) fn is_pressed(update: &Update) -> bool {
 /// `MuJoCo` presses it took a second press for friction at 27 mm instead of
 /// 10 mm.
 pub const PRESS_SLIDE_FRACTION: f64 = 0.3;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::numerics::rng::Rng;
+    use crate::core::robot::builtin;
+
+    /// A push on link 6 dragging sideways at half its magnitude, as a
+    /// slide's kinetic friction does, and the estimator of the LWR.
+    fn sliding_push() -> (Robot, Estimator, Vec<f64>, HeldPush, DVec3) {
+        let robot = builtin::lwr4plus_generated().unwrap();
+        let request = SurfaceRequest {
+            links: robot.default_candidate_links(),
+            total_points: 500,
+            seed: 0,
+        };
+        let settings = EstimatorSettings::exact(vec![0.05; 7]);
+        let estimator = Estimator::new(&robot, &request, settings, None).unwrap();
+        let link = robot.link_id("lwr_6_link").unwrap();
+        let surface = &estimator.surface;
+        let k = (0..surface.len()).find(|&k| surface.link[k] == link).unwrap();
+        let normal = surface.inward_normal_in_link[k];
+        let (tangent, _) = normal.any_orthonormal_pair();
+        let held = HeldPush {
+            link,
+            point_in_link: surface.point_in_link[k],
+            force_in_link: normal * 12.0 + tangent * 6.0,
+        };
+        (
+            robot,
+            estimator,
+            vec![0.4, -0.3, 0.5, -1.2, 0.6, 0.8, -0.2],
+            held,
+            normal,
+        )
+    }
+
+    /// Torques of `push` scaled by `scale` at `q`, with noise of σ 0.05.
+    fn torques_of(robot: &Robot, estimator: &Estimator, q: &[f64], push: &HeldPush, scale: f64) -> Vec<f64> {
+        let pose = RobotPose::new(robot, q);
+        let model = TorqueModel::new(robot, &pose, &estimator.links);
+        let mut rng = Rng::new(5);
+        model
+            .torques(push.link, push.point_in_link, push.force_in_link * scale)
+            .iter()
+            .map(|t| t + 0.05 * rng.normal())
+            .collect()
+    }
+
+    #[test]
+    fn a_held_push_explains_its_own_torques_at_any_magnitude_and_nothing_else() {
+        let (robot, estimator, q, held, normal) = sliding_push();
+        for scale in [0.5, 1.0, 1.6] {
+            let tau = torques_of(&robot, &estimator, &q, &held, scale);
+            assert!(estimator.held_push_explains(&robot, &q, &tau, &held), "×{scale}");
+        }
+        let tau = torques_of(&robot, &estimator, &q, &held, 1.0);
+        // Without its drag, the same push along the normal does not: the
+        // drag is what a frame alone, in the friction cone, leaves out.
+        let normal_only = HeldPush {
+            force_in_link: normal * 12.0,
+            ..held
+        };
+        assert!(!estimator.held_push_explains(&robot, &q, &tau, &normal_only));
+        let (tangent, _) = held.force_in_link.normalize().any_orthonormal_pair();
+        let turned = HeldPush {
+            force_in_link: held.force_in_link + tangent * 8.0,
+            ..held
+        };
+        assert!(!estimator.held_push_explains(&robot, &q, &tau, &turned));
+        // Five centimetres off its line of action, the same force does not.
+        let across = held.force_in_link.cross(normal).normalize();
+        let moved = HeldPush {
+            point_in_link: held.point_in_link + across * 0.05,
+            ..held
+        };
+        assert!(!estimator.held_push_explains(&robot, &q, &tau, &moved));
+        // Nor does a push that pulls, or none.
+        let tau_pull = torques_of(&robot, &estimator, &q, &held, -1.0);
+        assert!(!estimator.held_push_explains(&robot, &q, &tau_pull, &held));
+        let none = HeldPush {
+            force_in_link: DVec3::ZERO,
+            ..held
+        };
+        assert!(!estimator.held_push_explains(&robot, &q, &tau, &none));
+        let nan = HeldPush {
+            force_in_link: DVec3::NAN,
+            ..held
+        };
+        assert!(!estimator.held_push_explains(&robot, &q, &tau, &nan));
+    }
+}

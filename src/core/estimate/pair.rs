@@ -189,6 +189,11 @@ pub enum Unidentifiable {
     /// surface seed 1, a 4–5 N push on link 5 beside the link-7 probe
     /// while that probe's force turned 12° as it drifted).
     OneExplains,
+    /// The push that last explained a frame alone, earlier in the same
+    /// contact, explains this one too with its force's direction kept
+    /// ([`crate::core::estimate::estimator::Estimator::held_push_explains`]):
+    /// a slide whose kinetic friction drags beyond the friction cone.
+    HeldExplains,
 }
 
 impl Unidentifiable {
@@ -202,6 +207,7 @@ impl Unidentifiable {
             Self::OneLinkWithFriction => "with friction, two on one link are one pushing sideways".to_owned(),
             Self::Unconfirmed => "one push is not felt by the joints that only it moves".to_owned(),
             Self::OneExplains => "one push alone, with friction, explains the torques".to_owned(),
+            Self::HeldExplains => "the push held before, its force's direction kept, explains the torques".to_owned(),
         }
     }
 }
@@ -298,6 +304,19 @@ pub enum PairStart {
     },
     /// Both contacts as an earlier frame left them.
     Both(Box<[Placed; 2]>),
+}
+
+/// A push that explained an earlier frame alone, as the frames after it
+/// may still hold it: its link, and its place and force in that link's
+/// frame (the tangential part included).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeldPush {
+    /// Its link.
+    pub link: LinkId,
+    /// Contact point, link frame, m.
+    pub point_in_link: DVec3,
+    /// Force on the robot, link frame, N.
+    pub force_in_link: DVec3,
 }
 
 /// Where one search of a frame's pair begins: both places, or one

@@ -32,7 +32,7 @@ impl Estimator {
         &self,
         robot: &Robot,
         frames: &[SequenceFrame],
-        slide_m_per_sqrt_s: f64,
+        walks: Walks,
         press: &mut Vec<(usize, Update, f64)>,
         alone: &mut Vec<Option<Summary>>,
         each: &mut impl FnMut(usize, Update, f64),
@@ -42,8 +42,7 @@ impl Estimator {
             return;
         }
         let t0 = Instant::now();
-        let slides =
-            self.fits_presses() && self.fit_press_of(robot, frames, slide_m_per_sqrt_s, press, alone) == Some(true);
+        let slides = self.fits_presses() && self.fit_press_of(robot, frames, walks, press, alone) == Some(true);
         let limit_per_frame = if slides {
             SLIDE_MISFIT_PER_FRAME
         } else {
@@ -69,12 +68,15 @@ impl Estimator {
     /// [`LINK_SWITCH_GAIN`] unless [`LINK_SWITCH_SHARE`] agree). The
     /// smoother's model has no friction: where a press drags, it may
     /// settle on a place (or a link) that the frames alone, placed with
-    /// friction in mind by the fit, contradict.
+    /// friction in mind by the fit, contradict. Where the fit kept so far
+    /// has friction, each start is also followed at a faster slide and
+    /// fitted again from there ([`FOLLOW_SLIDE_M_PER_SQRT_S`]), kept by
+    /// the same rule.
     fn fit_press_of(
         &self,
         robot: &Robot,
         frames: &[SequenceFrame],
-        slide_m_per_sqrt_s: f64,
+        walks: Walks,
         press: &mut [(usize, Update, f64)],
         alone: &[Option<Summary>],
     ) -> Option<bool> {
@@ -84,7 +86,7 @@ impl Estimator {
             .map(|(_, update, _)| TorqueModel::new(robot, &update.pose, &self.links))
             .collect();
         let weights = self.settings.weights();
-        let settings = self.press_settings(&weights, slide_m_per_sqrt_s);
+        let settings = self.press_settings(&weights, walks.slide_m_per_sqrt_s);
         let recording: Vec<Option<&ContactEstimate>> = press.iter().map(|(_, u, _)| Some(&u.summary.map)).collect();
         let here = self.explain_on(link, press, &recording, frames, &models, &settings)?;
         let (mut best_link, mut best) = (link, here);
@@ -95,46 +97,19 @@ impl Estimator {
         let own: Vec<Option<&ContactEstimate>> = (0..press.len())
             .map(|k| alone.get(k)?.as_ref().filter(|s| s.refined).map(|s| &s.map))
             .collect();
-        let mut groups: Vec<Group> = Vec::new();
-        for (k, ((_, update, _), map)) in press.iter().zip(&own).enumerate() {
-            let Some(map) = map else { continue };
-            let Some(point) = update
-                .pose
-                .world_from_link
-                .get(map.link)
-                .map(|world_from_link| world_from_link.inverse().transform_point3(map.point_world))
-            else {
-                continue;
-            };
-            let apart = map.link != update.summary.map.link
-                || map.point_world.distance(update.summary.map.point_world) > ALTERNATIVE_MIN_M;
-            match groups
-                .iter_mut()
-                .find(|g| g.link == map.link && g.center_in_link.distance(point) <= ALTERNATIVE_GROUP_M)
-            {
-                Some(g) => {
-                    g.members.push(k);
-                    g.apart += usize::from(apart);
-                }
-                None => groups.push(Group {
-                    link: map.link,
-                    center_in_link: point,
-                    members: vec![k],
-                    apart: usize::from(apart),
-                }),
-            }
-        }
-        groups.sort_by(|a, b| b.members.len().cmp(&a.members.len()).then(a.members.cmp(&b.members)));
+        let groups = groups_of(press, &own);
         // A group on another link places every member elsewhere: its size says how many agree.
         let many = press.len().div_ceil(LINK_SWITCH_SHARE).max(ALTERNATIVE_MIN_FRAMES);
+        // Each start: its link, its places, the gain it must bring.
+        let mut starts: Vec<(LinkId, Vec<Option<&ContactEstimate>>, f64)> = Vec::new();
         for group in groups
             .iter()
             .filter(|g| g.members.len() >= ALTERNATIVE_MIN_FRAMES && g.apart >= ALTERNATIVE_MIN_FRAMES)
             .take(MAX_ALTERNATIVES)
         {
-            let mut starts: Vec<Option<&ContactEstimate>> = vec![None; press.len()];
+            let mut places: Vec<Option<&ContactEstimate>> = vec![None; press.len()];
             for &k in &group.members {
-                if let (Some(start), Some(map)) = (starts.get_mut(k), own.get(k)) {
+                if let (Some(start), Some(map)) = (places.get_mut(k), own.get(k)) {
                     *start = *map;
                 }
             }
@@ -143,10 +118,22 @@ impl Estimator {
             } else {
                 LINK_SWITCH_GAIN
             };
-            if let Some(answer) = self.explain_on(group.link, press, &starts, frames, &models, &settings)
+            if let Some(answer) = self.explain_on(group.link, press, &places, frames, &models, &settings)
                 && answer.1.cost < best.1.cost - gain
             {
                 (best_link, best) = (group.link, answer);
+                alternative = true;
+            }
+            starts.push((group.link, places, gain));
+        }
+        // A press that drags is followed from each start at a faster
+        // slide, then fitted again at the recording's.
+        if best.1.friction && walks.follow_m_per_sqrt_s > walks.slide_m_per_sqrt_s {
+            let follow = self.press_settings(&weights, walks.follow_m_per_sqrt_s);
+            let starts = std::iter::once((link, recording, FRICTION_GAIN)).chain(starts);
+            let fit = (frames, models.as_slice(), &settings, &follow);
+            if let Some(found) = self.followed(press, starts, fit, best.1.cost) {
+                (best_link, best) = found;
                 alternative = true;
             }
         }
@@ -233,6 +220,62 @@ impl Estimator {
         }
         let answer = explain_press(shape, link, &press_frames, settings)?;
         Some((fallback, answer))
+    }
+
+    /// The cheapest fit of `press` from `starts` (each: its link, its
+    /// places, the drop in cost it must bring below `best_cost`) that the
+    /// press settings `follow` fit first and `settings` again from there
+    /// ([`FOLLOW_SLIDE_M_PER_SQRT_S`]); `None` where none brings its drop.
+    fn followed<'s>(
+        &self,
+        press: &[(usize, Update, f64)],
+        starts: impl Iterator<Item = (LinkId, Vec<Option<&'s ContactEstimate>>, f64)>,
+        (frames, models, settings, follow): (&[SequenceFrame], &[TorqueModel], &PressSettings, &PressSettings),
+        best_cost: f64,
+    ) -> Option<(LinkId, (Vec<usize>, PressAnswer))> {
+        let mut found: Option<(LinkId, (Vec<usize>, PressAnswer))> = None;
+        for (link, places, gain) in starts {
+            let limit = found.as_ref().map_or(best_cost, |(_, (_, a))| a.cost) - gain;
+            if let Some(answer) = self
+                .explain_on(link, press, &places, frames, models, follow)
+                .and_then(|followed| self.explain_again(link, press, &followed, frames, models, settings))
+                && answer.1.cost < limit
+            {
+                found = Some((link, answer));
+            }
+        }
+        found
+    }
+
+    /// The press's frames fitted on `link` again, each started where
+    /// `from` (a fit on that link) left it; with `from`'s samples to fall
+    /// back on.
+    fn explain_again(
+        &self,
+        link: LinkId,
+        press: &[(usize, Update, f64)],
+        from: &(Vec<usize>, PressAnswer),
+        frames: &[SequenceFrame],
+        models: &[TorqueModel],
+        settings: &PressSettings,
+    ) -> Option<(Vec<usize>, PressAnswer)> {
+        let shape = self.surface.shape(link)?;
+        let press_frames = press
+            .iter()
+            .zip(models)
+            .zip(&from.1.contacts)
+            .map(|(((i, _, _), torque_model), contact)| {
+                let frame = frames.get(*i)?;
+                Some(PressFrame {
+                    t_secs: frame.t_secs,
+                    torque_model,
+                    tau: frame.tau,
+                    start: contact.location,
+                })
+            })
+            .collect::<Option<Vec<_>>>()?;
+        let answer = explain_press(shape, link, &press_frames, settings)?;
+        Some((from.0.clone(), answer))
     }
 
     /// Filtering with friction: a frame's force at the recording's place
@@ -404,7 +447,10 @@ impl<'a> PressQueue<'a> {
                 estimator,
                 robot,
                 frames,
-                slide_m_per_sqrt_s,
+                walks: Walks {
+                    slide_m_per_sqrt_s,
+                    follow_m_per_sqrt_s: FOLLOW_SLIDE_M_PER_SQRT_S,
+                },
             },
             held: Vec::new(),
             alone: Vec::new(),
@@ -483,8 +529,7 @@ struct PressContext<'a> {
     estimator: &'a Estimator,
     robot: &'a Robot,
     frames: &'a [SequenceFrame<'a>],
-    /// The temporal model's slide length, m/√s.
-    slide_m_per_sqrt_s: f64,
+    walks: Walks,
 }
 
 impl PressJob<'_> {
@@ -504,13 +549,78 @@ impl PressJob<'_> {
         c.estimator.settle_press(
             c.robot,
             c.frames,
-            c.slide_m_per_sqrt_s,
+            c.walks,
             &mut self.held,
             &mut self.alone,
             &mut |i, update, ms| out.push((i, update, ms)),
         );
         out
     }
+}
+
+/// The slide lengths a smoothed press's fit reads.
+#[derive(Debug, Clone, Copy)]
+struct Walks {
+    /// The temporal model's, m/√s.
+    slide_m_per_sqrt_s: f64,
+    /// The one a press that drags is followed at first, m/√s
+    /// ([`FOLLOW_SLIDE_M_PER_SQRT_S`]).
+    follow_m_per_sqrt_s: f64,
+}
+
+/// A press that drags (its fit keeps friction) is also fitted from each
+/// of its starts with a track free to slide this far (m/√s, times
+/// [`crate::core::estimate::estimator::PRESS_SLIDE_FRACTION`]), then again
+/// from there at the recording's slide length, and kept where that costs
+/// less by the alternatives' rule. The fit at the recording's length
+/// (1 cm/√s by default) cannot follow a slide of centimetres from a
+/// start that holds one place (the smoother's) or a few frames' (a
+/// group): it ends in the valley of the one place that explains the
+/// whole slide least badly, centimetres from every true place (a
+/// generated link 5 press, `-2 ln L` 7,011; followed, then fitted again,
+/// 1,329 and 6 mm off). The faster track follows the slide, and the fit
+/// at the recording's length, started on it, keeps it where the frames
+/// ask for it. On short pieces of a press the same two steps leave a
+/// poor valley (the `../shared` link 6 slide: a 25-frame piece 4,753 →
+/// 212). Not a second smoothing at the faster walk: its places hop
+/// between valleys from frame to frame, and a track through them costs
+/// millions (`docs/decisions.md`, *Slides placed centimetres off*).
+pub const FOLLOW_SLIDE_M_PER_SQRT_S: f64 = 0.1;
+
+/// The frames' own places `own` of `press`, in [`Group`]s, the largest
+/// first.
+fn groups_of(press: &[(usize, Update, f64)], own: &[Option<&ContactEstimate>]) -> Vec<Group> {
+    let mut groups: Vec<Group> = Vec::new();
+    for (k, ((_, update, _), map)) in press.iter().zip(own).enumerate() {
+        let Some(map) = map else { continue };
+        let Some(point) = update
+            .pose
+            .world_from_link
+            .get(map.link)
+            .map(|world_from_link| world_from_link.inverse().transform_point3(map.point_world))
+        else {
+            continue;
+        };
+        let apart = map.link != update.summary.map.link
+            || map.point_world.distance(update.summary.map.point_world) > ALTERNATIVE_MIN_M;
+        match groups
+            .iter_mut()
+            .find(|g| g.link == map.link && g.center_in_link.distance(point) <= ALTERNATIVE_GROUP_M)
+        {
+            Some(g) => {
+                g.members.push(k);
+                g.apart += usize::from(apart);
+            }
+            None => groups.push(Group {
+                link: map.link,
+                center_in_link: point,
+                members: vec![k],
+                apart: usize::from(apart),
+            }),
+        }
+    }
+    groups.sort_by(|a, b| b.members.len().cmp(&a.members.len()).then(a.members.cmp(&b.members)));
+    groups
 }
 
 /// Frames of a press whose own contacts lie on one link within
