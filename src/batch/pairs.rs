@@ -129,18 +129,22 @@ impl PairFollower {
             pair_settings,
             &self.tracker.starts(),
         )?;
-        // A pair is not identifiable where the last push to explain its
-        // frame alone still explains this one, its force's direction
-        // kept: a slide whose kinetic friction drags beyond the friction
-        // cone a frame is fitted with, which a pair flanking its link
-        // explains better than any single contact of that cone (the
-        // `../shared` link 6 slide, 1.285–1.325 s). The search itself runs
-        // as before: the frames after it start where it left the pair.
+        // A pair with no contact on the link of the last push to explain
+        // its frame alone is not identifiable where that push still
+        // explains this frame, its force's direction kept: a slide whose
+        // kinetic friction drags beyond the friction cone a frame is
+        // fitted with, which a pair flanking its link explains better
+        // than any single contact of that cone (the `../shared` link 6
+        // slide, 1.285–1.315 s). A pair that keeps a contact on that link
+        // is the held contact and a new one (a second hand arriving), and
+        // the held push alone explains such frames as often (at the same
+        // χ², 33–38 on seven joints). The search itself runs as before:
+        // the frames after it start where it left the pair.
         if let Some(pair) = pair.as_mut()
             && pair.unidentifiable.is_none()
-            && self
-                .held
-                .is_some_and(|held| estimator.held_push_explains(robot, frame.joint_positions, frame.tau, &held))
+            && let Some(held) = self.held
+            && pair.contacts.iter().all(|c| c.placed.link != held.link)
+            && estimator.held_push_explains(robot, frame.joint_positions, frame.tau, &held)
         {
             pair.unidentifiable = Some(Unidentifiable::HeldExplains);
         }

@@ -189,8 +189,9 @@ pub enum Unidentifiable {
     /// surface seed 1, a 4–5 N push on link 5 beside the link-7 probe
     /// while that probe's force turned 12° as it drifted).
     OneExplains,
-    /// The push that last explained a frame alone, earlier in the same
-    /// contact, explains this one too with its force's direction kept
+    /// Neither contact is on the link of the push that last explained a
+    /// frame alone, earlier in the same contact, and that push explains
+    /// this frame too with its force's direction kept
     /// ([`crate::core::estimate::estimator::Estimator::held_push_explains`]):
     /// a slide whose kinetic friction drags beyond the friction cone.
     HeldExplains,
