@@ -5,6 +5,8 @@
 
 use std::time::Instant;
 
+use rayon::prelude::*;
+
 use glam::DVec3;
 
 use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms, is_pressed};
@@ -233,12 +235,22 @@ impl Estimator {
         (frames, models, settings, follow): (&[SequenceFrame], &[TorqueModel], &PressSettings, &PressSettings),
         best_cost: f64,
     ) -> Option<(LinkId, (Vec<usize>, PressAnswer))> {
+        // The starts' fits do not depend on one another: in parallel, then
+        // judged in order.
+        let starts: Vec<_> = starts.collect();
+        let fits: Vec<_> = starts
+            .into_par_iter()
+            .map(|(link, places, gain)| {
+                let answer = self
+                    .explain_on(link, press, &places, frames, models, follow)
+                    .and_then(|followed| self.explain_again(link, press, &followed, frames, models, settings));
+                (link, answer, gain)
+            })
+            .collect();
         let mut found: Option<(LinkId, (Vec<usize>, PressAnswer))> = None;
-        for (link, places, gain) in starts {
+        for (link, answer, gain) in fits {
             let limit = found.as_ref().map_or(best_cost, |(_, (_, a))| a.cost) - gain;
-            if let Some(answer) = self
-                .explain_on(link, press, &places, frames, models, follow)
-                .and_then(|followed| self.explain_again(link, press, &followed, frames, models, settings))
+            if let Some(answer) = answer
                 && answer.1.cost < limit
             {
                 found = Some((link, answer));
