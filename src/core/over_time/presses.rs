@@ -34,7 +34,7 @@ impl Estimator {
         &self,
         robot: &Robot,
         frames: &[SequenceFrame],
-        walks: Walks,
+        slide_m_per_sqrt_s: f64,
         press: &mut Vec<(usize, Update, f64)>,
         alone: &mut Vec<Option<Summary>>,
         each: &mut impl FnMut(usize, Update, f64),
@@ -44,7 +44,8 @@ impl Estimator {
             return;
         }
         let t0 = Instant::now();
-        let slides = self.fits_presses() && self.fit_press_of(robot, frames, walks, press, alone) == Some(true);
+        let slides =
+            self.fits_presses() && self.fit_press_of(robot, frames, slide_m_per_sqrt_s, press, alone) == Some(true);
         let limit_per_frame = if slides {
             SLIDE_MISFIT_PER_FRAME
         } else {
@@ -78,7 +79,7 @@ impl Estimator {
         &self,
         robot: &Robot,
         frames: &[SequenceFrame],
-        walks: Walks,
+        slide_m_per_sqrt_s: f64,
         press: &mut [(usize, Update, f64)],
         alone: &[Option<Summary>],
     ) -> Option<bool> {
@@ -88,7 +89,7 @@ impl Estimator {
             .map(|(_, update, _)| TorqueModel::new(robot, &update.pose, &self.links))
             .collect();
         let weights = self.settings.weights();
-        let settings = self.press_settings(&weights, walks.slide_m_per_sqrt_s);
+        let settings = self.press_settings(&weights, slide_m_per_sqrt_s);
         let recording: Vec<Option<&ContactEstimate>> = press.iter().map(|(_, u, _)| Some(&u.summary.map)).collect();
         let here = self.explain_on(link, press, &recording, frames, &models, &settings)?;
         let (mut best_link, mut best) = (link, here);
@@ -130,8 +131,8 @@ impl Estimator {
         }
         // A press that drags is followed from each start at a faster
         // slide, then fitted again at the recording's.
-        if best.1.friction && walks.follow_m_per_sqrt_s > walks.slide_m_per_sqrt_s {
-            let follow = self.press_settings(&weights, walks.follow_m_per_sqrt_s);
+        if best.1.friction && FOLLOW_SLIDE_M_PER_SQRT_S > slide_m_per_sqrt_s {
+            let follow = self.press_settings(&weights, FOLLOW_SLIDE_M_PER_SQRT_S);
             let starts = std::iter::once((link, recording, FRICTION_GAIN)).chain(starts);
             let fit = (frames, models.as_slice(), &settings, &follow);
             if let Some(found) = self.followed(press, starts, fit, best.1.cost) {
@@ -186,9 +187,9 @@ impl Estimator {
         let have: Vec<usize> = (0..press.len())
             .filter(|&k| starts.get(k).copied().flatten().is_some_and(|m| m.link == link))
             .collect();
-        let mut press_frames = Vec::with_capacity(press.len());
+        let mut locations = Vec::with_capacity(press.len());
         let mut fallback = Vec::with_capacity(press.len());
-        for (k, ((i, _, _), torque_model)) in press.iter().zip(models).enumerate() {
+        for k in 0..press.len() {
             // The nearest frame with a start (`have` is sorted).
             let after = have.partition_point(|&j| j < k);
             let nearest = match (after.checked_sub(1).and_then(|b| have.get(b)), have.get(after)) {
@@ -211,15 +212,39 @@ impl Estimator {
                 .inverse()
                 .transform_point3(map.point_world);
             let sample = *self.surface.location.get(map.point)?;
-            let frame = frames.get(*i)?;
-            press_frames.push(PressFrame {
-                t_secs: frame.t_secs,
-                torque_model,
-                tau: frame.tau,
-                start: locate(shape, sample, point_in_link),
-            });
+            locations.push(locate(shape, sample, point_in_link));
             fallback.push(map.point);
         }
+        self.explain_from(link, press, (locations, fallback), frames, models, settings)
+    }
+
+    /// The press's frames fitted on `link`, each started at its place in
+    /// `starts` (its location on the link's surface, and its sample to
+    /// fall back on).
+    fn explain_from(
+        &self,
+        link: LinkId,
+        press: &[(usize, Update, f64)],
+        (locations, fallback): (Vec<MeshPoint>, Vec<usize>),
+        frames: &[SequenceFrame],
+        models: &[TorqueModel],
+        settings: &PressSettings,
+    ) -> Option<(Vec<usize>, PressAnswer)> {
+        let shape = self.surface.shape(link)?;
+        let press_frames = press
+            .iter()
+            .zip(models)
+            .zip(locations)
+            .map(|(((i, _, _), torque_model), start)| {
+                let frame = frames.get(*i)?;
+                Some(PressFrame {
+                    t_secs: frame.t_secs,
+                    torque_model,
+                    tau: frame.tau,
+                    start,
+                })
+            })
+            .collect::<Option<Vec<_>>>()?;
         let answer = explain_press(shape, link, &press_frames, settings)?;
         Some((fallback, answer))
     }
@@ -241,9 +266,13 @@ impl Estimator {
         let fits: Vec<_> = starts
             .into_par_iter()
             .map(|(link, places, gain)| {
-                let answer = self
-                    .explain_on(link, press, &places, frames, models, follow)
-                    .and_then(|followed| self.explain_again(link, press, &followed, frames, models, settings));
+                // Fitted again from where the followed fit left each frame.
+                let answer =
+                    self.explain_on(link, press, &places, frames, models, follow)
+                        .and_then(|(fallback, followed)| {
+                            let locations = followed.contacts.iter().map(|c| c.location).collect();
+                            self.explain_from(link, press, (locations, fallback), frames, models, settings)
+                        });
                 (link, answer, gain)
             })
             .collect();
@@ -257,37 +286,6 @@ impl Estimator {
             }
         }
         found
-    }
-
-    /// The press's frames fitted on `link` again, each started where
-    /// `from` (a fit on that link) left it; with `from`'s samples to fall
-    /// back on.
-    fn explain_again(
-        &self,
-        link: LinkId,
-        press: &[(usize, Update, f64)],
-        from: &(Vec<usize>, PressAnswer),
-        frames: &[SequenceFrame],
-        models: &[TorqueModel],
-        settings: &PressSettings,
-    ) -> Option<(Vec<usize>, PressAnswer)> {
-        let shape = self.surface.shape(link)?;
-        let press_frames = press
-            .iter()
-            .zip(models)
-            .zip(&from.1.contacts)
-            .map(|(((i, _, _), torque_model), contact)| {
-                let frame = frames.get(*i)?;
-                Some(PressFrame {
-                    t_secs: frame.t_secs,
-                    torque_model,
-                    tau: frame.tau,
-                    start: contact.location,
-                })
-            })
-            .collect::<Option<Vec<_>>>()?;
-        let answer = explain_press(shape, link, &press_frames, settings)?;
-        Some((from.0.clone(), answer))
     }
 
     /// Filtering with friction: a frame's force at the recording's place
@@ -459,10 +457,7 @@ impl<'a> PressQueue<'a> {
                 estimator,
                 robot,
                 frames,
-                walks: Walks {
-                    slide_m_per_sqrt_s,
-                    follow_m_per_sqrt_s: FOLLOW_SLIDE_M_PER_SQRT_S,
-                },
+                slide_m_per_sqrt_s,
             },
             held: Vec::new(),
             alone: Vec::new(),
@@ -541,7 +536,8 @@ struct PressContext<'a> {
     estimator: &'a Estimator,
     robot: &'a Robot,
     frames: &'a [SequenceFrame<'a>],
-    walks: Walks,
+    /// The temporal model's slide length, m/√s.
+    slide_m_per_sqrt_s: f64,
 }
 
 impl PressJob<'_> {
@@ -561,23 +557,13 @@ impl PressJob<'_> {
         c.estimator.settle_press(
             c.robot,
             c.frames,
-            c.walks,
+            c.slide_m_per_sqrt_s,
             &mut self.held,
             &mut self.alone,
             &mut |i, update, ms| out.push((i, update, ms)),
         );
         out
     }
-}
-
-/// The slide lengths a smoothed press's fit reads.
-#[derive(Debug, Clone, Copy)]
-struct Walks {
-    /// The temporal model's, m/√s.
-    slide_m_per_sqrt_s: f64,
-    /// The one a press that drags is followed at first, m/√s
-    /// ([`FOLLOW_SLIDE_M_PER_SQRT_S`]).
-    follow_m_per_sqrt_s: f64,
 }
 
 /// A press that drags (its fit keeps friction) is also fitted from each
