@@ -880,3 +880,7 @@ pub const SLIDE_MISFIT_PER_FRAME: f64 = 50.0;
 /// See [`PRESS_MISFIT_PER_FRAME`]: a short press must still miss by this
 /// much in all.
 pub const PRESS_MISFIT_MARGIN: f64 = 30.0;
+
+#[cfg(test)]
+#[path = "presses_tests.rs"]
+mod tests;
