@@ -600,12 +600,15 @@ struct PressContext<'a> {
 }
 
 impl PressJob<'_> {
-    /// Bytes its frames' posteriors hold.
+    /// Bytes its frames' posteriors hold while it is fitted: twice over
+    /// for a press that bridged a hop (its whole fit works on a copy).
     pub(crate) fn bytes(&self) -> usize {
-        self.held
+        let once: usize = self
+            .held
             .iter()
             .map(|(_, update, _)| size_of::<Update>() + update.posterior.bytes())
-            .sum()
+            .sum();
+        if self.pieces().len() > 1 { 2 * once } else { once }
     }
 
     /// Fits the press: its frames in order, each with its update and

@@ -59,6 +59,10 @@ fn queued(pattern: &str, fit: bool) -> (Vec<Out>, Vec<Vec<usize>>) {
     let mut take = |offered: Offered| match offered {
         Offered::Frame(i, _, _) => out.push(Out::Frame(i)),
         Offered::Press(job) => {
+            // A bridged press holds its frames twice while fitted.
+            let once = job.held.len() * (size_of::<Update>() + pressed.posterior.bytes());
+            let copies = if job.pieces().len() > 1 { 2 } else { 1 };
+            assert_eq!(job.bytes(), copies * once);
             pieces.push(job.pieces());
             let frames = if fit {
                 job.fit().iter().map(|(i, _, _)| *i).collect()
