@@ -15,21 +15,7 @@ use common::run_out;
 fn a_slide_the_smoother_holds_in_one_place_is_followed() {
     let dir = common::temp_dir("slides");
     let path = dir.join("link5.json");
-    let (ok, _, err) = run_out(&[
-        "synth",
-        path.to_str().unwrap(),
-        "--seed",
-        "1",
-        "--links",
-        "lwr_5_link",
-        "--slide",
-        "0.1",
-        "--slide-min",
-        "0.02",
-        "--kinetic-friction",
-        "0.3,0.6",
-    ]);
-    assert!(ok, "{err}");
+    common::synth_slide(&path, "lwr_5_link", "1");
     let (ok, out, err) = run_out(&["estimate", path.to_str().unwrap(), "--temporal", "smooth"]);
     assert!(ok, "{err}");
     let row = common::all_row(&out);
@@ -47,21 +33,7 @@ fn a_slide_the_smoother_holds_in_one_place_is_followed() {
 fn a_press_the_smoother_leaves_for_a_few_frames_is_fitted_whole() {
     let dir = common::temp_dir("slides_hops");
     let path = dir.join("link5.json");
-    let (ok, _, err) = run_out(&[
-        "synth",
-        path.to_str().unwrap(),
-        "--seed",
-        "3",
-        "--links",
-        "lwr_5_link",
-        "--slide",
-        "0.1",
-        "--slide-min",
-        "0.02",
-        "--kinetic-friction",
-        "0.3,0.6",
-    ]);
-    assert!(ok, "{err}");
+    common::synth_slide(&path, "lwr_5_link", "3");
     let (ok, out, err) = run_out(&["estimate", path.to_str().unwrap(), "--temporal", "smooth"]);
     assert!(ok, "{err}");
     let position_mm = common::all_row(&out)[0];

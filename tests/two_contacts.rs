@@ -160,21 +160,7 @@ fn one_press_share(out: &str) -> f64 {
 fn a_generated_slide_is_seldom_called_two() {
     let dir = common::temp_dir("two_contacts_slide");
     let path = dir.join("link6.json");
-    let (ok, _, err) = common::run_out(&[
-        "synth",
-        path.to_str().unwrap(),
-        "--seed",
-        "2",
-        "--links",
-        "lwr_6_link",
-        "--slide",
-        "0.1",
-        "--slide-min",
-        "0.02",
-        "--kinetic-friction",
-        "0.3,0.6",
-    ]);
-    assert!(ok, "{err}");
+    common::synth_slide(&path, "lwr_6_link", "2");
     let out = smoothed_pairs(&path, &dir.join("out.jsonl"));
     let share = one_press_share(&out);
     // Measured 0.0 %; before its presses were fitted across the frames the

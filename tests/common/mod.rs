@@ -274,3 +274,25 @@ pub fn two_push_session() -> String {
         .collect();
     serde_json::json!({"format": "contact-session", "version": 1, "robot": "lwr4plus", "frames": frames}).to_string()
 }
+
+/// `synth PATH --seed SEED --links LINK --slide 0.1 --slide-min 0.02
+/// --kinetic-friction 0.3,0.6`: a generated session whose presses on
+/// `link` slide at 2–10 cm/s with kinetic friction (the sliding sessions
+/// of `docs/validation.md`, *Sliding contacts*).
+pub fn synth_slide(path: &std::path::Path, link: &str, seed: &str) {
+    let (ok, _, err) = run_out(&[
+        "synth",
+        path.to_str().unwrap_or_default(),
+        "--seed",
+        seed,
+        "--links",
+        link,
+        "--slide",
+        "0.1",
+        "--slide-min",
+        "0.02",
+        "--kinetic-friction",
+        "0.3,0.6",
+    ]);
+    assert!(ok, "{err}");
+}

@@ -526,33 +526,36 @@ impl<'a> PressQueue<'a> {
         // The press ends; a hop that did not return is offered afresh,
         // then this frame.
         self.settle_held(each);
-        let hop = std::mem::take(&mut self.bridge);
-        if hop.is_empty() {
-            if in_press {
-                self.held.push((i, update, cost_ms));
-                self.alone.push(alone);
-            } else {
-                each(Offered::Frame(i, update, cost_ms));
-            }
-            return;
+        if self.offer_hop_again(each) {
+            self.offer(i, (update, alone), cost_ms, each);
+        } else if in_press {
+            self.held.push((i, update, cost_ms));
+            self.alone.push(alone);
+        } else {
+            each(Offered::Frame(i, update, cost_ms));
         }
-        for (j, frame, ms) in hop {
-            self.offer(j, frame, ms, each);
-        }
-        self.offer(i, (update, alone), cost_ms, each);
     }
 
     /// Hands on the press held and any hop after it, if any.
     pub(crate) fn settle(&mut self, each: &mut impl FnMut(Offered<'a>)) {
-        self.settle_held(each);
-        for (j, hop, ms) in std::mem::take(&mut self.bridge) {
-            self.offer(j, hop, ms, each);
+        // A hop offered again may leave a shorter hop of its own.
+        loop {
+            self.settle_held(each);
+            if !self.offer_hop_again(each) {
+                return;
+            }
         }
-        self.settle_held(each);
-        // A hop re-offered may leave a hop of its own.
-        if !self.bridge.is_empty() {
-            self.settle(each);
+    }
+
+    /// Offers the frames of a hop the press did not come back from
+    /// afresh (each may start a press); whether there were any.
+    fn offer_hop_again(&mut self, each: &mut impl FnMut(Offered<'a>)) -> bool {
+        let hop = std::mem::take(&mut self.bridge);
+        let any = !hop.is_empty();
+        for (j, frame, ms) in hop {
+            self.offer(j, frame, ms, each);
         }
+        any
     }
 
     /// Hands on the press held, if any, as a [`PressJob`].
