@@ -28,6 +28,14 @@
 //! `a_slide_that_stops_holding_its_drag_is_found_with_it`: 2.9 N and
 //! 9.9 mm off at p90, against 0.2–0.4 N and 1.3–2.9 mm).
 //!
+//! The slide term expects each frame's place to move on at its
+//! velocity, which the window smears from a short slide into the rests
+//! around it. So a press that both slips and sticks, on a link that five
+//! or more joints feel, is fitted a second time with its places expected
+//! to stay put wherever it sticks (and a frame held still free to slip
+//! along the nearest slide's direction), and the cheaper fit is kept
+//! (`docs/decisions.md`, session 65).
+//!
 //! The velocities and states depend on the places that the search
 //! moves, so the search runs in rounds: they are held fixed through a
 //! Gauss–Newton search of the places and `μ_k` ([`super::press`]'s, with
@@ -52,6 +60,14 @@ const MU_START: f64 = 0.4;
 /// `-2 ln` of the chance that a press changes between sticking and
 /// slipping at a frame.
 const SWITCH_COST: f64 = 10.0;
+
+/// Sensed joints that must feel a press's link for its rests to be
+/// fitted held still as well (see [`descend_kinetic`]). With fewer (links
+/// 3 and 4 of the LWR) a frame's place, push and drag are more unknowns
+/// than its readings, and places held still there were fitted cheaper but
+/// farther off: the generated link 3 seed 2 slide at surface seed 1 16.8 →
+/// 96.3 mm (`docs/decisions.md`, session 65).
+const HELD_STILL_MIN_JOINTS: usize = 5;
 
 /// Half the window a frame's velocity is fitted over, s (see
 /// `docs/decisions.md`, *The slide's direction over a wider window*).
@@ -93,7 +109,7 @@ impl Kinetic {
     /// With its gain: the same search from the same start with `μ_k` held
     /// at 0. `None` where the surface cannot be evaluated.
     pub(super) fn weighed(mut self, problem: &Problem) -> Option<Self> {
-        let (still, _) = rounds(problem, self.start.clone(), false)?;
+        let (still, _) = rounds(problem, self.start.clone(), false, false)?;
         self.gain = still.normal.cost - self.found.normal.cost;
         Some(self)
     }
@@ -102,7 +118,22 @@ impl Kinetic {
 /// The press fitted with kinetic friction from `start` (see the module's
 /// documentation). `None` where the surface cannot be evaluated.
 pub(super) fn descend_kinetic(problem: &Problem, start: Vec<MeshPoint>) -> Option<Kinetic> {
-    let (found, slides) = rounds(problem, start.clone(), true)?;
+    let moving = rounds(problem, start.clone(), true, false)?;
+    // A press that both slips and sticks is fitted again with its places
+    // held still where it sticks, and the cheaper fit kept.
+    let mixed = |slides: &Slides| {
+        let slipping = slides.directions.iter().filter(|d| d.length() > 0.0).count();
+        slipping > 0 && slipping < slides.directions.len()
+    };
+    let joints = problem
+        .frames
+        .first()
+        .map_or(0, |f| f.torque_model.twists(problem.link()).len());
+    let try_held = mixed(&moving.1) && joints >= HELD_STILL_MIN_JOINTS;
+    let (found, slides) = match try_held.then(|| rounds(problem, start.clone(), true, true)).flatten() {
+        Some(held) if held.0.normal.cost < moving.0.normal.cost => held,
+        _ => moving,
+    };
     Some(Kinetic {
         found,
         slides,
@@ -111,13 +142,15 @@ pub(super) fn descend_kinetic(problem: &Problem, start: Vec<MeshPoint>) -> Optio
     })
 }
 
-/// Rounds of slides and search from `start`, `μ_k` free or held at 0;
-/// the round whose places cost least at their own slides.
-fn rounds(problem: &Problem, start: Vec<MeshPoint>, free: bool) -> Option<(Found, Slides)> {
+/// Rounds of slides and search from `start`, `μ_k` free or held at 0,
+/// the places expected to stay put where the press sticks when
+/// `held_still` (else to go on at the track's velocity); the round whose
+/// places cost least at their own slides.
+fn rounds(problem: &Problem, start: Vec<MeshPoint>, free: bool, held_still: bool) -> Option<(Found, Slides)> {
     let slides_of = |locations: &[MeshPoint], ratio: DVec3| {
         let moving = slides_at(problem, locations)?;
         if free {
-            slipping(problem, locations, moving, ratio)
+            slipping(problem, locations, moving, ratio, held_still)
         } else {
             Some(moving)
         }
@@ -147,8 +180,25 @@ fn rounds(problem: &Problem, start: Vec<MeshPoint>, free: bool) -> Option<(Found
 /// cleared where it sticks: the states that explain the frames at
 /// `locations` best with kinetic friction `μ_k` = `ratio.x` while
 /// slipping and the drags held at `ratio.y` and `ratio.z` while sticking
-/// (a frame that does not move cannot slip).
-fn slipping(problem: &Problem, locations: &[MeshPoint], moving: Slides, ratio: DVec3) -> Option<Slides> {
+/// (a frame that does not move cannot slip; where `held_still`, one
+/// may, along the nearest slide's direction: a frame the last round held
+/// still would otherwise never slip again). Where `held_still`, a frame
+/// that sticks is expected not to move.
+fn slipping(
+    problem: &Problem,
+    locations: &[MeshPoint],
+    moving: Slides,
+    ratio: DVec3,
+    held_still: bool,
+) -> Option<Slides> {
+    let moving = if held_still {
+        Slides {
+            directions: moving.drag_directions(),
+            velocities_m_per_s: moving.velocities_m_per_s,
+        }
+    } else {
+        moving
+    };
     let slip = problem
         .normal_with(locations, DVec3::new(ratio.x, 0.0, 0.0), Drag::Kinetic(&moving))?
         .residuals;
@@ -156,7 +206,7 @@ fn slipping(problem: &Problem, locations: &[MeshPoint], moving: Slides, ratio: D
         .normal_with(locations, DVec3::new(0.0, ratio.y, ratio.z), Drag::Held(&moving))?
         .residuals;
     let can_slip: Vec<bool> = moving.directions.iter().map(|d| d.length() > 0.0).collect();
-    states(moving, &stick, &slip, &can_slip)
+    states(moving, &stick, &slip, &can_slip, held_still)
 }
 
 /// `slides` with each frame's direction cleared where the press sticks:
@@ -164,7 +214,9 @@ fn slipping(problem: &Problem, locations: &[MeshPoint], moving: Slides, ratio: D
 /// or slipping with its `slip` residual (where `can_slip`), that costs
 /// least, 10 a change, `SWITCH_COST`. A frame without a direction that
 /// slips is given a unit one (the gated model reads only the state).
-fn states(mut slides: Slides, stick: &[f64], slip: &[f64], can_slip: &[bool]) -> Option<Slides> {
+/// Where `held_still`, a frame that sticks has no velocity either: the
+/// slide term expects it not to move.
+fn states(mut slides: Slides, stick: &[f64], slip: &[f64], can_slip: &[bool], held_still: bool) -> Option<Slides> {
     let n = stick.len();
     let mut from = vec![[0usize; 2]; n];
     let mut cost = [0.0, f64::INFINITY];
@@ -193,6 +245,12 @@ fn states(mut slides: Slides, stick: &[f64], slip: &[f64], can_slip: &[bool]) ->
     }
     let mut state = usize::from(cost[1] < cost[0]);
     for t in (0..n).rev() {
+        if held_still
+            && state == 0
+            && let Some(v) = slides.velocities_m_per_s.get_mut(t)
+        {
+            *v = DVec3::ZERO;
+        }
         if let Some(d) = slides.directions.get_mut(t) {
             if state == 0 {
                 *d = DVec3::ZERO;
@@ -217,7 +275,7 @@ pub(super) fn gated_places(problem: &Problem, start: Vec<MeshPoint>, ratio: DVec
         let slip = problem.normal_with(&locations, ratio, Drag::Fixed)?.residuals;
         let stick = problem.normal_with(&locations, DVec3::ZERO, Drag::None)?.residuals;
         let everywhere = vec![true; slip.len()];
-        let slides = states(moving, &stick, &slip, &everywhere)?;
+        let slides = states(moving, &stick, &slip, &everywhere, false)?;
         let found = problem.descend_from(locations, ratio, Drag::Gated(&slides))?;
         locations = found.locations;
         ratio = found.ratio;

@@ -426,6 +426,11 @@ pub(super) struct Problem<'a> {
 }
 
 impl<'a> Problem<'a> {
+    /// The press's link.
+    pub(super) fn link(&self) -> LinkId {
+        self.link
+    }
+
     /// The press `frames` on `link`; `None` without frames or without a
     /// positive finite slide length (the slide prior divides by it).
     pub(super) fn new(
