@@ -96,8 +96,13 @@ impl Estimator {
             .collect();
         let weights = self.settings.weights();
         let settings = self.press_settings(&weights, slide_m_per_sqrt_s);
-        let recording: Vec<Option<&ContactEstimate>> = press.iter().map(|(_, u, _)| Some(&u.summary.map)).collect();
-        let here = self.explain_on(link, press, &recording, frames, &models, &settings)?;
+        let recording = Start {
+            link,
+            places: press.iter().map(|(_, u, _)| Some(&u.summary.map)).collect(),
+            between: Between::Nearest,
+            gain: FRICTION_GAIN,
+        };
+        let here = self.explain_on(&recording, press, frames, &models, &settings)?;
         let (mut best_link, mut best) = (link, here);
         let mut alternative = false;
         // The frames' own places, in groups (one link, within
@@ -109,8 +114,7 @@ impl Estimator {
         let groups = groups_of(press, &own);
         // A group on another link places every member elsewhere: its size says how many agree.
         let many = press.len().div_ceil(LINK_SWITCH_SHARE).max(ALTERNATIVE_MIN_FRAMES);
-        // Each start: its link, its places, the gain it must bring.
-        let mut starts: Vec<(LinkId, Vec<Option<&ContactEstimate>>, f64)> = Vec::new();
+        let mut starts: Vec<Start> = Vec::new();
         for group in groups
             .iter()
             .filter(|g| g.members.len() >= ALTERNATIVE_MIN_FRAMES && g.apart >= ALTERNATIVE_MIN_FRAMES)
@@ -127,19 +131,44 @@ impl Estimator {
             } else {
                 LINK_SWITCH_GAIN
             };
-            if let Some(answer) = self.explain_on(group.link, press, &places, frames, &models, &settings)
-                && answer.1.cost < best.1.cost - gain
+            starts.push(Start {
+                link: group.link,
+                places,
+                between: Between::Nearest,
+                gain,
+            });
+        }
+        // The press's rests at its two ends, as its frames alone place
+        // them, and a slide between: the slipping frames alone, whose drag
+        // exceeds the friction cone, are placed centimetres off (see
+        // [`rests_at_ends`]).
+        if let Some(places) = rests_at_ends(press, &own, link) {
+            starts.push(Start {
+                link,
+                places,
+                between: Between::Evenly,
+                gain: FRICTION_GAIN,
+            });
+        }
+        // The starts' fits do not depend on one another: in parallel, then
+        // judged in order.
+        let answers: Vec<_> = starts
+            .par_iter()
+            .map(|start| self.explain_on(start, press, frames, &models, &settings))
+            .collect();
+        for (start, answer) in starts.iter().zip(answers) {
+            if let Some(answer) = answer
+                && answer.1.cost < best.1.cost - start.gain
             {
-                (best_link, best) = (group.link, answer);
+                (best_link, best) = (start.link, answer);
                 alternative = true;
             }
-            starts.push((group.link, places, gain));
         }
         // A press that drags is followed from each start at a faster
         // slide, then fitted again at the recording's.
         if best.1.friction && FOLLOW_SLIDE_M_PER_SQRT_S > slide_m_per_sqrt_s {
             let follow = self.press_settings(&weights, FOLLOW_SLIDE_M_PER_SQRT_S);
-            let starts = std::iter::once((link, recording, FRICTION_GAIN)).chain(starts);
+            let starts = std::iter::once(recording).chain(starts);
             let fit = (frames, models.as_slice(), &settings, &follow);
             if let Some(found) = self.followed(press, starts, fit, best.1.cost) {
                 (best_link, best) = found;
@@ -175,51 +204,56 @@ impl Estimator {
         Some((answer.kinetic_friction.is_some(), answer.cost, link))
     }
 
-    /// The press's frames fitted on `link` (see [`explain_press`]), each
-    /// started at its place in `starts` when that is on `link`, else at
-    /// the place of the nearest frame's that is (a place persists in its
-    /// link's frame); with each frame's sample to fall back on. `None`
-    /// where no start is on `link`.
+    /// The press's frames fitted on `start.link` (see [`explain_press`]),
+    /// each started at its place in `start.places` when that is on the
+    /// link, else as [`Between`] says (a place persists in its link's
+    /// frame); with each frame's sample to fall back on. `None` where no
+    /// start is on the link.
     fn explain_on(
         &self,
-        link: LinkId,
+        start: &Start,
         press: &[(usize, Update, f64)],
-        starts: &[Option<&ContactEstimate>],
         frames: &[SequenceFrame],
         models: &[TorqueModel],
         settings: &PressSettings,
     ) -> Option<(Vec<usize>, PressAnswer)> {
+        let (link, starts) = (start.link, start.places.as_slice());
         let shape = self.surface.shape(link)?;
         let have: Vec<usize> = (0..press.len())
             .filter(|&k| starts.get(k).copied().flatten().is_some_and(|m| m.link == link))
             .collect();
-        let mut locations = Vec::with_capacity(press.len());
-        let mut fallback = Vec::with_capacity(press.len());
-        for k in 0..press.len() {
-            // The nearest frame with a start (`have` is sorted).
-            let after = have.partition_point(|&j| j < k);
-            let nearest = match (after.checked_sub(1).and_then(|b| have.get(b)), have.get(after)) {
-                (Some(&before), Some(&next)) => {
-                    if k - before <= next - k {
-                        before
-                    } else {
-                        next
-                    }
-                }
-                (Some(&j), None) | (None, Some(&j)) => j,
-                (None, None) => return None,
-            };
-            let map = starts.get(nearest).copied().flatten()?;
-            let (_, update, _) = press.get(nearest)?;
+        // A start's place in the link's frame, and its sample.
+        let place = |j: usize| -> Option<(DVec3, usize)> {
+            let map = starts.get(j).copied().flatten()?;
+            let (_, update, _) = press.get(j)?;
             let point_in_link = update
                 .pose
                 .world_from_link
                 .get(link)?
                 .inverse()
                 .transform_point3(map.point_world);
-            let sample = *self.surface.location.get(map.point)?;
-            locations.push(locate(shape, sample, point_in_link));
-            fallback.push(map.point);
+            Some((point_in_link, map.point))
+        };
+        let mut locations = Vec::with_capacity(press.len());
+        let mut fallback = Vec::with_capacity(press.len());
+        for k in 0..press.len() {
+            // The frames with a start on either side (`have` is sorted).
+            let after = have.partition_point(|&j| j < k);
+            let before = after.checked_sub(1).and_then(|b| have.get(b)).copied();
+            let next = have.get(after).copied();
+            let (point_in_link, sample) = match (before, next) {
+                (Some(b), Some(n)) if start.between == Between::Nearest => place(if k - b <= n - k { b } else { n })?,
+                (Some(b), Some(n)) if n > b => {
+                    let ((from, from_sample), (to, to_sample)) = (place(b)?, place(n)?);
+                    let share = (k - b) as f64 / (n - b) as f64;
+                    (from.lerp(to, share), if share <= 0.5 { from_sample } else { to_sample })
+                }
+                (Some(j), _) | (None, Some(j)) => place(j)?,
+                (None, None) => return None,
+            };
+            let sample_location = *self.surface.location.get(sample)?;
+            locations.push(locate(shape, sample_location, point_in_link));
+            fallback.push(sample);
         }
         self.explain_from(link, press, (locations, fallback), frames, models, settings)
     }
@@ -255,14 +289,14 @@ impl Estimator {
         Some((fallback, answer))
     }
 
-    /// The cheapest fit of `press` from `starts` (each: its link, its
-    /// places, the drop in cost it must bring below `best_cost`) that the
+    /// The cheapest fit of `press` from `starts` (each with the drop in
+    /// cost it must bring below `best_cost`) that the
     /// press settings `follow` fit first and `settings` again from there
     /// ([`FOLLOW_SLIDE_M_PER_SQRT_S`]); `None` where none brings its drop.
     fn followed<'s>(
         &self,
         press: &[(usize, Update, f64)],
-        starts: impl Iterator<Item = (LinkId, Vec<Option<&'s ContactEstimate>>, f64)>,
+        starts: impl Iterator<Item = Start<'s>>,
         (frames, models, settings, follow): (&[SequenceFrame], &[TorqueModel], &PressSettings, &PressSettings),
         best_cost: f64,
     ) -> Option<(LinkId, (Vec<usize>, PressAnswer))> {
@@ -271,15 +305,15 @@ impl Estimator {
         let starts: Vec<_> = starts.collect();
         let fits: Vec<_> = starts
             .into_par_iter()
-            .map(|(link, places, gain)| {
+            .map(|start| {
                 // Fitted again from where the followed fit left each frame.
-                let answer =
-                    self.explain_on(link, press, &places, frames, models, follow)
-                        .and_then(|(fallback, followed)| {
-                            let locations = followed.contacts.iter().map(|c| c.location).collect();
-                            self.explain_from(link, press, (locations, fallback), frames, models, settings)
-                        });
-                (link, answer, gain)
+                let answer = self
+                    .explain_on(&start, press, frames, models, follow)
+                    .and_then(|(fallback, followed)| {
+                        let locations = followed.contacts.iter().map(|c| c.location).collect();
+                        self.explain_from(start.link, press, (locations, fallback), frames, models, settings)
+                    });
+                (start.link, answer, start.gain)
             })
             .collect();
         let mut found: Option<(LinkId, (Vec<usize>, PressAnswer))> = None;
@@ -730,6 +764,85 @@ impl PressJob<'_> {
 /// between valleys from frame to frame, and a track through them costs
 /// millions (`docs/decisions.md`, *Slides placed centimetres off*).
 pub const FOLLOW_SLIDE_M_PER_SQRT_S: f64 = 0.1;
+
+/// Where a press's fit starts: on `link`, each frame at its place in
+/// `places` where it has one on the link, the others as `between` says;
+/// kept where it explains the press by `gain` better than the best so far.
+struct Start<'s> {
+    link: LinkId,
+    places: Vec<Option<&'s ContactEstimate>>,
+    between: Between,
+    gain: f64,
+}
+
+/// Where a frame without a place of its own starts ([`Start`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Between {
+    /// At the place of the nearest frame with one.
+    Nearest,
+    /// Between two frames with one, moved evenly from the earlier's place
+    /// to the later's (a slide between two rests); beyond them, at the
+    /// nearest's.
+    Evenly,
+}
+
+/// A start for a press that rests, slides and rests again: the frames
+/// within [`END_REST_M`] of the medoid of the frames' own places on `link`
+/// in the press's first and last fifth each keep their own place, the
+/// others none (the fit moves them evenly from one rest to the next).
+/// `None` unless each end has [`ALTERNATIVE_MIN_FRAMES`] such frames and
+/// the two rests lie [`END_REST_M`] apart.
+fn rests_at_ends<'a>(
+    press: &[(usize, Update, f64)],
+    own: &[Option<&'a ContactEstimate>],
+    link: LinkId,
+) -> Option<Vec<Option<&'a ContactEstimate>>> {
+    let n = press.len();
+    let in_link: Vec<Option<DVec3>> = press
+        .iter()
+        .zip(own)
+        .map(|((_, update, _), map)| {
+            let map = map.filter(|m| m.link == link)?;
+            let world_from_link = update.pose.world_from_link.get(link)?;
+            Some(world_from_link.inverse().transform_point3(map.point_world))
+        })
+        .collect();
+    let width = (n / 5).max(ALTERNATIVE_MIN_FRAMES);
+    if 2 * width > n {
+        return None;
+    }
+    // The frames of `range` within END_REST_M of their medoid, and it.
+    let rest = |range: std::ops::Range<usize>| -> Option<(Vec<usize>, DVec3)> {
+        let points: Vec<(usize, DVec3)> = range.filter_map(|k| Some((k, (*in_link.get(k)?)?))).collect();
+        let spread = |p: DVec3| points.iter().map(|(_, q)| p.distance(*q)).sum::<f64>();
+        let medoid = points
+            .iter()
+            .map(|&(_, p)| p)
+            .min_by(|a, b| spread(*a).total_cmp(&spread(*b)))?;
+        let kept: Vec<usize> = points
+            .iter()
+            .filter(|(_, p)| p.distance(medoid) <= END_REST_M)
+            .map(|&(k, _)| k)
+            .collect();
+        (kept.len() >= ALTERNATIVE_MIN_FRAMES).then_some((kept, medoid))
+    };
+    let (first, from) = rest(0..width)?;
+    let (last, to) = rest(n - width..n)?;
+    if from.distance(to) < END_REST_M {
+        return None;
+    }
+    let mut places = vec![None; n];
+    for k in first.into_iter().chain(last) {
+        if let (Some(start), Some(map)) = (places.get_mut(k), own.get(k)) {
+            *start = *map;
+        }
+    }
+    Some(places)
+}
+
+/// The radius of a rest at a press's end ([`rests_at_ends`]), m: a few
+/// millimetres of a frame alone's jitter.
+pub const END_REST_M: f64 = 0.01;
 
 /// The frames' own places `own` of `press`, in [`Group`]s, the largest
 /// first.
