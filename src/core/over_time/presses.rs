@@ -105,51 +105,10 @@ impl Estimator {
         let here = self.explain_on(&recording, press, frames, &models, &settings)?;
         let (mut best_link, mut best) = (link, here);
         let mut alternative = false;
-        // The frames' own places, in groups (one link, within
-        // `ALTERNATIVE_GROUP_M` of the group's first place in the link's
-        // frame): a group is one coherent place for the whole press.
         let own: Vec<Option<&ContactEstimate>> = (0..press.len())
             .map(|k| alone.get(k)?.as_ref().filter(|s| s.refined).map(|s| &s.map))
             .collect();
-        let groups = groups_of(press, &own);
-        // A group on another link places every member elsewhere: its size says how many agree.
-        let many = press.len().div_ceil(LINK_SWITCH_SHARE).max(ALTERNATIVE_MIN_FRAMES);
-        let mut starts: Vec<Start> = Vec::new();
-        for group in groups
-            .iter()
-            .filter(|g| g.members.len() >= ALTERNATIVE_MIN_FRAMES && g.apart >= ALTERNATIVE_MIN_FRAMES)
-            .take(MAX_ALTERNATIVES)
-        {
-            let mut places: Vec<Option<&ContactEstimate>> = vec![None; press.len()];
-            for &k in &group.members {
-                if let (Some(start), Some(map)) = (places.get_mut(k), own.get(k)) {
-                    *start = *map;
-                }
-            }
-            let gain = if group.link == link || group.members.len() >= many {
-                FRICTION_GAIN
-            } else {
-                LINK_SWITCH_GAIN
-            };
-            starts.push(Start {
-                link: group.link,
-                places,
-                between: Between::Nearest,
-                gain,
-            });
-        }
-        // The press's rests at its two ends, as its frames alone place
-        // them, and a slide between: the slipping frames alone, whose drag
-        // exceeds the friction cone, are placed centimetres off (see
-        // [`rests_at_ends`]).
-        if let Some(places) = rests_at_ends(press, &own, link) {
-            starts.push(Start {
-                link,
-                places,
-                between: Between::Evenly,
-                gain: FRICTION_GAIN,
-            });
-        }
+        let starts = other_starts(press, &own, link);
         // The starts' fits do not depend on one another: in parallel, then
         // judged in order.
         let answers: Vec<_> = starts
@@ -165,10 +124,14 @@ impl Estimator {
             }
         }
         // A press that drags is followed from each start at a faster
-        // slide, then fitted again at the recording's.
+        // slide, then fitted again at the recording's; but from the rests,
+        // whose line already crosses the slide: followed, it found cheaper
+        // answers farther off (generated link 5 seed 2 slide, 2.4 → 5.9
+        // mm) at a fifth more time.
         if best.1.friction && FOLLOW_SLIDE_M_PER_SQRT_S > slide_m_per_sqrt_s {
             let follow = self.press_settings(&weights, FOLLOW_SLIDE_M_PER_SQRT_S);
-            let starts = std::iter::once(recording).chain(starts);
+            let nearest = starts.into_iter().filter(|s| s.between == Between::Nearest);
+            let starts = std::iter::once(recording).chain(nearest);
             let fit = (frames, models.as_slice(), &settings, &follow);
             if let Some(found) = self.followed(press, starts, fit, best.1.cost) {
                 (best_link, best) = found;
@@ -764,6 +727,60 @@ impl PressJob<'_> {
 /// between valleys from frame to frame, and a track through them costs
 /// millions (`docs/decisions.md`, *Slides placed centimetres off*).
 pub const FOLLOW_SLIDE_M_PER_SQRT_S: f64 = 0.1;
+
+/// The starts of a press on `link` besides the recording's, from the
+/// frames' own places `own`: the largest groups of them that place the
+/// press elsewhere ([`MAX_ALTERNATIVES`]), and the press's two rests
+/// ([`rests_at_ends`]).
+fn other_starts<'s>(
+    press: &[(usize, Update, f64)],
+    own: &[Option<&'s ContactEstimate>],
+    link: LinkId,
+) -> Vec<Start<'s>> {
+    // The frames' own places, in groups (one link, within
+    // `ALTERNATIVE_GROUP_M` of the group's first place in the link's
+    // frame): a group is one coherent place for the whole press.
+    let groups = groups_of(press, own);
+    // A group on another link places every member elsewhere: its size says how many agree.
+    let many = press.len().div_ceil(LINK_SWITCH_SHARE).max(ALTERNATIVE_MIN_FRAMES);
+    let mut starts: Vec<Start> = Vec::new();
+    for group in groups
+        .iter()
+        .filter(|g| g.members.len() >= ALTERNATIVE_MIN_FRAMES && g.apart >= ALTERNATIVE_MIN_FRAMES)
+        .take(MAX_ALTERNATIVES)
+    {
+        let mut places: Vec<Option<&ContactEstimate>> = vec![None; press.len()];
+        for &k in &group.members {
+            if let (Some(start), Some(map)) = (places.get_mut(k), own.get(k)) {
+                *start = *map;
+            }
+        }
+        let gain = if group.link == link || group.members.len() >= many {
+            FRICTION_GAIN
+        } else {
+            LINK_SWITCH_GAIN
+        };
+        starts.push(Start {
+            link: group.link,
+            places,
+            between: Between::Nearest,
+            gain,
+        });
+    }
+    // The press's rests at its two ends, as its frames alone place
+    // them, and a slide between: the slipping frames alone, whose drag
+    // exceeds the friction cone, are placed centimetres off (see
+    // [`rests_at_ends`]).
+    if let Some(places) = rests_at_ends(press, own, link) {
+        starts.push(Start {
+            link,
+            places,
+            between: Between::Evenly,
+            gain: FRICTION_GAIN,
+        });
+    }
+    starts
+}
 
 /// Where a press's fit starts: on `link`, each frame at its place in
 /// `places` where it has one on the link, the others as `between` says;
