@@ -15,5 +15,6 @@ pub mod parallel;
 pub mod presses;
 pub mod sequence;
 pub mod smoother;
+pub mod starts;
 pub mod stretches;
 pub mod temporal;

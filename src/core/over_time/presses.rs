@@ -17,6 +17,7 @@ use crate::core::estimate::press::{FRICTION_GAIN, PressFrame, PressSettings, loc
 use crate::core::estimate::summary::{ContactEstimate, PlacedContact, Summary};
 use crate::core::geometry::shell::MeshPoint;
 use crate::core::over_time::frame::SequenceFrame;
+use crate::core::over_time::starts::{Between, Start, in_link_frame, other_starts};
 use crate::core::robot::model::{LinkId, Robot};
 use crate::core::robot::torque::TorqueModel;
 
@@ -68,13 +69,13 @@ impl Estimator {
     /// posterior) and its link; `None` (nothing changed) where the press keeps its
     /// estimates.
     ///
-    /// The press is fitted from the recording's places and, where a few
-    /// of its frames alone (`alone`; [`ALTERNATIVE_MIN_FRAMES`]) place the
-    /// contact elsewhere together (on another link, or on this one
-    /// farther than [`ALTERNATIVE_MIN_M`]), also from theirs; an
-    /// alternative replaces the recording's places only where it explains
-    /// the press by [`FRICTION_GAIN`] better (on another link, by
-    /// [`LINK_SWITCH_GAIN`] unless [`LINK_SWITCH_SHARE`] agree). The
+    /// The press is fitted from the recording's places and from the other
+    /// starts of [`crate::core::over_time::starts`]: where a few of its
+    /// frames alone (`alone`) place the contact elsewhere together, from
+    /// theirs, and from its two rests; an alternative replaces the
+    /// recording's places only where it explains the press by
+    /// [`FRICTION_GAIN`] better (on another link, by more unless enough
+    /// frames agree). The
     /// smoother's model has no friction: where a press drags, it may
     /// settle on a place (or a link) that the frames alone, placed with
     /// friction in mind by the fit, contradict. Where the fit kept so far
@@ -189,13 +190,7 @@ impl Estimator {
         let place = |j: usize| -> Option<(DVec3, usize)> {
             let map = starts.get(j).copied().flatten()?;
             let (_, update, _) = press.get(j)?;
-            let point_in_link = update
-                .pose
-                .world_from_link
-                .get(link)?
-                .inverse()
-                .transform_point3(map.point_world);
-            Some((point_in_link, map.point))
+            Some((in_link_frame(update, link, map.point_world)?, map.point))
         };
         let mut locations = Vec::with_capacity(press.len());
         let mut fallback = Vec::with_capacity(press.len());
@@ -727,224 +722,6 @@ impl PressJob<'_> {
 /// between valleys from frame to frame, and a track through them costs
 /// millions (`docs/decisions.md`, *Slides placed centimetres off*).
 pub const FOLLOW_SLIDE_M_PER_SQRT_S: f64 = 0.1;
-
-/// The starts of a press on `link` besides the recording's, from the
-/// frames' own places `own`: the largest groups of them that place the
-/// press elsewhere ([`MAX_ALTERNATIVES`]), and the press's two rests
-/// ([`rests_at_ends`]).
-fn other_starts<'s>(
-    press: &[(usize, Update, f64)],
-    own: &[Option<&'s ContactEstimate>],
-    link: LinkId,
-) -> Vec<Start<'s>> {
-    // The frames' own places, in groups (one link, within
-    // `ALTERNATIVE_GROUP_M` of the group's first place in the link's
-    // frame): a group is one coherent place for the whole press.
-    let groups = groups_of(press, own);
-    // A group on another link places every member elsewhere: its size says how many agree.
-    let many = press.len().div_ceil(LINK_SWITCH_SHARE).max(ALTERNATIVE_MIN_FRAMES);
-    let mut starts: Vec<Start> = Vec::new();
-    for group in groups
-        .iter()
-        .filter(|g| g.members.len() >= ALTERNATIVE_MIN_FRAMES && g.apart >= ALTERNATIVE_MIN_FRAMES)
-        .take(MAX_ALTERNATIVES)
-    {
-        let mut places: Vec<Option<&ContactEstimate>> = vec![None; press.len()];
-        for &k in &group.members {
-            if let (Some(start), Some(map)) = (places.get_mut(k), own.get(k)) {
-                *start = *map;
-            }
-        }
-        let gain = if group.link == link || group.members.len() >= many {
-            FRICTION_GAIN
-        } else {
-            LINK_SWITCH_GAIN
-        };
-        starts.push(Start {
-            link: group.link,
-            places,
-            between: Between::Nearest,
-            gain,
-        });
-    }
-    // The press's rests at its two ends, as its frames alone place
-    // them, and a slide between: the slipping frames alone, whose drag
-    // exceeds the friction cone, are placed centimetres off (see
-    // [`rests_at_ends`]).
-    if let Some(places) = rests_at_ends(press, own, link) {
-        starts.push(Start {
-            link,
-            places,
-            between: Between::Evenly,
-            gain: FRICTION_GAIN,
-        });
-    }
-    starts
-}
-
-/// Where a press's fit starts: on `link`, each frame at its place in
-/// `places` where it has one on the link, the others as `between` says;
-/// kept where it explains the press by `gain` better than the best so far.
-struct Start<'s> {
-    link: LinkId,
-    places: Vec<Option<&'s ContactEstimate>>,
-    between: Between,
-    gain: f64,
-}
-
-/// Where a frame without a place of its own starts ([`Start`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Between {
-    /// At the place of the nearest frame with one.
-    Nearest,
-    /// Between two frames with one, moved evenly from the earlier's place
-    /// to the later's (a slide between two rests); beyond them, at the
-    /// nearest's.
-    Evenly,
-}
-
-/// A start for a press that rests, slides and rests again: the frames
-/// within [`END_REST_M`] of the medoid of the frames' own places on `link`
-/// in the press's first and last fifth each keep their own place, the
-/// others none (the fit moves them evenly from one rest to the next).
-/// `None` unless each end has [`ALTERNATIVE_MIN_FRAMES`] such frames and
-/// the two rests lie [`END_REST_M`] apart.
-fn rests_at_ends<'a>(
-    press: &[(usize, Update, f64)],
-    own: &[Option<&'a ContactEstimate>],
-    link: LinkId,
-) -> Option<Vec<Option<&'a ContactEstimate>>> {
-    let n = press.len();
-    let in_link: Vec<Option<DVec3>> = press
-        .iter()
-        .zip(own)
-        .map(|((_, update, _), map)| {
-            let map = map.filter(|m| m.link == link)?;
-            let world_from_link = update.pose.world_from_link.get(link)?;
-            Some(world_from_link.inverse().transform_point3(map.point_world))
-        })
-        .collect();
-    let width = (n / 5).max(ALTERNATIVE_MIN_FRAMES);
-    if 2 * width > n {
-        return None;
-    }
-    // The frames of `range` within END_REST_M of their medoid, and it.
-    let rest = |range: std::ops::Range<usize>| -> Option<(Vec<usize>, DVec3)> {
-        let points: Vec<(usize, DVec3)> = range.filter_map(|k| Some((k, (*in_link.get(k)?)?))).collect();
-        let spread = |p: DVec3| points.iter().map(|(_, q)| p.distance(*q)).sum::<f64>();
-        let medoid = points
-            .iter()
-            .map(|&(_, p)| p)
-            .min_by(|a, b| spread(*a).total_cmp(&spread(*b)))?;
-        let kept: Vec<usize> = points
-            .iter()
-            .filter(|(_, p)| p.distance(medoid) <= END_REST_M)
-            .map(|&(k, _)| k)
-            .collect();
-        (kept.len() >= ALTERNATIVE_MIN_FRAMES).then_some((kept, medoid))
-    };
-    let (first, from) = rest(0..width)?;
-    let (last, to) = rest(n - width..n)?;
-    if from.distance(to) < END_REST_M {
-        return None;
-    }
-    let mut places = vec![None; n];
-    for k in first.into_iter().chain(last) {
-        if let (Some(start), Some(map)) = (places.get_mut(k), own.get(k)) {
-            *start = *map;
-        }
-    }
-    Some(places)
-}
-
-/// The radius of a rest at a press's end ([`rests_at_ends`]), m: a few
-/// millimetres of a frame alone's jitter.
-pub const END_REST_M: f64 = 0.01;
-
-/// The frames' own places `own` of `press`, in [`Group`]s, the largest
-/// first.
-fn groups_of(press: &[(usize, Update, f64)], own: &[Option<&ContactEstimate>]) -> Vec<Group> {
-    let mut groups: Vec<Group> = Vec::new();
-    for (k, ((_, update, _), map)) in press.iter().zip(own).enumerate() {
-        let Some(map) = map else { continue };
-        let Some(point) = update
-            .pose
-            .world_from_link
-            .get(map.link)
-            .map(|world_from_link| world_from_link.inverse().transform_point3(map.point_world))
-        else {
-            continue;
-        };
-        let apart = map.link != update.summary.map.link
-            || map.point_world.distance(update.summary.map.point_world) > ALTERNATIVE_MIN_M;
-        match groups
-            .iter_mut()
-            .find(|g| g.link == map.link && g.center_in_link.distance(point) <= ALTERNATIVE_GROUP_M)
-        {
-            Some(g) => {
-                g.members.push(k);
-                g.apart += usize::from(apart);
-            }
-            None => groups.push(Group {
-                link: map.link,
-                center_in_link: point,
-                members: vec![k],
-                apart: usize::from(apart),
-            }),
-        }
-    }
-    groups.sort_by(|a, b| b.members.len().cmp(&a.members.len()).then(a.members.cmp(&b.members)));
-    groups
-}
-
-/// Frames of a press whose own contacts lie on one link within
-/// [`ALTERNATIVE_GROUP_M`] of the first's (link frame).
-struct Group {
-    link: LinkId,
-    center_in_link: DVec3,
-    /// The frames, by number within the press.
-    members: Vec<usize>,
-    /// How many of them place the contact elsewhere than the recording.
-    apart: usize,
-}
-
-/// The radius of a [`Group`], m.
-pub const ALTERNATIVE_GROUP_M: f64 = 0.03;
-
-/// A frame alone places its press's contact elsewhere when on another
-/// link or farther than this from the recording's place, m (a few patch
-/// widths: closer, both fits start in the same valley).
-pub const ALTERNATIVE_MIN_M: f64 = 0.02;
-
-/// A press is fitted from its frames' own places too when at least this
-/// many of its frames place the contact elsewhere in one group. No share
-/// of the press is asked for: an alternative is kept only where it
-/// explains the whole press by [`FRICTION_GAIN`] better, and where the
-/// smoother settled on a poor place its frames alone scatter (on a
-/// synthetic link 4 press of 46 frames, the largest group near the truth
-/// held 10 and the recording's place cost 3023 against 264 there).
-pub const ALTERNATIVE_MIN_FRAMES: usize = 3;
-
-/// The drop in the press's cost (`-2 ln L`, see [`crate::core::estimate::press`])
-/// an alternative on another link than the recording's must bring to be
-/// kept: moving a press to another link moves its answer by a link, and
-/// with friction a rival link can explain a press's frames better by tens
-/// (on synthetic sessions that drag by up to 30 %, link 7 presses moved to
-/// link 6 for gains of 36 and 60 and landed 117 mm from the truth, while
-/// the presses rightly moved gained 134 and 245), unless at least one in
-/// [`LINK_SWITCH_SHARE`] of the press's frames place it there.
-pub const LINK_SWITCH_GAIN: f64 = 100.0;
-
-/// An alternative on another link that at least one in this many of the
-/// press's frames alone agree on needs only [`FRICTION_GAIN`] (on
-/// `synth --seconds 20 --rate 50 --friction 0.15 --seed 1`, surface seeds
-/// 0 and 2, such a switch places a press 1.3 mm from the truth that
-/// [`LINK_SWITCH_GAIN`] would have left 138 mm off).
-pub const LINK_SWITCH_SHARE: usize = 4;
-
-/// Groups a press is fitted from besides the recording's places, at most
-/// (the largest; four changed nothing on the synthetic sessions).
-pub const MAX_ALTERNATIVES: usize = 2;
 
 /// Longest run of frames fitted as one press (2 s at 200 Hz): a longer
 /// contact is fitted in pieces, so that what waits for a press's end

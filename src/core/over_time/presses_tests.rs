@@ -1,6 +1,5 @@
 //! The press queue: which frames a press holds, across hops to another
-//! link and back, and that every frame comes out once, in order; and
-//! where a press between two rests starts.
+//! link and back, and that every frame comes out once, in order.
 
 use super::*;
 use crate::core::estimate::settings::EstimatorSettings;
@@ -114,82 +113,4 @@ fn a_bridged_press_is_fitted_and_hands_on_each_of_its_frames_once_in_order() {
     let (out, pieces) = queued("aaabbaa", true);
     assert_eq!(out, vec![Out::Press((0..=6).collect())]);
     assert_eq!(pieces, vec![vec![0, 3, 5]]);
-}
-
-/// A press of 25 frames at one pose on link 6 whose frames alone place
-/// it at `place(k)` (world frame, m), with the frames' own contacts.
-fn press_placed(place: impl Fn(usize) -> DVec3) -> (Vec<(usize, Update, f64)>, Vec<ContactEstimate>, LinkId) {
-    let robot = builtin::lwr4plus_generated().unwrap();
-    let request = SurfaceRequest {
-        links: robot.default_candidate_links(),
-        total_points: 500,
-        seed: 0,
-    };
-    let estimator = Estimator::new(&robot, &request, EstimatorSettings::exact(vec![0.05; 7]), None).unwrap();
-    let link = robot.link_id("lwr_6_link").unwrap();
-    let q = vec![0.4, -0.3, 0.5, -1.2, 0.6, 0.8, -0.2];
-    let pose = RobotPose::new(&robot, &q);
-    let model = TorqueModel::new(&robot, &pose, &estimator.links);
-    let k = (0..estimator.surface.len())
-        .find(|&k| estimator.surface.link[k] == link)
-        .unwrap();
-    let tau = model.torques(
-        link,
-        estimator.surface.point_in_link[k],
-        estimator.surface.inward_normal_in_link[k] * 15.0,
-    );
-    let mut pressed = estimator.update(&robot, &q, &tau).unwrap();
-    pressed.summary.map.link = link;
-    let press: Vec<(usize, Update, f64)> = (0..25).map(|i| (i, pressed.clone(), 0.0)).collect();
-    let own = (0..25)
-        .map(|i| ContactEstimate {
-            point_world: place(i),
-            ..pressed.summary.map
-        })
-        .collect();
-    (press, own, link)
-}
-
-/// Which frames [`rests_at_ends`] starts at their own places (`None`: no
-/// start).
-fn rest_frames(place: impl Fn(usize) -> DVec3) -> Option<Vec<usize>> {
-    let (press, own, link) = press_placed(place);
-    let own: Vec<Option<&ContactEstimate>> = own.iter().map(Some).collect();
-    let places = rests_at_ends(&press, &own, link)?;
-    Some((0..press.len()).filter(|&k| places[k].is_some()).collect())
-}
-
-#[test]
-fn a_press_between_two_rests_starts_from_its_rests_alone() {
-    let a = DVec3::new(0.3, 0.1, 0.6);
-    // A millimetre or two of a frame alone's jitter.
-    let jitter = |k: usize| DVec3::new(0.0, 0.0, 1e-3 * ((k * 7) % 3) as f64);
-    // Rests at `a` (frames 0-3) and 2 cm on (frames 20-24), slipping
-    // frames alone 4 cm off between (frame 4 among the first fifth).
-    let slide = |k: usize| {
-        jitter(k)
-            + match k {
-                0..=3 => a,
-                20.. => a + DVec3::new(0.0, 0.02, 0.0),
-                _ => a + DVec3::new(0.04, 0.0, 0.0),
-            }
-    };
-    assert_eq!(rest_frames(slide), Some(vec![0, 1, 2, 3, 20, 21, 22, 23, 24]));
-    // A press that holds its place: no slide between rests to start.
-    assert_eq!(rest_frames(|k| a + jitter(k)), None);
-    // Rests 8 mm apart: within a rest's width, no start either.
-    assert_eq!(
-        rest_frames(|k| a + jitter(k) + DVec3::new(0.0, if k >= 20 { 0.008 } else { 0.0 }, 0.0)),
-        None
-    );
-    // Too few frames at the first rest: two of the first five, the other
-    // three scattered 3 cm apart.
-    let few = |k: usize| match k {
-        2..=4 => a + DVec3::new(0.03 * k as f64, 0.0, 0.0),
-        _ => slide(k),
-    };
-    assert_eq!(rest_frames(few), None);
-    // Three, the rest of the first five slipping: the three are the rest.
-    let three = |k: usize| if k == 3 { slide(4) } else { slide(k) };
-    assert_eq!(rest_frames(three), Some(vec![0, 1, 2, 20, 21, 22, 23, 24]));
 }
