@@ -27,6 +27,8 @@
 //! square root of that count so that the filter and the smoother do not
 //! take a thousand correlated frames for a thousand independent ones.
 
+use rayon::prelude::*;
+
 use crate::core::numerics::linalg::{LinalgError, solve_spd};
 use crate::core::numerics::special::chi_square_survival;
 use crate::core::over_time::observer::{Unlag, correlation_samples, differentiate, frame_steps, typical_step_secs};
@@ -736,10 +738,10 @@ pub fn calibrate(
         // each joint's Coulomb term shaped at that gain, since a lead in
         // the friction can stand in for less lag in the observer.
         let shape = settings.friction && round >= 6;
-        let mut fits = Vec::with_capacity(candidates.len());
-        for g in candidates {
-            let mut fit = fit_at(&design, times, torques, &free, &weights, &sigma, g)?;
-            if shape {
+        let fits = if shape {
+            let mut fits = Vec::with_capacity(candidates.len());
+            for g in candidates {
+                let fit = fit_at(&design, times, torques, &free, &weights, &sigma, g)?;
                 let search = ShapeSearch {
                     times_secs: times,
                     velocities: &velocities,
@@ -750,10 +752,18 @@ pub fn calibrate(
                 for (j, s) in best_coulomb_shapes(&design, &fit, &search)?.into_iter().enumerate() {
                     design.set_coulomb(j, s, &velocities, &accelerations);
                 }
-                fit = fit_at(&design, times, torques, &free, &weights, &sigma, g)?;
+                fits.push(fit_at(&design, times, torques, &free, &weights, &sigma, g)?);
             }
-            fits.push(fit);
-        }
+            fits
+        } else {
+            // The gains of a search are fitted apart, on every core: the
+            // two rounds that fit the whole grid take most of the time a
+            // calibration takes.
+            candidates
+                .par_iter()
+                .map(|&g| fit_at(&design, times, torques, &free, &weights, &sigma, g))
+                .collect::<Result<Vec<Fit>, CalibrationError>>()?
+        };
         let before = if round > 0 { vec![gain] } else { Vec::new() };
         let Some(fit) = best_gain(fits, &before) else {
             break;
