@@ -5,6 +5,8 @@ use super::{
     COULOMB_LEADS_SECS, COULOMB_SPEEDS_RAD_S, CalibrationError, Design, Fit, SHAPE_GAIN, STICTION_SPEED_RAD_S,
     coulomb_shape,
 };
+use rayon::prelude::*;
+
 use crate::core::numerics::linalg::solve_spd;
 use crate::core::over_time::observer::{Lag, frame_steps};
 
@@ -65,6 +67,27 @@ pub(super) fn best_coulomb_shapes(
     search: &ShapeSearch,
 ) -> Result<Vec<(f64, f64)>, CalibrationError> {
     let steps = frame_steps(search.times_secs);
+    // Each joint's search reads only its own columns: the joints run on
+    // every core.
+    (0..design.joints)
+        .into_par_iter()
+        .map(|j| {
+            let current = design.shapes.get(j).copied().unwrap_or((0.0, STICTION_SPEED_RAD_S));
+            best_shape_of(j, current, design, fit, search, &steps)
+        })
+        .collect()
+}
+
+/// [`best_coulomb_shapes`] of joint `j`, whose shape is `current` until
+/// another earns its place.
+fn best_shape_of(
+    j: usize,
+    current: (f64, f64),
+    design: &Design,
+    fit: &Fit,
+    search: &ShapeSearch,
+    steps: &[(f64, bool)],
+) -> Result<(f64, f64), CalibrationError> {
     let stride = fit.residuals.len().div_ceil(20_000).max(1);
     let width = design.joints * design.columns;
     // Frame by frame, `count` values per frame in one flat vector.
@@ -81,80 +104,74 @@ pub(super) fn best_coulomb_shapes(
         }
         out
     };
-    let mut shapes = design.shapes.clone();
-    for (j, shape) in shapes.iter_mut().enumerate() {
-        let first = design.base.len() + 3 * j;
-        let own = lag_series(
-            &mut |k, out| {
-                let row = &design.rows[k * width + j * design.columns..];
-                for (o, r) in out.iter_mut().zip(&row[first..first + 3]) {
-                    *o = f64::from(*r);
-                }
-            },
-            3,
-        );
-        let coef = &fit.coefficients[first..first + 3];
-        let target: Vec<f64> = fit
-            .residuals
-            .iter()
-            .zip(own.chunks_exact(3))
-            .map(|(e, c)| e[j] + c.iter().zip(coef).map(|(x, b)| x * b).sum::<f64>())
-            .collect();
-        let prior = &design.prior_sd[first..first + 3];
-        let mut best: Option<(f64, (f64, f64))> = None;
-        let mut plain = None;
-        for &lead in &COULOMB_LEADS_SECS {
-            for &switch in &COULOMB_SPEEDS_RAD_S {
-                let coulomb = lag_series(
-                    &mut |k, out| {
-                        out[0] = coulomb_shape(search.velocities[k][j], search.accelerations[k][j], lead, switch);
-                    },
-                    1,
-                );
-                let column = |k: usize| [coulomb[k], own[3 * k + 1], own[3 * k + 2]];
-                let mut normal = [0.0; 9];
-                let mut rhs = [0.0; 3];
-                for k in (0..target.len()).step_by(stride).filter(|k| search.free[*k]) {
-                    let (x, w) = (column(k), search.weights[k]);
-                    for a in 0..3 {
-                        rhs[a] += w * x[a] * target[k];
-                        for b in 0..3 {
-                            normal[a * 3 + b] += w * x[a] * x[b];
-                        }
+    let first = design.base.len() + 3 * j;
+    let own = lag_series(
+        &mut |k, out| {
+            let row = &design.rows[k * width + j * design.columns..];
+            for (o, r) in out.iter_mut().zip(&row[first..first + 3]) {
+                *o = f64::from(*r);
+            }
+        },
+        3,
+    );
+    let coef = &fit.coefficients[first..first + 3];
+    let target: Vec<f64> = fit
+        .residuals
+        .iter()
+        .zip(own.chunks_exact(3))
+        .map(|(e, c)| e[j] + c.iter().zip(coef).map(|(x, b)| x * b).sum::<f64>())
+        .collect();
+    let prior = &design.prior_sd[first..first + 3];
+    let mut best: Option<(f64, (f64, f64))> = None;
+    let mut plain = None;
+    for &lead in &COULOMB_LEADS_SECS {
+        for &switch in &COULOMB_SPEEDS_RAD_S {
+            let coulomb = lag_series(
+                &mut |k, out| {
+                    out[0] = coulomb_shape(search.velocities[k][j], search.accelerations[k][j], lead, switch);
+                },
+                1,
+            );
+            let column = |k: usize| [coulomb[k], own[3 * k + 1], own[3 * k + 2]];
+            let mut normal = [0.0; 9];
+            let mut rhs = [0.0; 3];
+            for k in (0..target.len()).step_by(stride).filter(|k| search.free[*k]) {
+                let (x, w) = (column(k), search.weights[k]);
+                for a in 0..3 {
+                    rhs[a] += w * x[a] * target[k];
+                    for b in 0..3 {
+                        normal[a * 3 + b] += w * x[a] * x[b];
                     }
                 }
-                let scale = normal[0].max(normal[4]).max(normal[8]).max(1e-300);
-                for a in 0..3 {
-                    normal[a * 3 + a] += scale * 1e-9 / (prior[a] * prior[a]);
-                }
-                let c = solve_spd(&normal, &rhs)?;
-                let sse: f64 = (0..target.len())
-                    .step_by(stride)
-                    .filter(|k| search.free[*k])
-                    .map(|k| {
-                        let x = column(k);
-                        let e = target[k] - x[0] * c[0] - x[1] * c[1] - x[2] * c[2];
-                        search.weights[k] * e * e
-                    })
-                    .sum();
-                if (lead, switch) == (0.0, STICTION_SPEED_RAD_S) {
-                    plain = Some(sse);
-                }
-                if best.is_none_or(|(b, _)| sse < b * (1.0 - 1e-9)) {
-                    best = Some((sse, (lead, switch)));
-                }
+            }
+            let scale = normal[0].max(normal[4]).max(normal[8]).max(1e-300);
+            for a in 0..3 {
+                normal[a * 3 + a] += scale * 1e-9 / (prior[a] * prior[a]);
+            }
+            let c = solve_spd(&normal, &rhs)?;
+            let sse: f64 = (0..target.len())
+                .step_by(stride)
+                .filter(|k| search.free[*k])
+                .map(|k| {
+                    let x = column(k);
+                    let e = target[k] - x[0] * c[0] - x[1] * c[1] - x[2] * c[2];
+                    search.weights[k] * e * e
+                })
+                .sum();
+            if (lead, switch) == (0.0, STICTION_SPEED_RAD_S) {
+                plain = Some(sse);
+            }
+            if best.is_none_or(|(b, _)| sse < b * (1.0 - 1e-9)) {
+                best = Some((sse, (lead, switch)));
             }
         }
-        // Another shape must earn its place: where the free frames hold no
-        // reversal, every shape fits them alike (the Coulomb term is an
-        // offset there) and the plain one stays.
-        if let (Some((sse, found)), Some(plain)) = (best, plain) {
-            *shape = if sse < (1.0 - SHAPE_GAIN) * plain {
-                found
-            } else {
-                (0.0, STICTION_SPEED_RAD_S)
-            };
-        }
     }
-    Ok(shapes)
+    // Another shape must earn its place: where the free frames hold no
+    // reversal, every shape fits them alike (the Coulomb term is an
+    // offset there) and the plain one stays.
+    Ok(match (best, plain) {
+        (Some((sse, found)), Some(plain)) if sse < (1.0 - SHAPE_GAIN) * plain => found,
+        (Some(_), Some(_)) => (0.0, STICTION_SPEED_RAD_S),
+        _ => current,
+    })
 }
