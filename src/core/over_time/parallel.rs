@@ -23,7 +23,7 @@ use crate::core::over_time::frame::SequenceFrame;
 use crate::core::over_time::offsets::FrameLikelihood;
 use crate::core::over_time::presses::{FrictionGate, Offered, PressJob, PressQueue};
 use crate::core::over_time::smoother::FilterState;
-use crate::core::over_time::stretches::{Piece, Stretch, StretchSmoother};
+use crate::core::over_time::stretches::{Piece, PreparedStep, StepPreparer, Stretch, StretchSmoother};
 use crate::core::over_time::temporal::{Belief, TemporalError, TemporalModel};
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::Robot;
@@ -142,6 +142,64 @@ fn likelihoods<W: Send>(
             .update_for_sequence(robot, f.joint_positions, f.tau)
             .map(|(pending, likelihood)| (keep(pending), likelihood))
     })
+}
+
+/// A block's frames with the step each closes, or why the frames after
+/// them were not taken.
+struct PreparedBlock {
+    done: Vec<Done<(WaitingFrame, Option<PreparedStep>)>>,
+    /// A frame whose time the steps refused: the frames before it are in
+    /// `done`, the rest of the block is not.
+    refused: Option<TemporalError>,
+}
+
+/// The likelihoods of the block from `start` (in parallel) and the steps
+/// its frames close (in order): all of a block's work that does not wait
+/// for the filter. A frame whose estimate failed joins no step.
+fn prepared(
+    sequence: (&Estimator, &Robot, &[SequenceFrame]),
+    start: usize,
+    preparer: &mut StepPreparer,
+) -> PreparedBlock {
+    let frames = sequence.2;
+    let mut done = Vec::with_capacity(BLOCK_FRAMES);
+    for (i, result, ms) in likelihoods(sequence, start, WaitingFrame::of) {
+        let Ok((pending, likelihood)) = result else {
+            done.push((i, result.map(|(pending, _)| (pending, None)), ms));
+            continue;
+        };
+        let t0 = Instant::now();
+        let t_secs = frames.get(i).map_or(f64::NAN, |f| f.t_secs);
+        match preparer.push(t_secs, likelihood) {
+            Ok(step) => done.push((i, Ok((pending, step)), ms + elapsed_ms(t0))),
+            Err(refused) => {
+                return PreparedBlock {
+                    done,
+                    refused: Some(refused),
+                };
+            }
+        }
+    }
+    PreparedBlock { done, refused: None }
+}
+
+/// The filter's part of a block: its steps taken in order, each frame
+/// then waiting for its stretch with what it has cost; the pieces cut.
+fn filter_block(
+    smoother: &mut StretchSmoother,
+    waiting: &mut Waiting,
+    ready: Vec<(usize, (WaitingFrame, Option<PreparedStep>), f64)>,
+    refused: Option<TemporalError>,
+) -> Result<Vec<Piece>, TemporalError> {
+    let mut cut = Vec::new();
+    for (i, (pending, step), ms) in ready {
+        let t0 = Instant::now();
+        if let Some(step) = step {
+            cut.extend(smoother.push_step(step)?);
+        }
+        waiting.push(i, ms + elapsed_ms(t0), pending);
+    }
+    refused.map_or(Ok(cut), Err)
 }
 
 /// Each frame with the frames before it (as live). `Ok(false)` when
@@ -267,29 +325,24 @@ pub(crate) fn smooth(
         // The frames pushed and not yet settled, with what each has cost.
         let mut waiting = Waiting::default();
         let mut start = 0;
-        let mut done = likelihoods((estimator, robot, frames), start, WaitingFrame::of);
+        let mut preparer = StepPreparer::new(model);
+        let mut next = prepared((estimator, robot, frames), start, &mut preparer);
         let limit = model.store_limit_bytes();
         let threads = rayon::current_num_threads();
-        while !done.is_empty() {
+        while !next.done.is_empty() || next.refused.is_some() {
             if !(calls.keep_going)() {
                 return Ok(false);
             }
+            let PreparedBlock { done, refused } = next;
             let ready = succeeded(done, &mut calls.failed)?;
             start += BLOCK_FRAMES;
-            let (cut, next) = rayon::join(
-                || -> Result<Vec<Piece>, TemporalError> {
-                    let mut cut = Vec::new();
-                    for (i, (pending, likelihood), ms) in ready {
-                        let t0 = Instant::now();
-                        let t_secs = frames.get(i).map_or(f64::NAN, |f| f.t_secs);
-                        cut.extend(smoother.push(t_secs, likelihood)?);
-                        waiting.push(i, ms + elapsed_ms(t0), pending);
-                    }
-                    Ok(cut)
-                },
-                || likelihoods((estimator, robot, frames), start, WaitingFrame::of),
+            // The filter takes this block's steps while the next block's
+            // likelihoods and steps are made beside it.
+            let (cut, after) = rayon::join(
+                || filter_block(&mut smoother, &mut waiting, ready, refused),
+                || prepared((estimator, robot, frames), start, &mut preparer),
             );
-            done = next;
+            next = after;
             for piece in cut? {
                 spawn(piece, &mut pieces);
             }
@@ -312,7 +365,8 @@ pub(crate) fn smooth(
                 return Ok(false);
             }
         }
-        for piece in smoother.finish()? {
+        let last = preparer.finish().map(|step| smoother.push_step(step)).transpose()?;
+        for piece in last.into_iter().flatten().chain(smoother.finish()?) {
             spawn(piece, &mut pieces);
         }
         if !pieces.settle_until(

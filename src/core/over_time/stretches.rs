@@ -117,6 +117,60 @@ impl Stretch {
     }
 }
 
+/// A step of the model gathered from its frames and packed for the
+/// store: the part of a step's work that does not depend on the filter's
+/// state, so that it can be done beside the filter
+/// ([`StepPreparer`]).
+#[derive(Debug, Clone)]
+pub struct PreparedStep {
+    step: OpenStep,
+    stored: StoredFrame,
+}
+
+impl PreparedStep {
+    fn of(step: OpenStep) -> Self {
+        let stored = StoredFrame::of(&step.likelihood);
+        Self { step, stored }
+    }
+}
+
+/// Gathers frames into the model's steps ahead of a
+/// [`StretchSmoother`], on any thread: the filter, which runs in order
+/// and bounds how fast a recording goes on many cores, is left with only
+/// its own step ([`StretchSmoother::push_step`]).
+#[derive(Debug, Clone)]
+pub struct StepPreparer {
+    step_secs: f64,
+    open: StepJoiner,
+}
+
+impl StepPreparer {
+    /// A preparer for `model`'s steps that has seen nothing yet.
+    #[must_use]
+    pub fn new(model: &TemporalModel) -> Self {
+        Self {
+            step_secs: model.settings().step_secs,
+            open: StepJoiner::default(),
+        }
+    }
+
+    /// Takes the next frame; hands back the step it closes.
+    ///
+    /// # Errors
+    /// [`TemporalError::BadTime`]: the time is not finite or goes back.
+    pub fn push(&mut self, t_secs: f64, likelihood: FrameLikelihood) -> Result<Option<PreparedStep>, TemporalError> {
+        Ok(self
+            .open
+            .push(self.step_secs, t_secs, likelihood)?
+            .map(PreparedStep::of))
+    }
+
+    /// The open step, closed (after the last frame).
+    pub fn finish(&mut self) -> Option<PreparedStep> {
+        self.open.finish().map(PreparedStep::of)
+    }
+}
+
 /// The smoother of a recording of any length: frames are pushed in order
 /// (the forward filter runs as they come); now and then a push hands back
 /// a [`Piece`] of frames to smooth into a [`Stretch`], and
@@ -170,23 +224,30 @@ impl<'a> StretchSmoother<'a> {
     /// [`MIN_STORE_FRAMES`] frames.
     pub fn push(&mut self, t_secs: f64, likelihood: FrameLikelihood) -> Result<Option<Piece>, TemporalError> {
         match self.open.push(self.model.settings().step_secs, t_secs, likelihood)? {
-            Some(step) => self.filter_step(step),
+            Some(step) => self.push_step(PreparedStep::of(step)),
             None => Ok(None),
         }
     }
 
-    /// Filters a step and stores it; hands back a piece when a stretch
-    /// ends there.
-    fn filter_step(&mut self, step: OpenStep) -> Result<Option<Piece>, TemporalError> {
-        let OpenStep {
-            t_secs,
-            likelihood,
-            frames,
-            ..
+    /// Takes the next step, gathered by a [`StepPreparer`] instead of
+    /// [`StretchSmoother::push`] (the two are not mixed): filters and
+    /// stores it, and hands back a piece when a stretch ends there.
+    ///
+    /// # Errors
+    /// As [`StretchSmoother::push`].
+    pub fn push_step(&mut self, step: PreparedStep) -> Result<Option<Piece>, TemporalError> {
+        let PreparedStep {
+            step:
+                OpenStep {
+                    t_secs,
+                    likelihood,
+                    frames,
+                    ..
+                },
+            stored: frame,
         } = step;
         let likelihood = &likelihood;
         let belief = StoredBelief::of(self.state.step(self.model, t_secs, likelihood)?);
-        let frame = StoredFrame::of(likelihood);
         let frame_bytes = belief.bytes() + frame.bytes() + size_of::<f64>();
         if frame_bytes.saturating_mul(MIN_STORE_FRAMES) > self.limit_bytes {
             return Err(TemporalError::TooLarge {
@@ -243,7 +304,7 @@ impl<'a> StretchSmoother<'a> {
     pub fn finish(mut self) -> Result<Vec<Piece>, TemporalError> {
         let mut pieces = Vec::new();
         if let Some(step) = self.open.finish() {
-            pieces.extend(self.filter_step(step)?);
+            pieces.extend(self.push_step(PreparedStep::of(step))?);
         }
         let all = self.times.len();
         if all > 0 {

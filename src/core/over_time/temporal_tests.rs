@@ -744,6 +744,38 @@ fn frames_within_a_step_share_its_state() {
     for (i, b) in quiet.iter().enumerate() {
         assert_eq!(b, &quiet_pairs[i / 2], "stretches, frame {i}");
     }
+    // Steps gathered ahead of the filter (as a recording's frames are,
+    // beside it) give the same stretches, bit for bit.
+    let mut ahead = crate::core::over_time::stretches::StretchSmoother::new(&stepped, 1 << 30);
+    let mut preparer = crate::core::over_time::stretches::StepPreparer::new(&stepped);
+    let mut prepared = Vec::new();
+    for (t, f) in times.iter().zip(&frames) {
+        if let Some(step) = preparer.push(*t, f.clone()).unwrap() {
+            prepared.extend(ahead.push_step(step).unwrap());
+        }
+    }
+    prepared.extend(
+        preparer
+            .finish()
+            .map(|step| ahead.push_step(step).unwrap())
+            .into_iter()
+            .flatten(),
+    );
+    prepared.extend(ahead.finish().unwrap());
+    let from_prepared: Vec<Belief> = prepared
+        .into_iter()
+        .flat_map(|piece| {
+            let stretch = piece.smooth(&stepped);
+            (0..stretch.len()).map(move |i| stretch.belief(i).unwrap())
+        })
+        .collect();
+    assert_eq!(from_prepared, quiet, "steps prepared ahead");
+    let mut refusing = crate::core::over_time::stretches::StepPreparer::new(&stepped);
+    refusing.push(0.0, frames[0].clone()).unwrap();
+    assert!(matches!(
+        refusing.push(-0.001, frames[1].clone()),
+        Err(TemporalError::BadTime { frame: 1, .. })
+    ));
     // A frame whose time goes back is named, step or not.
     let mut s = Smoother::new(&stepped);
     s.push(0.0, &frames[0]).unwrap();
