@@ -4,7 +4,7 @@
 
 use crate::core::over_time::offsets::{FrameLikelihood, Offset, PatchInformation};
 use crate::core::over_time::temporal::{
-    Belief, MAX_SMOOTHER_BYTES, PredictScratch, TemporalError, TemporalModel, interval, smoother_bytes,
+    Belief, MAX_SMOOTHER_BYTES, TemporalError, TemporalModel, interval, smoother_bytes,
 };
 
 /// The forward filter: each frame's belief from that frame and the ones
@@ -22,7 +22,6 @@ pub struct FilterState {
     belief: Option<Belief>,
     last_t_secs: Option<f64>,
     frames: usize,
-    scratch: PredictScratch,
 }
 
 impl FilterState {
@@ -40,7 +39,7 @@ impl FilterState {
         model.check(self.frames, likelihood)?;
         let dt = interval(self.frames, self.last_t_secs, t_secs)?;
         let predicted = match &self.belief {
-            Some(b) => model.predict_with(b, dt, &mut self.scratch),
+            Some(b) => model.predict(b, dt),
             None => model.initial(),
         };
         self.frames += 1;
@@ -425,13 +424,12 @@ fn two_filters(
     mut out: impl FnMut(usize, Belief),
 ) {
     let mut backward: Option<Belief> = None;
-    let mut scratch = PredictScratch::default();
     for t in (0..times.len()).rev() {
         let (Some(forward), Some(frame)) = (filtered.get(t), frames.get(t)) else {
             continue;
         };
         let predicted = match &backward {
-            Some(b) => model.predict_with(b, dt(times, t), &mut scratch),
+            Some(b) => model.predict(b, dt(times, t)),
             None => model.initial(),
         };
         if t < keep {

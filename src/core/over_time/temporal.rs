@@ -203,17 +203,6 @@ impl Kernel for DecayKernel<'_> {
     }
 }
 
-/// What [`TemporalModel::predict_with`] keeps from one call to the next:
-/// the samples' share that stays over the last step's slide (a steady
-/// recording's steps all have the same, so it is worked out once), and
-/// the diffusion's buffer.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct PredictScratch {
-    decay_slide_bits: Option<u64>,
-    decay: Vec<f64>,
-    diffusion: Vec<f64>,
-}
-
 /// What the model believes at one frame: probabilities of no contact and
 /// of a contact at each sample (they sum to 1).
 #[derive(Debug, Clone, PartialEq)]
@@ -379,36 +368,26 @@ impl TemporalModel {
     /// The belief `dt` later, before that frame's measurement.
     #[must_use]
     pub fn predict(&self, belief: &Belief, dt_secs: f64) -> Belief {
-        self.predict_with(belief, dt_secs, &mut PredictScratch::default())
-    }
-
-    /// [`TemporalModel::predict`], keeping what one call can hand the next
-    /// in `scratch` (a filter's steps in order).
-    pub(crate) fn predict_with(&self, belief: &Belief, dt_secs: f64, scratch: &mut PredictScratch) -> Belief {
         let s = self.step(dt_secs);
         let contact = lanes::sum(&belief.points);
-        let mut points = belief.points.clone();
-        self.graph
-            .diffuse(&mut points, self.slide_rate(), dt_secs, &mut scratch.diffusion);
+        let mut moved = belief.points.clone();
+        let mut scratch = Vec::new();
+        self.graph.diffuse(&mut moved, self.slide_rate(), dt_secs, &mut scratch);
         let stay = (1.0 - s.release) * (1.0 - s.jump);
         let fresh = belief.no_contact * s.onset + (1.0 - s.release) * s.jump * contact;
-        points.truncate(self.prior.len());
-        for (m, prior) in points.iter_mut().zip(&self.prior) {
-            *m = stay * *m + fresh * prior;
-        }
+        let points: Vec<f64> = moved
+            .iter()
+            .zip(&self.prior)
+            .map(|(m, prior)| stay * m + fresh * prior)
+            .collect();
         // A contact that stayed on its sample keeps its offset; one that
         // arrived (a hop, a new press) is anywhere in the patch.
         let offsets = if self.tracks_offsets() && belief.offsets.len() == points.len() {
             let slide = self.slide_rate() * dt_secs;
             // What stays on each sample over `dt`, in one vectorised pass
             // (the loop below is scalar: one at a time, `exp` there cost
-            // more than the rest of it), once for the steps of a steady
-            // rate.
-            if scratch.decay_slide_bits != Some(slide.to_bits()) || scratch.decay.len() != self.hop_rate.len() {
-                scratch.decay = widest(DecayKernel(&self.hop_rate, slide));
-                scratch.decay_slide_bits = Some(slide.to_bits());
-            }
-            let stays = &scratch.decay;
+            // more than the rest of it).
+            let stays = widest(DecayKernel(&self.hop_rate, slide));
             points
                 .iter()
                 .enumerate()
