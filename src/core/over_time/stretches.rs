@@ -169,6 +169,11 @@ impl StepPreparer {
     pub fn finish(&mut self) -> Option<PreparedStep> {
         self.open.finish().map(PreparedStep::of)
     }
+
+    /// Frames in the open step.
+    fn held(&self) -> usize {
+        self.open.held()
+    }
 }
 
 /// The smoother of a recording of any length: frames are pushed in order
@@ -192,8 +197,9 @@ pub struct StretchSmoother<'a> {
     /// Index in the store where the filter last became sure of "no
     /// contact" (`None` while it is not).
     quiet_from: Option<usize>,
-    /// The step that the latest frames share, not yet filtered.
-    open: StepJoiner,
+    /// The step that the latest frames share, not yet filtered (frames
+    /// taken by [`StretchSmoother::push`]).
+    open: StepPreparer,
 }
 
 impl<'a> StretchSmoother<'a> {
@@ -211,7 +217,7 @@ impl<'a> StretchSmoother<'a> {
             bytes: 0,
             counts: Vec::new(),
             quiet_from: None,
-            open: StepJoiner::default(),
+            open: StepPreparer::new(model),
         }
     }
 
@@ -223,8 +229,8 @@ impl<'a> StretchSmoother<'a> {
     /// [`TemporalError::TooLarge`] when the limit cannot hold
     /// [`MIN_STORE_FRAMES`] frames.
     pub fn push(&mut self, t_secs: f64, likelihood: FrameLikelihood) -> Result<Option<Piece>, TemporalError> {
-        match self.open.push(self.model.settings().step_secs, t_secs, likelihood)? {
-            Some(step) => self.push_step(PreparedStep::of(step)),
+        match self.open.push(t_secs, likelihood)? {
+            Some(step) => self.push_step(step),
             None => Ok(None),
         }
     }
@@ -304,7 +310,7 @@ impl<'a> StretchSmoother<'a> {
     pub fn finish(mut self) -> Result<Vec<Piece>, TemporalError> {
         let mut pieces = Vec::new();
         if let Some(step) = self.open.finish() {
-            pieces.extend(self.push_step(PreparedStep::of(step))?);
+            pieces.extend(self.push_step(step)?);
         }
         let all = self.times.len();
         if all > 0 {
