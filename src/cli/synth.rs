@@ -77,6 +77,11 @@ pub struct SynthArgs {
     /// written in `truth_all`.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=2))]
     pub contacts: u8,
+    /// Draw no press on a face that the next link covers at the starting
+    /// pose (a face inside the neighbouring link's housing, which no hand
+    /// reaches); without it a seed draws the sessions of earlier versions.
+    #[arg(long)]
+    pub avoid_covered: bool,
 }
 
 /// `--sensing`.
@@ -120,6 +125,7 @@ pub fn run(args: &SynthArgs) -> Result<()> {
             ..ObserverSim::default()
         }),
         contacts_at_once: usize::from(args.contacts),
+        avoid_covered: args.avoid_covered,
         kinetic_friction,
         ..SynthSettings::default()
     };
