@@ -71,6 +71,7 @@ impl Scene {
         PosedSurface {
             torque_model: &self.torque_model,
             surface: &self.surface,
+            covered: &[],
         }
     }
 
