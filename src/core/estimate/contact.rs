@@ -32,11 +32,6 @@ pub trait UnitTorqueSource: Sync {
         let _ = (weights, tau, out);
         false
     }
-    /// The points no push can reach in this configuration (a neighbouring
-    /// link covers them), sorted: they get no likelihood.
-    fn covered(&self) -> &[u32] {
-        &[]
-    }
 }
 
 /// Per point (structure of arrays), with `u` the torque per newton of the
@@ -122,9 +117,6 @@ pub struct PosedSurface<'a> {
     pub torque_model: &'a TorqueModel,
     /// The candidate points.
     pub surface: &'a Surface,
-    /// The points a neighbouring link covers in this configuration
-    /// ([`crate::core::surface::cover::CoverTable::covered_at`]).
-    pub covered: &'a [u32],
 }
 
 impl UnitTorqueSource for PosedSurface<'_> {
@@ -134,10 +126,6 @@ impl UnitTorqueSource for PosedSurface<'_> {
 
     fn points(&self) -> usize {
         self.surface.len()
-    }
-
-    fn covered(&self) -> &[u32] {
-        self.covered
     }
 
     fn unit_torques_into(&self, point: usize, out: &mut [f64]) {

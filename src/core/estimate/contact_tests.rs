@@ -43,7 +43,6 @@ fn unit_torques_match_the_direct_formula() {
         PosedSurface {
             torque_model: &TorqueModel::new(&robot, &pose, &links),
             surface: &surface,
-            covered: &[],
         }
         .unit_torques_into(k, &mut fused);
         for (j, d) in direct.iter().enumerate() {
@@ -63,7 +62,6 @@ fn unit_torques_match_the_direct_formula() {
     PosedSurface {
         torque_model: &tm,
         surface: &surface,
-        covered: &[],
     }
     .quadratic_forms(&weights, &tau, &mut a2, &mut b2);
     for k in 0..surface.len() {
@@ -85,7 +83,6 @@ fn forms_setup() -> (Surface, TorqueModel, PatchForms) {
     let posed = PosedSurface {
         torque_model: &torque_model,
         surface: &surface,
-        covered: &[],
     };
     assert!(posed.patch_forms(&FORMS_WEIGHTS, &FORMS_TAU, &mut forms));
     (surface, torque_model, forms)
@@ -164,7 +161,6 @@ fn patch_forms_in_lanes_are_those_of_each_point_alone() {
     let posed = PosedSurface {
         torque_model: &torque_model,
         surface: &surface,
-        covered: &[],
     };
     let mut ranks = Vec::new();
     for (range, r, beta) in posed.link_factors(&FORMS_WEIGHTS, &FORMS_TAU) {

@@ -169,11 +169,9 @@ impl Estimator {
     ) -> Result<(RobotPose, TorqueModel, Posterior), EstimateError> {
         let pose = RobotPose::new(robot, joint_positions);
         let torque_model = TorqueModel::new(robot, &pose, &self.links);
-        let covered = self.surface.cover.covered_at(joint_positions);
         let posed = PosedSurface {
             torque_model: &torque_model,
             surface: &self.surface,
-            covered: &covered,
         };
         let posterior = estimate_keeping_forms(&posed, tau, &self.settings, self.hierarchy.as_ref(), forms)?;
         Ok((pose, torque_model, posterior))
@@ -195,11 +193,9 @@ impl Estimator {
         starts: &[PairStart],
     ) -> Result<Option<PairEstimate>, EstimateError> {
         let (pose, torque_model, posterior) = self.posterior_at(robot, joint_positions, tau, None)?;
-        let covered = self.surface.cover.covered_at(joint_positions);
         let posed = PosedSurface {
             torque_model: &torque_model,
             surface: &self.surface,
-            covered: &covered,
         };
         estimate_pair(
             &posed,

@@ -851,16 +851,10 @@ fn coarse_pair(
     let n = posed.points();
     let joints = posed.joints();
     let m = n.min(COARSE_SAMPLES);
-    // Spread over the surface; none that a neighbouring link covers.
-    let covered = posed.covered();
-    let points: Vec<usize> = (0..m)
-        .map(|i| i * n / m.max(1))
-        .filter(|&k| u32::try_from(k).is_ok_and(|k| covered.binary_search(&k).is_err()))
-        .collect();
-    let m = points.len();
     if m < 2 {
         return Vec::new();
     }
+    let points: Vec<usize> = (0..m).map(|i| i * n / m).collect();
     // The samples' torques per newton scaled by √w (plain dot products
     // below), a column per joint: one sample's dot products with all
     // later ones run down the columns.

@@ -71,7 +71,6 @@ impl Scene {
         PosedSurface {
             torque_model: &self.torque_model,
             surface: &self.surface,
-            covered: &[],
         }
     }
 

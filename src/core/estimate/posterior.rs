@@ -205,7 +205,6 @@ pub fn estimate_keeping_forms(
     let last = search_phases(&q, settings, hierarchy, n, &mut rng, &mut flags, &mut phases)?;
     let (mut scored, report) = evaluate(&q, &last, settings, n, &mut rng);
     phases.push(report);
-    exclude_covered(&mut scored, &last, model.covered(), n);
     if last.len() == n {
         for f in &mut flags {
             *f |= phase_flag::C;
@@ -286,48 +285,6 @@ pub fn estimate_keeping_forms(
         best_residual_chi2,
         no_contact_chi2,
     })
-}
-
-/// No likelihood for the points `covered` (sorted, of `n`) that `last`
-/// scored: no push reaches them. Left as they are where that would leave no
-/// point with one (a configuration that covers the whole surface).
-fn exclude_covered(scored: &mut Scores, last: &[usize], covered: &[u32], n: usize) {
-    if covered.is_empty() {
-        return;
-    }
-    let mut is_covered = vec![false; n];
-    for &k in covered {
-        if let Some(c) = is_covered.get_mut(k as usize) {
-            *c = true;
-        }
-    }
-    let hidden = |slot: usize| {
-        last.get(slot)
-            .and_then(|&k| is_covered.get(k))
-            .copied()
-            .unwrap_or(false)
-    };
-    let any_left = scored
-        .mass
-        .iter()
-        .enumerate()
-        .any(|(slot, m)| m.is_finite() && !hidden(slot));
-    if !any_left {
-        return;
-    }
-    for (slot, m) in scored.mass.iter_mut().enumerate() {
-        if hidden(slot) {
-            *m = f64::NEG_INFINITY;
-        }
-    }
-    for (slot, b) in scored.best.iter_mut().enumerate() {
-        if hidden(slot) {
-            *b = f64::NEG_INFINITY;
-        }
-    }
-    if let Some(candidates) = &mut scored.candidates {
-        candidates.retain(|&slot| !hidden(slot));
-    }
 }
 
 /// Per surface point: probability (a near point's weight over the sum of

@@ -1,7 +1,7 @@
 //! Tests of the posterior over the samples, the evidence and the settings.
 
 use super::*;
-use crate::core::estimate::contact::{ContactModel, PosedSurface};
+use crate::core::estimate::contact::ContactModel;
 use crate::core::estimate::evidence::{EvidenceKernel, FAR_BELOW, ProfileKernel, Shared};
 use crate::core::estimate::summary::{Verdict, summarize};
 use crate::core::robot::builtin;
@@ -629,56 +629,4 @@ fn a_compacted_posterior_comes_back_bit_for_bit() {
             assert!(exact.support.len() < 200, "{}", exact.support.len());
         }
     }
-}
-
-/// A push on a point a neighbouring link covers: the covered points get
-/// no likelihood and no probability, the rest keep theirs, and the best
-/// place moves to a point that is not covered.
-#[test]
-fn covered_points_get_no_likelihood() {
-    let s = setup(&Q, 600, None);
-    let k = 137;
-    let (_, tau) = push_at(&s, k, 12.0);
-    let links = s.robot.default_candidate_links();
-    let tm = TorqueModel::new(&s.robot, &s.pose, &links);
-    let open = PosedSurface {
-        torque_model: &tm,
-        surface: &s.surface,
-        covered: &[],
-    };
-    let settings = settings(0.05);
-    let before = estimate_keeping_forms(&open, &tau, &settings, None, None).unwrap();
-    let best = before.map_point;
-    // The best point and every point within 3 cm of it, covered.
-    let near: Vec<u32> = (0..s.surface.len())
-        .filter(|&i| s.surface.link[i] == s.surface.link[best])
-        .filter(|&i| s.surface.point_in_link[i].distance(s.surface.point_in_link[best]) < 0.03)
-        .map(|i| i as u32)
-        .collect();
-    assert!(near.len() > 1);
-    let covering = PosedSurface {
-        torque_model: &tm,
-        surface: &s.surface,
-        covered: &near,
-    };
-    let after = estimate_keeping_forms(&covering, &tau, &settings, None, None).unwrap();
-    for &i in &near {
-        assert_eq!(after.log_likelihood[i as usize], f64::NEG_INFINITY);
-        assert_eq!(after.probability[i as usize], 0.0);
-    }
-    assert!(near.binary_search(&(after.map_point as u32)).is_err());
-    let kept = (0..s.surface.len()).filter(|i| near.binary_search(&(*i as u32)).is_err());
-    for i in kept {
-        assert_eq!(after.log_likelihood[i], before.log_likelihood[i], "point {i}");
-    }
-    assert!((after.probability.iter().sum::<f64>() - 1.0).abs() < 1e-9);
-    // Covering every point leaves the frame as it was: something must explain it.
-    let all: Vec<u32> = (0..s.surface.len() as u32).collect();
-    let everything = PosedSurface {
-        torque_model: &tm,
-        surface: &s.surface,
-        covered: &all,
-    };
-    let same = estimate_keeping_forms(&everything, &tau, &settings, None, None).unwrap();
-    assert_eq!(same.map_point, best);
 }

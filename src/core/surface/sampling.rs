@@ -15,7 +15,6 @@ use crate::core::geometry::shell::{MeshPoint, SmoothMesh, SurfaceFrame, segment_
 use crate::core::numerics::rng::Rng;
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::{LinkId, Robot};
-use crate::core::surface::cover::CoverTable;
 
 /// How far off the surface the buried test looks, m.
 pub const BURIED_PROBE_M: f64 = 5e-4;
@@ -171,9 +170,6 @@ pub struct Surface {
     pub cell: Vec<u32>,
     /// Samples grouped into cells a few spacings wide, with their neighbours.
     pub cells: Cells,
-    /// The samples a neighbouring link covers, by the angle of the joint
-    /// between them (empty for contacts drawn at random).
-    pub cover: CoverTable,
 }
 
 /// A partition of the samples into cells about [`CELL_SPACINGS`] sample
@@ -445,14 +441,6 @@ impl Surface {
             surface.shapes.push(Arc::new(shape));
         }
         surface.build_cells();
-        if even {
-            surface.cover = CoverTable::build(
-                robot,
-                &surface.link,
-                &surface.point_in_link,
-                &surface.inward_normal_in_link,
-            );
-        }
         Ok(surface)
     }
 
