@@ -13,11 +13,10 @@
 //! still free to place a contact there, measured mixed
 //! (`docs/decisions.md`, session 68).
 
-use glam::{DAffine3, DQuat, DVec3};
+use glam::{DQuat, DVec3};
 use rayon::prelude::*;
 
 use crate::core::geometry::bvh::Bvh;
-use crate::core::geometry::mesh::TriMesh;
 use crate::core::geometry::shell::SmoothMesh;
 use crate::core::robot::model::{JointId, JointKind, LinkId, Robot};
 
@@ -56,75 +55,8 @@ pub struct CoverTable {
     ranges: Vec<BinRange>,
 }
 
-/// Slabs along a joint's axis that [`Reach`] splits a neighbour into.
-const REACH_SLABS: usize = 32;
-
-/// How far from a joint's axis a neighbour reaches, slab by slab along
-/// the axis (in the joint's frame, where turning the joint moves neither):
-/// a point beyond it lies outside the neighbour at every angle. A
-/// triangle's farthest point from the axis is a corner (the distance is
-/// convex), so the corners bound each slab they span.
-struct Reach {
-    axis: DVec3,
-    z_low: f64,
-    slab_m: f64,
-    radius_m: [f64; REACH_SLABS],
-}
-
-impl Reach {
-    fn of(mesh: &TriMesh, joint_from_link: DAffine3, axis: DVec3) -> Option<Self> {
-        let axis = axis.normalize_or_zero();
-        let corners: Vec<[DVec3; 3]> = mesh
-            .triangle_corners()
-            .map(|c| c.map(|v| joint_from_link.transform_point3(v)))
-            .collect();
-        let z = |v: DVec3| v.dot(axis);
-        let (z_low, z_high) = corners
-            .iter()
-            .flatten()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-                (lo.min(z(v)), hi.max(z(v)))
-            });
-        if !(z_high >= z_low && axis.length_squared() > 0.0) {
-            return None;
-        }
-        let slab_m = ((z_high - z_low) / REACH_SLABS as f64).max(1e-9);
-        let slab = |z: f64| (((z - z_low) / slab_m).floor().max(0.0) as usize).min(REACH_SLABS - 1);
-        let mut radius_m = [0.0_f64; REACH_SLABS];
-        for c in &corners {
-            let r = c.iter().map(|&v| (v - axis * z(v)).length()).fold(0.0, f64::max);
-            let (lo, hi) = c.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-                (lo.min(z(v)), hi.max(z(v)))
-            });
-            for radius in radius_m.get_mut(slab(lo)..=slab(hi)).into_iter().flatten() {
-                *radius = radius.max(r);
-            }
-        }
-        Some(Self {
-            axis,
-            z_low,
-            slab_m,
-            radius_m,
-        })
-    }
-
-    /// Whether `p` (in the joint's frame) may lie inside the neighbour at
-    /// some angle.
-    fn may_hold(&self, p: DVec3) -> bool {
-        let z = p.dot(self.axis);
-        let at = (z - self.z_low) / self.slab_m;
-        if !(at >= 0.0 && at < REACH_SLABS as f64) {
-            return false;
-        }
-        self.radius_m
-            .get(at as usize)
-            .is_some_and(|&r| (p - self.axis * z).length() <= r)
-    }
-}
-
 /// A link's mesh, oriented, with its search structure.
 struct Body {
-    mesh: TriMesh,
     bvh: Bvh,
     /// Bounds of the mesh in its link's frame.
     low: DVec3,
@@ -141,7 +73,6 @@ impl Body {
         let (low, high) = mesh.mesh.bounds()?;
         Some(Self {
             bvh: Bvh::new(&mesh.mesh),
-            mesh: mesh.mesh,
             low,
             high,
         })
@@ -189,112 +120,119 @@ fn covered_bins(covered: impl Fn(usize) -> bool) -> u64 {
     }
 }
 
+/// The surface's samples, as [`CoverTable::build`] takes them.
+struct Samples<'a> {
+    link: &'a [LinkId],
+    point_in_link: &'a [DVec3],
+    inward_normal_in_link: &'a [DVec3],
+}
+
+impl Samples<'_> {
+    /// The entries of the samples on either side of `range`'s joint that
+    /// the link across it covers at some angle.
+    fn covered_across(&self, robot: &Robot, bodies: &[Option<Body>], range: &BinRange) -> Vec<CoverEntry> {
+        let Some(joint) = robot.joints.get(range.joint) else {
+            return Vec::new();
+        };
+        let joint_from_parent = joint.parent_from_joint.inverse();
+        let n = self
+            .link
+            .len()
+            .min(self.point_in_link.len())
+            .min(self.inward_normal_in_link.len());
+        let mut found = Vec::new();
+        for k in 0..n {
+            let (Some(&on), Some(&p), Some(&inward)) = (
+                self.link.get(k),
+                self.point_in_link.get(k),
+                self.inward_normal_in_link.get(k),
+            ) else {
+                continue;
+            };
+            let on_child = on == joint.child;
+            let neighbour = if on_child {
+                joint.parent
+            } else if on == joint.parent {
+                joint.child
+            } else {
+                continue;
+            };
+            let Some(Some(body)) = bodies.get(neighbour) else {
+                continue;
+            };
+            let outside = p - inward * COVER_PROBE_M;
+            // The sample's outside in the neighbour's frame at angle q: the
+            // child's frame is the joint's turned by q about the axis.
+            let in_joint = if on_child {
+                outside
+            } else {
+                joint_from_parent.transform_point3(outside)
+            };
+            let in_neighbour = |q: f64| {
+                if on_child {
+                    joint
+                        .parent_from_joint
+                        .transform_point3(DQuat::from_axis_angle(joint.axis, q) * in_joint)
+                } else {
+                    DQuat::from_axis_angle(joint.axis, -q) * in_joint
+                }
+            };
+            let bins =
+                covered_bins(|b| body.holds(in_neighbour(range.lower_rad + (b as f64 + 0.5) * range.bin_width_rad)));
+            if bins != 0 {
+                found.push(CoverEntry {
+                    sample: u32::try_from(k).unwrap_or(u32::MAX),
+                    joint: range.joint,
+                    bins,
+                });
+            }
+        }
+        found
+    }
+}
+
 impl CoverTable {
     /// The table of the samples (`link`, `point_in_link`,
     /// `inward_normal_in_link`, one entry each) of `robot`'s surface.
     #[must_use]
     pub fn build(robot: &Robot, link: &[LinkId], point_in_link: &[DVec3], inward_normal_in_link: &[DVec3]) -> Self {
-        let mut table = Self::default();
-        let mut bodies: Vec<Option<Option<Body>>> = (0..robot.links.len()).map(|_| None).collect();
-        let mut body = |l: LinkId| -> bool {
-            match bodies.get_mut(l) {
-                Some(slot @ None) => {
-                    *slot = Some(Body::of(robot, l));
-                    slot.as_ref().is_some_and(Option::is_some)
-                }
-                Some(Some(b)) => b.is_some(),
-                None => false,
-            }
-        };
-        let mut jobs = Vec::new();
-        for (j, joint) in robot.joints.iter().enumerate() {
-            let (lower_rad, upper_rad) = match (joint.kind, joint.limits) {
-                (JointKind::Revolute, Some(limits)) => (limits.lower, limits.upper),
-                (JointKind::Revolute | JointKind::Continuous, _) => (-std::f64::consts::PI, std::f64::consts::PI),
-                _ => continue,
-            };
-            if !(upper_rad > lower_rad && (upper_rad - lower_rad).is_finite()) {
-                continue;
-            }
-            let (parent_ok, child_ok) = (body(joint.parent), body(joint.child));
-            table.ranges.push(BinRange {
-                joint: j,
-                lower_rad,
-                bin_width_rad: (upper_rad - lower_rad) / COVER_BINS as f64,
-            });
-            jobs.push((j, joint.parent, joint.child, parent_ok, child_ok, lower_rad, upper_rad));
-        }
-        let bodies: Vec<Option<Body>> = bodies.into_iter().map(Option::flatten).collect();
-        let n = link.len().min(point_in_link.len()).min(inward_normal_in_link.len());
-        let mut entries: Vec<CoverEntry> = jobs
-            .par_iter()
-            .flat_map_iter(|&(j, parent, child, parent_ok, child_ok, lower, upper)| {
-                let Some(joint) = robot.joints.get(j) else {
-                    return Vec::new();
+        let ranges: Vec<BinRange> = robot
+            .joints
+            .iter()
+            .enumerate()
+            .filter_map(|(j, joint)| {
+                let (lower_rad, upper_rad) = match (joint.kind, joint.limits) {
+                    (JointKind::Revolute, Some(limits)) => (limits.lower, limits.upper),
+                    (JointKind::Revolute | JointKind::Continuous, _) => (-std::f64::consts::PI, std::f64::consts::PI),
+                    _ => return None,
                 };
-                let width = (upper - lower) / COVER_BINS as f64;
-                let joint_from_parent = joint.parent_from_joint.inverse();
-                let reach_of = |l: LinkId, joint_from_link: DAffine3| {
-                    bodies
-                        .get(l)
-                        .and_then(Option::as_ref)
-                        .and_then(|b| Reach::of(&b.mesh, joint_from_link, joint.axis))
-                };
-                let (parent_reach, child_reach) =
-                    (reach_of(parent, joint_from_parent), reach_of(child, DAffine3::IDENTITY));
-                let mut found = Vec::new();
-                for k in 0..n {
-                    let (Some(&on), Some(&p), Some(&inward)) =
-                        (link.get(k), point_in_link.get(k), inward_normal_in_link.get(k))
-                    else {
-                        continue;
-                    };
-                    let outside = p - inward * COVER_PROBE_M;
-                    // The sample in the joint's frame (at angle 0 on the
-                    // child's side: the angle turns neither bound).
-                    let (in_joint, reach) = if on == child {
-                        (outside, parent_reach.as_ref())
-                    } else {
-                        (joint_from_parent.transform_point3(outside), child_reach.as_ref())
-                    };
-                    if !reach.is_some_and(|r| r.may_hold(in_joint)) {
-                        continue;
-                    }
-                    // The neighbour's frame from the sample's at angle q.
-                    let (neighbour, at_angle): (LinkId, Box<dyn Fn(f64) -> DVec3>) = if on == child && parent_ok {
-                        let from = joint.parent_from_joint;
-                        let axis = joint.axis;
-                        (
-                            parent,
-                            Box::new(move |q| {
-                                (from * DAffine3::from_quat(DQuat::from_axis_angle(axis, q))).transform_point3(outside)
-                            }),
-                        )
-                    } else if on == parent && child_ok {
-                        let axis = joint.axis;
-                        let in_joint = joint_from_parent.transform_point3(outside);
-                        (child, Box::new(move |q| DQuat::from_axis_angle(axis, -q) * in_joint))
-                    } else {
-                        continue;
-                    };
-                    let Some(Some(neighbour)) = bodies.get(neighbour) else {
-                        continue;
-                    };
-                    let bins = covered_bins(|b| neighbour.holds(at_angle(lower + (b as f64 + 0.5) * width)));
-                    if bins != 0 {
-                        found.push(CoverEntry {
-                            sample: u32::try_from(k).unwrap_or(u32::MAX),
-                            joint: j,
-                            bins,
-                        });
-                    }
-                }
-                found
+                (upper_rad > lower_rad && (upper_rad - lower_rad).is_finite()).then(|| BinRange {
+                    joint: j,
+                    lower_rad,
+                    bin_width_rad: (upper_rad - lower_rad) / COVER_BINS as f64,
+                })
             })
             .collect();
+        // The bodies of the links on either side of a tabled joint.
+        let bodies: Vec<Option<Body>> = (0..robot.links.len())
+            .map(|l| {
+                let jointed = ranges
+                    .iter()
+                    .any(|r| robot.joints.get(r.joint).is_some_and(|j| j.parent == l || j.child == l));
+                if jointed { Body::of(robot, l) } else { None }
+            })
+            .collect();
+        let samples = Samples {
+            link,
+            point_in_link,
+            inward_normal_in_link,
+        };
+        let mut entries: Vec<CoverEntry> = ranges
+            .par_iter()
+            .flat_map_iter(|range| samples.covered_across(robot, &bodies, range))
+            .collect();
         entries.sort_unstable_by_key(|e| (e.sample, e.joint));
-        table.entries = entries;
-        table
+        Self { entries, ranges }
     }
 
     /// Samples with a table.
