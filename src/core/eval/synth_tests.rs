@@ -295,11 +295,7 @@ fn no_press_starts_inside_a_neighbouring_link_where_asked() {
     let links = robot.default_candidate_links();
     let shapes = builtin::lwr4plus_primitives();
     let inside = |link: LinkId, p: DVec3| {
-        let name = &robot.links[link].name;
-        shapes
-            .iter()
-            .find(|(n, _)| n == name)
-            .is_some_and(|(_, parts)| parts.iter().map(|q| q.signed_distance(p)).fold(f64::INFINITY, f64::min) < -1e-3)
+        builtin::primitives_signed_distance(&shapes, &robot.links[link].name, p).is_some_and(|d| d < -1e-3)
     };
     let buried_starts = |avoid_covered: bool| -> (usize, usize) {
         let settings = SynthSettings {

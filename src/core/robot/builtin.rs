@@ -194,6 +194,18 @@ pub fn lwr4plus_generated() -> Result<Robot, RobotError> {
     lwr4plus_with_meshes(&lwr4plus_meshes())
 }
 
+/// The signed distance (m, negative inside) from `p`, in the frame of the
+/// link named `link`, to the union of that link's primitives in `shapes`
+/// ([`lwr4plus_primitives`]); `None` for a link without primitives. The
+/// exact shape the tests hold the generated meshes and tables against.
+#[cfg(test)]
+pub(crate) fn primitives_signed_distance(shapes: &[(&str, Vec<Primitive>)], link: &str, p: DVec3) -> Option<f64> {
+    shapes
+        .iter()
+        .find(|(name, _)| *name == link)
+        .map(|(_, parts)| parts.iter().map(|q| q.signed_distance(p)).fold(f64::INFINITY, f64::min))
+}
+
 /// The built-in LWR's shape: per link, rounded primitives sized to the real
 /// arm's meshes (links 1–5 are 12 cm tubes whose joint housings sit off the
 /// axis on alternating sides; link 6 is a ball, link 7 the flange).

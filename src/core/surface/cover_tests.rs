@@ -32,11 +32,7 @@ fn covered_samples_match_the_primitives_at_random_poses() {
     assert!(table.tabled() > 0);
     let shapes = builtin::lwr4plus_primitives();
     let inside = |link: LinkId, p: DVec3| {
-        let name = &robot.links[link].name;
-        shapes
-            .iter()
-            .find(|(n, _)| n == name)
-            .is_some_and(|(_, parts)| parts.iter().map(|q| q.signed_distance(p)).fold(f64::INFINITY, f64::min) < 0.0)
+        builtin::primitives_signed_distance(&shapes, &robot.links[link].name, p).is_some_and(|d| d < 0.0)
     };
     let mut rng = Rng::new(4);
     let (mut agree, mut differ, mut covered_total) = (0, 0, 0);

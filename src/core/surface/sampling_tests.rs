@@ -145,8 +145,7 @@ fn builtin_lwr_samples_are_exposed_and_normals_point_inside() {
     assert!(buried_total > 0, "the overlapping primitives must bury some candidates");
     for i in 0..s.len() {
         let name = &robot.links[s.link[i]].name;
-        let parts = &shapes.iter().find(|(n, _)| n == name).unwrap().1;
-        let union = |p: DVec3| parts.iter().map(|q| q.signed_distance(p)).fold(f64::INFINITY, f64::min);
+        let union = |p: DVec3| builtin::primitives_signed_distance(&shapes, name, p).unwrap();
         let p = s.point_in_link[i];
         let n = s.inward_normal_in_link[i];
         // On the faceted surface: within the chord error of a 40-gon.
