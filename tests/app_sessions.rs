@@ -221,6 +221,25 @@ fn the_timeline_estimates_equal_the_estimate_command() {
     }
 }
 
+/// The timeline keeps the height it opens with (a third of the window):
+/// its plots fill it to the pixel, and it neither shrinks nor grows frame
+/// after frame (it shrank by 6 px a frame to its plots' least height,
+/// undoing any resizing).
+#[test]
+fn the_timeline_keeps_its_height() {
+    let path = demo_session("height.session.json", 1.0);
+    let mut harness = session_harness(&path);
+    let top = |harness: &Harness<'_, ProprioscopeApp>| harness.get_by_label("|<").rect().top();
+    let opened = top(&harness);
+    // 0.34 of the 900 px window, less the panel's margin above the button.
+    assert!(
+        (560.0..=620.0).contains(&opened),
+        "the timeline's first row at y = {opened}"
+    );
+    harness.run_steps(60);
+    assert_eq!(top(&harness), opened, "the timeline moved");
+}
+
 /// A replayed session (the demo recording: deterministic frames) against
 /// its snapshot: timeline, plots and session panel.
 #[test]

@@ -528,6 +528,10 @@ impl ProprioscopeApp {
         let Some(replay) = &self.model.replay else {
             return commands;
         };
+        // A panel keeps the height its content used: the timeline claims
+        // all of it, or it would shrink a little every frame down to the
+        // plots' least height and undo the user's resizing.
+        ui.set_min_height(ui.available_height());
         let frames = &replay.session.frames;
         let last = frames.len().saturating_sub(1);
         ui.horizontal(|ui| {
@@ -803,7 +807,10 @@ impl ProprioscopeApp {
                 ));
             }
         }
-        let height = (ui.available_height() - 24.0).max(150.0);
+        // A pixel short of the panel below the titles (the timeline claims
+        // the whole panel, `timeline_ui`): the plots never push it out.
+        let title_height = ui.text_style_height(&egui::TextStyle::Body) + ui.spacing().item_spacing.y;
+        let height = (ui.available_height() - title_height - 1.0).max(150.0);
         let mut clicked = None;
         let columns = if bias_lines.is_some() { 5 } else { 4 };
         let (torque_title, taken_off_title) = self.torque_titles(bias_lines.is_some());
