@@ -237,7 +237,11 @@ fn the_timeline_keeps_its_height() {
         "the timeline's first row at y = {opened}"
     );
     harness.run_steps(60);
-    assert_eq!(top(&harness), opened, "the timeline moved");
+    let after = top(&harness);
+    assert!(
+        (after - opened).abs() < 0.5,
+        "the timeline moved from y = {opened} to {after}"
+    );
 }
 
 /// A replayed session (the demo recording: deterministic frames) against

@@ -132,10 +132,25 @@ fn the_shared_two_contact_example() {
     ]);
     assert!(ok, "{err}");
     let (both, error_mm, one) = two_contact_figures(&out);
-    // Measured: 74.7 %, 26.9 mm, 0.0 % (docs/validation.md, *Two contacts*).
-    assert!(both >= 70.0, "{out}");
-    assert!(error_mm <= 30.0, "{out}");
+    // Measured: 65.1 %, 21.1 mm, 0.0 % (docs/validation.md, *Two
+    // contacts*); before pairs split across the wrist were searched
+    // again, 74.7 %, 26.9 mm and the link 5 probe 23.1 mm off.
+    assert!(both >= 60.0, "{out}");
+    assert!(error_mm <= 25.0, "{out}");
     assert!(one <= 2.0, "{out}");
+    // Each probe's median error where two are called (10.2 and 35.1 mm):
+    // the link 5 probe within 20 mm, the bound.
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("each contact's median error"))
+        .unwrap_or_else(|| panic!("no per-contact line in:\n{out}"));
+    let link5: f64 = line
+        .split("lwr_5_link ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|x| x.parse().ok())
+        .unwrap_or_else(|| panic!("no link 5 figure in {line}"));
+    assert!(link5 <= 20.0, "{line}");
 }
 
 /// The share of one-press frames called two (%), from the `two

@@ -131,6 +131,7 @@ impl Scene {
 /// what the tests of its parts run on.
 fn search_of<'a>(
     posed: &'a PosedSurface<'a>,
+    pose: &'a RobotPose,
     tau: &'a [f64],
     settings: &'a EstimatorSettings,
     pair: &'a PairSettings,
@@ -143,6 +144,8 @@ fn search_of<'a>(
         pair,
         weights: settings.weights(),
         ln_prior_norm: 0.0,
+        pose,
+        across_links: false,
     }
 }
 
@@ -323,7 +326,7 @@ fn friction_at_both_contacts_explains_the_misfit_once() {
             .iter()
             .map(|u| u * force.length() + SIGMA * rng.normal())
             .collect();
-        let search = search_of(&posed, &tau, &settings, &pair_settings);
+        let search = search_of(&posed, &s.pose, &tau, &settings, &pair_settings);
         let a = search.at_sample(s.nearest_sample(k), 15.0);
         for b in (0..s.surface.len()).filter(|&b| s.surface.link[b] == link).step_by(7) {
             let b = search.at_sample(b, rng.uniform_in(1.0, 15.0));
@@ -506,7 +509,7 @@ fn a_push_on_a_link_two_joints_feel_is_not_placed_in_a_pair() {
     let settings = EstimatorSettings::exact(vec![SIGMA; 7]);
     let pair_settings = PairSettings::default();
     let tau = vec![0.0; 7];
-    let search = search_of(&posed, &tau, &settings, &pair_settings);
+    let search = search_of(&posed, &s.pose, &tau, &settings, &pair_settings);
     let why = |a: &Placed, b: &Placed| search.unidentifiable(sensing(&posed, a.link, b.link), a, b);
     // The false pairs of the shared observer link-side example, filtered:
     // a push on link 2 taking up the model error of joints 1 and 2 beside
@@ -561,7 +564,7 @@ fn a_push_beside_one_that_explains_alone_with_friction_is_not_a_pair() {
         .iter()
         .map(|u| u * force.length() + SIGMA * rng.normal())
         .collect();
-    let search = search_of(&posed, &tau, &settings, &pair_settings);
+    let search = search_of(&posed, &s.pose, &tau, &settings, &pair_settings);
     let alone = at_truth_exactly(&s, probe, 11.0);
     let ghost = at_truth_exactly(&s, s.truth_on("lwr_5_link", 0), 4.5);
     assert!(search.explains_alone(&alone));
@@ -569,10 +572,57 @@ fn a_push_beside_one_that_explains_alone_with_friction_is_not_a_pair() {
     assert_eq!(why, Some(Unidentifiable::OneExplains));
     // Two firm pushes along their normals: neither alone explains them.
     for (a, b, tau) in two_push_frames(&s).into_iter().take(3) {
-        let search = search_of(&posed, &tau, &settings, &pair_settings);
+        let search = search_of(&posed, &s.pose, &tau, &settings, &pair_settings);
         let (a, b) = (at_truth_exactly(&s, a, 25.0), at_truth_exactly(&s, b, 20.0));
         assert!(!search.explains_alone(&a) && !search.explains_alone(&b));
         let why = search.unidentifiable(sensing(&posed, a.link, b.link), &a, &b);
         assert_ne!(why, Some(Unidentifiable::OneExplains));
+    }
+}
+
+/// The separation keeps a second push away from the first on its link
+/// always, and across a joint only in the search apart: two pushes a
+/// finger apart about the wrist are one push split in two there.
+#[test]
+fn the_separation_holds_across_links_only_in_the_search_apart() {
+    let s = scene();
+    let (posed, settings, pair_settings) = (
+        s.posed(),
+        EstimatorSettings::exact(vec![SIGMA; 7]),
+        PairSettings::default(),
+    );
+    let tau = [0.0; 7];
+    let first = search_of(&posed, &s.pose, &tau, &settings, &pair_settings);
+    let apart = Search {
+        across_links: true,
+        ..first.clone()
+    };
+    let placed = |link: &str, world: DVec3| {
+        let link = s.robot.link_id(link).unwrap();
+        Placed {
+            point: 0,
+            link,
+            location: None,
+            point_in_link: s.pose.world_from_link[link].inverse().transform_point3(world),
+            inward_normal_in_link: DVec3::Z,
+            force_newtons: 1.0,
+            torques: vec![0.0; 7],
+        }
+    };
+    let at = DVec3::new(0.14, -0.5, 0.64);
+    let on_seven = placed("lwr_7_link", at);
+    for (link, offset, near_first, near_apart) in [
+        ("lwr_5_link", 0.017, false, true),
+        ("lwr_5_link", 0.06, false, false),
+        ("lwr_7_link", 0.017, true, true),
+        ("lwr_7_link", 0.06, false, false),
+    ] {
+        let other = placed(link, at + DVec3::X * offset);
+        let near = |search: &Search<'_>| search.too_near(other.link, other.point_in_link, &on_seven);
+        assert_eq!(
+            (near(&first), near(&apart)),
+            (near_first, near_apart),
+            "{link} {offset} m"
+        );
     }
 }
