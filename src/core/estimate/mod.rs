@@ -10,6 +10,7 @@ pub mod kinetic;
 pub mod measurement;
 pub mod observability;
 pub mod pair;
+pub mod pair_grid;
 pub mod phases;
 pub mod posterior;
 pub mod press;

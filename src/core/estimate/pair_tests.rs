@@ -1,6 +1,7 @@
 //! Tests of [`super`]: `pair.rs`.
 
 use super::*;
+use crate::core::estimate::pair_grid::{COARSE_SAMPLES, best_magnitudes, coarse_pair};
 use crate::core::numerics::rng::Rng;
 use crate::core::robot::builtin;
 use crate::core::robot::model::Robot;
