@@ -83,18 +83,29 @@ fn a_second_push_that_joins_the_first_is_found() {
             assert!(c["credible90_radius_m"].as_f64().unwrap() >= 0.0, "{c}");
         }
         // A searched frame says what its pair search found: two called
-        // only where more probable than one and identifiable.
+        // only where more probable than one and identifiable, by the
+        // frame's own rules or bridged by the frames beside it where one
+        // push alone explains the torques.
         let verdict = &v["two_contacts"];
         if contacts.len() == 2 {
-            assert_eq!(verdict["identifiable"], true, "{v}");
             assert!(verdict["probability"].as_f64().unwrap() > 0.5, "{v}");
-            assert!(verdict["unidentifiable"].is_null(), "{v}");
+            if verdict["bridged"] == true {
+                assert_eq!(verdict["identifiable"], false, "{v}");
+                assert_eq!(
+                    verdict["unidentifiable"], "one push alone, with friction, explains the torques",
+                    "{v}"
+                );
+            } else {
+                assert_eq!(verdict["identifiable"], true, "{v}");
+                assert!(verdict["unidentifiable"].is_null(), "{v}");
+            }
         }
         if !verdict.is_null() {
             let p = verdict["probability"].as_f64().unwrap();
             assert!((0.0..=1.0).contains(&p), "{v}");
             assert!(verdict["log_evidence_ratio"].is_number(), "{v}");
             assert_eq!(verdict["identifiable"], verdict["unidentifiable"].is_null(), "{v}");
+            assert!(verdict["bridged"].is_boolean(), "{v}");
         }
     }
     assert!(counts.iter().all(|&n| n > 0), "lines with 0, 1, 2 contacts: {counts:?}");
@@ -132,10 +143,12 @@ fn the_shared_two_contact_example() {
     ]);
     assert!(ok, "{err}");
     let (both, error_mm, one) = two_contact_figures(&out);
-    // Measured: 65.1 %, 21.1 mm, 0.0 % (docs/validation.md, *Two
-    // contacts*); before pairs split across the wrist were searched
-    // again, 74.7 %, 26.9 mm and the link 5 probe 23.1 mm off.
-    assert!(both >= 60.0, "{out}");
+    // Measured: 72.3 %, 21.1 mm, 0.0 % (docs/validation.md, *Two
+    // contacts*); before frames one push alone explains were bridged by
+    // the frames beside them, 65.1 %; before pairs split across the
+    // wrist were searched again, 74.7 %, 26.9 mm and the link 5 probe
+    // 23.1 mm off.
+    assert!(both >= 70.0, "{out}");
     assert!(error_mm <= 25.0, "{out}");
     assert!(one <= 2.0, "{out}");
     // Each probe's median error where two are called (10.2 and 35.1 mm):

@@ -17,7 +17,9 @@ use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Verdict;
 use crate::core::eval::metrics::percentile;
 use crate::core::over_time::frame::SequenceFrame;
-use crate::core::over_time::pairs::{ChainFilter, NO_PAIR_LOG_RATIO, PairTracker, SecondContactChain};
+use crate::core::over_time::pairs::{
+    ChainFilter, NO_PAIR_LOG_RATIO, PairSketch, PairTracker, SecondContactChain, bridged,
+};
 use crate::core::over_time::sequence::Temporal;
 use crate::core::robot::model::{LinkId, Robot};
 use crate::io::session::{ContactTruth, Frame};
@@ -66,14 +68,20 @@ pub struct FramePair {
     pub pair: PairEstimate,
     /// Probability of two contacts given the whole session.
     pub probability_two: f64,
+    /// Whether the frames beside it identify the pair that a rule read
+    /// from this frame's torques alone does not
+    /// ([`crate::core::over_time::pairs::bridged`]; smoothed sessions
+    /// only: a filter has not seen the frame after).
+    pub bridged: bool,
 }
 
 impl FramePair {
     /// Whether the frame is called two contacts: more probable than one
-    /// over the session, and identifiable.
+    /// over the session, and identifiable (by its own rules, or bridged
+    /// by the frames beside it).
     #[must_use]
     pub fn has_two(&self) -> bool {
-        self.pair.identifiable() && self.probability_two > 0.5
+        (self.pair.identifiable() || self.bridged) && self.probability_two > 0.5
     }
 }
 
@@ -257,10 +265,28 @@ pub fn session_pairs_timed(
         PairsOver::Filtered(chain) => chain.filter(&times, &ratios, pair_settings.prior_two),
         PairsOver::Smoothed(chain) => chain.smooth(&times, &ratios, pair_settings.prior_two),
     };
+    let bridges = match over {
+        PairsOver::Smoothed(_) => {
+            let sketches: Vec<Option<PairSketch>> = found
+                .iter()
+                .zip(&probabilities)
+                .map(|(pair, &p)| pair.as_ref().map(|pair| PairSketch::of(pair, p)))
+                .collect();
+            bridged(&sketches, pair_settings.separation_m)
+        }
+        PairsOver::Alone | PairsOver::Filtered(_) => vec![false; found.len()],
+    };
     let pairs = found
         .into_iter()
         .zip(probabilities)
-        .map(|(pair, probability_two)| pair.map(|pair| FramePair { pair, probability_two }))
+        .zip(bridges)
+        .map(|((pair, probability_two), bridged)| {
+            pair.map(|pair| FramePair {
+                pair,
+                probability_two,
+                bridged,
+            })
+        })
         .collect();
     Ok(Some((pairs, search_ms)))
 }
@@ -339,7 +365,11 @@ impl LivePairs {
             .search(estimator, robot, &frame, SingleSeen::of(update), &self.settings);
         let pair = found.as_ref().ok().and_then(Option::as_ref);
         let probability_two = self.filter.push(frame.t_secs, log_ratio(pair));
-        Ok(found?.map(|pair| FramePair { pair, probability_two }))
+        Ok(found?.map(|pair| FramePair {
+            pair,
+            probability_two,
+            bridged: false,
+        }))
     }
 
     /// Forgets every frame (a new sender, a new stream).

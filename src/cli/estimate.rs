@@ -588,6 +588,7 @@ pub(super) fn pair_verdict_json(pair: &FramePair) -> serde_json::Value {
         "log_evidence_ratio": pair.pair.log_evidence_ratio(),
         "identifiable": pair.pair.identifiable(),
         "unidentifiable": pair.pair.unidentifiable.map(|u| u.describe(pair.pair.sensing_joints)),
+        "bridged": pair.bridged,
     })
 }
 

@@ -10,8 +10,11 @@
 //! goes. A recording smooths the chain; a live stream filters it a frame
 //! at a time ([`ChainFilter`]).
 
-use crate::core::estimate::pair::{PairEstimate, PairStart, Placed};
+use glam::DVec3;
+
+use crate::core::estimate::pair::{PairEstimate, PairStart, Placed, Unidentifiable};
 use crate::core::numerics::special::logistic;
+use crate::core::robot::model::LinkId;
 
 /// Where the next frame's pair search starts, from what the frames so
 /// far said.
@@ -71,6 +74,81 @@ impl PairTracker {
             self.first_held = None;
         }
     }
+}
+
+/// What [`bridged`] reads of a frame's pair.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PairSketch {
+    /// Whether the frame's own rules find the pair identifiable.
+    pub identifiable: bool,
+    /// Whether the only rule that says it is not is that one of its
+    /// contacts alone, pushing sideways, explains the torques within the
+    /// noise ([`Unidentifiable::OneExplains`]).
+    pub one_explains: bool,
+    /// Each contact's link and place in it, m.
+    pub places: [(LinkId, DVec3); 2],
+    /// Probability of two contacts over the frames taken together.
+    pub probability_two: f64,
+}
+
+impl PairSketch {
+    /// The sketch of `pair` with its probability of two over the frames.
+    #[must_use]
+    pub fn of(pair: &PairEstimate, probability_two: f64) -> Self {
+        Self {
+            identifiable: pair.identifiable(),
+            one_explains: pair.unidentifiable == Some(Unidentifiable::OneExplains),
+            places: pair
+                .contacts
+                .each_ref()
+                .map(|c| (c.placed.link, c.placed.point_in_link)),
+            probability_two,
+        }
+    }
+
+    /// Whether `other` is the same pair: each contact on the same link
+    /// as one of `other`'s, within `separation_m` of it.
+    fn same_pair(&self, other: &Self, separation_m: f64) -> bool {
+        let near = |(la, pa): (LinkId, DVec3), (lb, pb): (LinkId, DVec3)| la == lb && pa.distance(pb) < separation_m;
+        let [a, b] = self.places;
+        let [c, d] = other.places;
+        (near(a, c) && near(b, d)) || (near(a, d) && near(b, c))
+    }
+}
+
+/// Frames whose pair is identified by the frames beside it: the pair is
+/// more probable than one contact over the frames, the only rule that
+/// calls it unidentifiable is that one of its contacts alone, pushing
+/// sideways, explains the torques within the noise, and the frames just
+/// before and after identify the same pair and call it. That rule is a χ²
+/// threshold that one frame's noise crosses, and a pair held over three
+/// frames does not become one push sideways for the middle one (on the
+/// `../shared` two-contact example, surface seed 0, six such frames
+/// inside a run of 60, each 10–19 nats more probable than one contact).
+/// The other rules with friction are not bridged: between two false pairs
+/// of a generated slide, the push held before explained the frame, or the
+/// farther push was not confirmed (`docs/decisions.md`, session 70). A
+/// run's first and last frames have a neighbour on one side only and keep
+/// their own rules: that is where a slide's false pairs begin and end.
+#[must_use]
+pub fn bridged(frames: &[Option<PairSketch>], separation_m: f64) -> Vec<bool> {
+    let called = |sketch: &Option<PairSketch>| sketch.filter(|s| s.identifiable && s.probability_two > 0.5);
+    (0..frames.len())
+        .map(|k| {
+            let here = frames.get(k).copied().flatten();
+            let before = k.checked_sub(1).and_then(|b| frames.get(b)).and_then(called);
+            let after = frames.get(k + 1).and_then(called);
+            match (here, before, after) {
+                (Some(here), Some(before), Some(after)) => {
+                    here.one_explains
+                        && here.probability_two > 0.5
+                        && here.same_pair(&before, separation_m)
+                        && here.same_pair(&after, separation_m)
+                }
+                _ => false,
+            }
+        })
+        .collect()
 }
 
 /// Log evidence ratio a frame without a pair account gives: "no second
@@ -219,6 +297,63 @@ mod tests {
         onset_per_s: 0.5,
         release_per_s: 2.0,
     };
+
+    /// A pair on links 5 and 7 (the second contact `shift` m along x).
+    fn sketch(identifiable: bool, one_explains: bool, shift: f64, probability_two: f64) -> PairSketch {
+        PairSketch {
+            identifiable,
+            one_explains,
+            places: [(5, DVec3::new(0.0, 0.05, 0.2)), (7, DVec3::new(shift, 0.0, 0.0))],
+            probability_two,
+        }
+    }
+
+    /// Only a frame that one push alone explains, between two frames that
+    /// call the same pair, is bridged: not at a run's ends, not across a
+    /// gap, not a pair elsewhere, not one the chain finds improbable, not
+    /// one another rule calls unidentifiable.
+    #[test]
+    fn a_pair_is_bridged_only_between_frames_that_call_it() {
+        let called = Some(sketch(true, false, 0.0, 0.9));
+        let vetoed = Some(sketch(false, true, 0.01, 0.9));
+        let frames = [
+            vetoed,
+            called,
+            vetoed,
+            called,
+            vetoed,
+            vetoed,
+            called,
+            Some(sketch(false, true, 0.08, 0.9)),
+            called,
+            Some(sketch(false, true, 0.0, 0.3)),
+            called,
+            Some(sketch(false, false, 0.0, 0.9)),
+            called,
+            None,
+            called,
+            vetoed,
+        ];
+        let bridged = bridged(&frames, 0.05);
+        let expected: Vec<usize> = vec![2];
+        let found: Vec<usize> = (0..frames.len()).filter(|&k| bridged[k]).collect();
+        assert_eq!(found, expected);
+        // Swapped labels are the same pair.
+        let swapped = Some(PairSketch {
+            identifiable: false,
+            one_explains: true,
+            places: [(7, DVec3::ZERO), (5, DVec3::new(0.0, 0.05, 0.2))],
+            probability_two: 0.9,
+        });
+        assert!(bridged_at_one(called, swapped, called));
+        // A neighbour that identifies the pair but finds two improbable
+        // does not call it.
+        assert!(!bridged_at_one(Some(sketch(true, false, 0.0, 0.4)), vetoed, called));
+    }
+
+    fn bridged_at_one(a: Option<PairSketch>, b: Option<PairSketch>, c: Option<PairSketch>) -> bool {
+        bridged(&[a, b, c], 0.05)[1]
+    }
 
     /// The smoother against the sum over every path of a short chain,
     /// done by brute force.
