@@ -777,12 +777,7 @@ fn estimate_scores_slides_paths_only_where_presses_slide() {
         .lines()
         .find(|l| l.starts_with("slides: "))
         .unwrap_or_else(|| panic!("{out}"));
-    let median: f64 = line
-        .split("median ")
-        .nth(1)
-        .and_then(|rest| rest.split_whitespace().next())
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("{line}"));
+    let median = common::figure_after(&out, "slides: ", "median ");
     // Three presses slide 5–10 cm/s; the estimate follows them within a
     // few times their length (`docs/validation.md`, *Sliding contacts*).
     assert!(

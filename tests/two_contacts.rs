@@ -153,17 +153,8 @@ fn the_shared_two_contact_example() {
     assert!(one <= 2.0, "{out}");
     // Each probe's median error where two are called (10.2 and 35.1 mm):
     // the link 5 probe within 20 mm, the bound.
-    let line = out
-        .lines()
-        .find(|l| l.starts_with("each contact's median error"))
-        .unwrap_or_else(|| panic!("no per-contact line in:\n{out}"));
-    let link5: f64 = line
-        .split("lwr_5_link ")
-        .nth(1)
-        .and_then(|rest| rest.split(' ').next())
-        .and_then(|x| x.parse().ok())
-        .unwrap_or_else(|| panic!("no link 5 figure in {line}"));
-    assert!(link5 <= 20.0, "{line}");
+    let link5 = common::figure_after(&out, "each contact's median error", "lwr_5_link ");
+    assert!(link5 <= 20.0, "{out}");
 }
 
 /// The share of one-press frames called two (%), from the `two
@@ -313,14 +304,8 @@ fn a_synthesized_two_hand_session_is_estimated_and_scored() {
     assert!(line.contains(&format!("of {both} frames where both press")), "{line}");
     let (_, _, one) = two_contact_figures(&out);
     assert!(one <= 2.0, "{out}");
-    let detection = out.lines().find(|l| l.starts_with("detection:")).unwrap();
-    let detected: f64 = detection
-        .split('(')
-        .nth(1)
-        .and_then(|s| s.split(' ').next())
-        .and_then(|s| s.parse().ok())
-        .unwrap();
-    assert!(detected >= 95.0, "{detection}");
+    let (detected, _, _) = common::estimate_figures(&out);
+    assert!(detected >= 95.0, "{out}");
 }
 
 /// Each line's frame number and `contacts` in an `estimate` output file.

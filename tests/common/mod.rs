@@ -123,6 +123,21 @@ pub fn estimate_figures(out: &str) -> (f64, f64, f64) {
     (percents[0], percents[1], all_row(out)[2])
 }
 
+/// The number that follows `key` on the first line of `out` starting
+/// with `prefix` (read up to the next space), e.g. the link 5 figure of
+/// `each contact's median error … lwr_5_link 10.2 / 6.8 mm`.
+pub fn figure_after(out: &str, prefix: &str, key: &str) -> f64 {
+    let line = out
+        .lines()
+        .find(|l| l.starts_with(prefix))
+        .unwrap_or_else(|| panic!("no line starting with {prefix:?} in:\n{out}"));
+    line.split(key)
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|x| x.parse().ok())
+        .unwrap_or_else(|| panic!("no figure after {key:?} in {line}"))
+}
+
 /// The numbers of an `estimate` run's `| all |` row, from its median
 /// position error on: `[median mm, p90 mm, median N, p90 N, …]`; a cell
 /// read up to its first space (`69 %`), NaN where that is no number.
