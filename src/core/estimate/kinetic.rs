@@ -125,11 +125,7 @@ pub(super) fn descend_kinetic(problem: &Problem, start: Vec<MeshPoint>) -> Optio
         let slipping = slides.directions.iter().filter(|d| d.length() > 0.0).count();
         slipping > 0 && slipping < slides.directions.len()
     };
-    let joints = problem
-        .frames
-        .first()
-        .map_or(0, |f| f.torque_model.twists(problem.link()).len());
-    let try_held = mixed(&moving.1) && joints >= HELD_STILL_MIN_JOINTS;
+    let try_held = mixed(&moving.1) && problem.sensing_joints() >= HELD_STILL_MIN_JOINTS;
     let (found, slides) = match try_held.then(|| rounds(problem, start.clone(), true, true)).flatten() {
         Some(held) if held.0.normal.cost < moving.0.normal.cost => held,
         _ => moving,

@@ -295,3 +295,46 @@ fn a_short_slide_leaves_its_rests_still() {
     let median = percentile(&ratios, 0.5);
     assert!((median - 1.0).abs() < 0.25, "{ratios:?}");
 }
+
+/// A slip shorter than 1 cm (24 frames at 3.5 cm/s: 8.4 mm, as the
+/// generated link 7 seed 2 slide's first press slips) at `μ_k` 0.5
+/// between rests of 12 frames (a press that sticks its first and last
+/// quarter, as `synth` draws it), on link 7 (seven joints feel it),
+/// fitted from the true places at seeds 1–3: where no fixed γ within
+/// the cone explains it (seeds 2 and 3) it is found with its kinetic
+/// friction (`μ_k` within 0.2), and where one does (seed 1) the fixed γ
+/// keeps it; the median of the seeds' median place errors is under
+/// 15 mm. While a kinetic fit needed a slide of 1 cm, seeds 2 and 3 were
+/// fitted without friction and the places were 3.9 / 21.2 / 22.4 mm off
+/// (now 3.9 / 11.4 / 18.8 mm: from the true places the model still
+/// prefers places farther off at seeds 2 and 3).
+#[test]
+fn a_slip_shorter_than_a_centimetre_is_found() {
+    let mut medians = Vec::new();
+    for seed in 1..=3 {
+        let s = slide("lwr_7_link", 12, 24, 0.035, (0.5, 0.0), seed);
+        let shape = s.surface.shape(s.link).unwrap();
+        let frames = frames(&s, &s.places);
+        let answer = explain_press(shape, s.link, &frames, &settings(0.2)).unwrap();
+        let place: Vec<f64> = answer
+            .contacts
+            .iter()
+            .zip(&s.truth)
+            .map(|(c, (here, _))| c.point_in_link.distance(here.point))
+            .collect();
+        let median = percentile(&place, 0.5);
+        eprintln!(
+            "seed {seed}: μ_k {:?}, friction {}, place median {:.1} mm",
+            answer.kinetic_friction,
+            answer.friction,
+            median * 1e3
+        );
+        match answer.kinetic_friction {
+            Some(mu) => assert!((mu - 0.5).abs() < 0.2, "seed {seed}: μ_k {mu}"),
+            None => assert!(answer.friction, "seed {seed}: neither kinetic friction nor a fixed γ"),
+        }
+        medians.push(median);
+    }
+    let median = percentile(&medians, 0.5);
+    assert!(median < 0.015, "{medians:?}");
+}

@@ -426,9 +426,11 @@ pub(super) struct Problem<'a> {
 }
 
 impl<'a> Problem<'a> {
-    /// The press's link.
-    pub(super) fn link(&self) -> LinkId {
-        self.link
+    /// How many sensed joints feel the press's link (0 without frames).
+    pub(super) fn sensing_joints(&self) -> usize {
+        self.frames
+            .first()
+            .map_or(0, |f| f.torque_model.twists(self.link).len())
     }
 
     /// The press `frames` on `link`; `None` without frames or without a
