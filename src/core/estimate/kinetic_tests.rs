@@ -51,6 +51,17 @@ struct Slide {
     places: Vec<MeshPoint>,
 }
 
+impl Slide {
+    /// Each frame's distance from `contacts`' place to the true one, m.
+    fn place_errors_m(&self, contacts: &[crate::core::estimate::press::PressContact]) -> Vec<f64> {
+        contacts
+            .iter()
+            .zip(&self.truth)
+            .map(|(c, (here, _))| c.point_in_link.distance(here.point))
+            .collect()
+    }
+}
+
 fn slide(link_name: &str, stick: usize, slide: usize, speed: f64, (mu, held): (f64, f64), seed: u64) -> Slide {
     let robot = builtin::lwr4plus_generated().unwrap();
     let link = robot.link_id(link_name).unwrap();
@@ -177,11 +188,7 @@ fn a_sliding_press_is_found_with_its_kinetic_friction() {
         let answer = explain_press(shape, s.link, &frames, &settings(0.2)).unwrap();
         let plain = explain_press(shape, s.link, &frames, &settings(0.0)).unwrap();
         let error = |contacts: &[crate::core::estimate::press::PressContact]| {
-            let place: Vec<f64> = contacts
-                .iter()
-                .zip(&s.truth)
-                .map(|(c, (here, _))| c.point_in_link.distance(here.point))
-                .collect();
+            let place = s.place_errors_m(contacts);
             let force: Vec<f64> = contacts
                 .iter()
                 .zip(&s.truth)
@@ -233,12 +240,7 @@ fn a_slide_that_stops_holding_its_drag_is_found_with_it() {
             .zip(&s.truth[after..])
             .map(|(c, (_, f))| (c.inward_normal_in_link * c.force_newtons + c.tangential_in_link).distance(*f))
             .collect();
-        let place: Vec<f64> = answer
-            .contacts
-            .iter()
-            .zip(&s.truth)
-            .map(|(c, (here, _))| c.point_in_link.distance(here.point))
-            .collect();
+        let place = s.place_errors_m(&answer.contacts);
         let (force, place90) = (percentile(&force, 0.5), percentile(&place, 0.9));
         eprintln!(
             "seed {seed}: μ_k {:?}, after the slide {force:.2} N, place p90 {:.1} mm",
@@ -316,12 +318,7 @@ fn a_slip_shorter_than_a_centimetre_is_found() {
         let shape = s.surface.shape(s.link).unwrap();
         let frames = frames(&s, &s.places);
         let answer = explain_press(shape, s.link, &frames, &settings(0.2)).unwrap();
-        let place: Vec<f64> = answer
-            .contacts
-            .iter()
-            .zip(&s.truth)
-            .map(|(c, (here, _))| c.point_in_link.distance(here.point))
-            .collect();
+        let place = s.place_errors_m(&answer.contacts);
         let median = percentile(&place, 0.5);
         eprintln!(
             "seed {seed}: μ_k {:?}, friction {}, place median {:.1} mm",
