@@ -104,10 +104,7 @@ pub fn frame_outcome(robot: &Robot, estimate: &FrameEstimate, truth: &Truth) -> 
     let Truth::Contact { link, point, force } = truth else {
         return None;
     };
-    let sensing_joints = robot.link_id(link).map_or(0, |l| {
-        let path = robot.path_joints(l);
-        robot.sensed().iter().filter(|j| path.contains(j)).count()
-    });
+    let sensing_joints = robot.link_id(link).map_or(0, |l| robot.sensing_joints(l));
     Some(FrameOutcome {
         sensing_joints,
         p_max: estimate.p_max,

@@ -257,9 +257,8 @@ fn run_config(robot: &Robot, config: &Config, contacts: &[Contact], seed: u64) -
             let update = estimator.update(robot, &c.joint_positions, &c.tau)?;
             times.push(t0.elapsed().as_secs_f64() * 1e6);
             let map = update.summary.map;
-            let path = robot.path_joints(c.link);
             outcomes.push(FrameOutcome {
-                sensing_joints: robot.sensed().iter().filter(|j| path.contains(j)).count(),
+                sensing_joints: robot.sensing_joints(c.link),
                 p_max: update.posterior.display[map.point],
                 estimated_point: map.point_world,
                 estimated_force: map.force_world,

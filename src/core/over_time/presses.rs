@@ -751,13 +751,14 @@ pub const PRESS_BRIDGE_SECS: f64 = 0.025;
 
 /// A press continues across a hop to another link shorter than this (s)
 /// where [`LONG_BRIDGE_MIN_JOINTS`] or more sensed joints feel both the
-/// press's link and the hop's. While a contact slips, its drag (`μ_k` 0.3–0.6 of the push) lies
-/// outside the smoother's friction cone, and the smoother explains the
-/// slipping frames by a push on a neighbouring link for as long as the
-/// slip lasts: on the generated link 6 seed 1 slide (`synth --seed 1
-/// --links lwr_6_link --slide 0.1 --slide-min 0.02 --kinetic-friction
-/// 0.3,0.6`) the second press's whole 0.55 s slip went to link 5, 51 mm
-/// off, and the link was right in 60 % of the contact frames. Bridged,
+/// press's link and the hop's. While a contact slips, its drag (`μ_k`
+/// 0.3–0.6 of the push) lies outside the smoother's friction cone, and
+/// the smoother explains the slipping frames by a push on a
+/// neighbouring link for as long as the slip lasts: on the generated link
+/// 6 seed 1 slide (`synth --seed 1 --links lwr_6_link --slide 0.1
+/// --slide-min 0.02 --kinetic-friction 0.3,0.6`) the second press's whole
+/// 0.55 s slip went to link 5, 51 mm off, and the link was right in 60 %
+/// of the contact frames. Bridged,
 /// the press is fitted whole with kinetic friction and kept whole only
 /// where it stays on its link and costs no more than its pieces (see
 /// [`PressJob::fit`]): 99 % (`docs/decisions.md`, *Slips that the smoother
@@ -778,9 +779,7 @@ pub const LONG_BRIDGE_MIN_JOINTS: usize = 5;
 /// it, s: [`LONG_BRIDGE_SECS`] where [`LONG_BRIDGE_MIN_JOINTS`] or more
 /// sensed joints move it, [`PRESS_BRIDGE_SECS`] elsewhere.
 fn bridge_secs(robot: &Robot, link: LinkId) -> f64 {
-    let sensed = robot.sensed();
-    let feeling = robot.path_joints(link).iter().filter(|j| sensed.contains(j)).count();
-    if feeling >= LONG_BRIDGE_MIN_JOINTS {
+    if robot.sensing_joints(link) >= LONG_BRIDGE_MIN_JOINTS {
         LONG_BRIDGE_SECS
     } else {
         PRESS_BRIDGE_SECS

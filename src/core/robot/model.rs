@@ -502,6 +502,14 @@ impl Robot {
         path
     }
 
+    /// How many sensed joints lie on `link`'s path: the joints whose
+    /// torques a push on it reaches.
+    #[must_use]
+    pub fn sensing_joints(&self, link: LinkId) -> usize {
+        let path = self.path_joints(link);
+        self.sensed.iter().filter(|j| path.contains(j)).count()
+    }
+
     /// Links moved by at least one revolute or continuous joint and with a
     /// surface (mesh or segment): the default candidate links.
     #[must_use]
@@ -625,6 +633,8 @@ mod tests {
         assert_eq!(robot.joint_order, vec![0, 1, 2, 3]);
         let f2 = robot.link_id("finger2").unwrap_or(0);
         assert_eq!(robot.path_joints(f2), vec![0, 3]);
+        // Of its path, j1 is sensed; the finger's own joints are not.
+        assert_eq!(robot.sensing_joints(f2), 1);
         let q = robot.joint_positions(&[0.3], &[("f1".to_owned(), 0.02)]);
         assert_eq!(q, Ok(vec![0.3, 0.0, 0.02, 0.02]));
     }
