@@ -19,7 +19,7 @@ enum Out {
 /// `b_link` (`'b'`) or nowhere (`'-'`), offered to a press queue: what it
 /// hands on (each press's frames as held, or as its fit hands them on
 /// where `fit`), and the pieces of each press.
-fn queued(pattern: &str, b_link: &str, fit: bool) -> (Vec<Out>, Vec<Vec<usize>>) {
+fn queued(pattern: &str, a_link: &str, b_link: &str, fit: bool) -> (Vec<Out>, Vec<Vec<usize>>) {
     let robot = builtin::lwr4plus_generated().unwrap();
     let request = SurfaceRequest {
         links: robot.default_candidate_links(),
@@ -28,7 +28,7 @@ fn queued(pattern: &str, b_link: &str, fit: bool) -> (Vec<Out>, Vec<Vec<usize>>)
     };
     let estimator = Estimator::new(&robot, &request, EstimatorSettings::exact(vec![0.05; 7]), None).unwrap();
     assert!(estimator.uses_patches());
-    let (a, b) = (robot.link_id("lwr_6_link").unwrap(), robot.link_id(b_link).unwrap());
+    let (a, b) = (robot.link_id(a_link).unwrap(), robot.link_id(b_link).unwrap());
     let q = vec![0.4, -0.3, 0.5, -1.2, 0.6, 0.8, -0.2];
     // A push on link 6: refined, called a contact.
     let pose = RobotPose::new(&robot, &q);
@@ -84,11 +84,11 @@ fn queued(pattern: &str, b_link: &str, fit: bool) -> (Vec<Out>, Vec<Vec<usize>>)
 
 #[test]
 fn a_press_runs_on_across_a_short_hop_and_every_frame_comes_out_once_in_order() {
-    // Link 4 has four sensed joints: a hop of two frames (10 ms) is
+    // Link 3 has three sensed joints: a hop of two frames (10 ms) is
     // bridged; one of eight (40 ms) is a press of its own; a hop that the
     // press never comes back from is one too, at a frame without contact
     // and at the session's end.
-    let (out, pieces) = queued("aaabbaabbbbbbbbaa-aabb", "lwr_4_link", false);
+    let (out, pieces) = queued("aaabbaabbbbbbbbaa-aabb", "lwr_6_link", "lwr_3_link", false);
     assert_eq!(
         out,
         vec![
@@ -106,22 +106,41 @@ fn a_press_runs_on_across_a_short_hop_and_every_frame_comes_out_once_in_order() 
 }
 
 #[test]
-fn a_press_runs_on_across_a_longer_hop_where_both_links_have_five_joints() {
-    // Links 6 and 7: the hop of eight frames (40 ms) is bridged too.
-    let (out, pieces) = queued("aaabbaabbbbbbbbaa-aabb", "lwr_7_link", false);
+fn a_press_runs_on_across_a_longer_hop_where_both_links_have_four_joints() {
+    // Links 6 and 7, and links 5 and 4 either way round: the hop of eight
+    // frames (40 ms) is bridged too.
+    for (a, b) in [
+        ("lwr_6_link", "lwr_7_link"),
+        ("lwr_5_link", "lwr_4_link"),
+        ("lwr_4_link", "lwr_5_link"),
+    ] {
+        let (out, pieces) = queued("aaabbaabbbbbbbbaa-aabb", a, b, false);
+        assert_eq!(
+            out,
+            vec![
+                Out::Press((0..=16).collect()),
+                Out::Frame(17),
+                Out::Press(vec![18, 19]),
+                Out::Press(vec![20, 21]),
+            ],
+            "{a} and {b}"
+        );
+        assert_eq!(pieces.first(), Some(&vec![0, 3, 5, 7, 15]), "{a} and {b}");
+    }
+    // Links 4 and 3: three sensed joints feel link 3, so only the short
+    // hop is bridged.
+    let (out, _) = queued("aaabbaabbbbbbbbaa", "lwr_4_link", "lwr_3_link", false);
     assert_eq!(
         out,
         vec![
-            Out::Press((0..=16).collect()),
-            Out::Frame(17),
-            Out::Press(vec![18, 19]),
-            Out::Press(vec![20, 21]),
+            Out::Press((0..=6).collect()),
+            Out::Press((7..=14).collect()),
+            Out::Press(vec![15, 16])
         ]
     );
-    assert_eq!(pieces.first(), Some(&vec![0, 3, 5, 7, 15]));
     // A hop of 130 frames (0.65 s) is a press of its own.
     let long = format!("aa{}aa", "b".repeat(130));
-    let (out, _) = queued(&long, "lwr_7_link", false);
+    let (out, _) = queued(&long, "lwr_6_link", "lwr_7_link", false);
     assert_eq!(
         out,
         vec![
@@ -135,7 +154,7 @@ fn a_press_runs_on_across_a_longer_hop_where_both_links_have_five_joints() {
 #[test]
 fn a_bridged_press_is_fitted_and_hands_on_each_of_its_frames_once_in_order() {
     // Whole and piece by piece, one of the two kept.
-    let (out, pieces) = queued("aaabbaa", "lwr_7_link", true);
+    let (out, pieces) = queued("aaabbaa", "lwr_6_link", "lwr_7_link", true);
     assert_eq!(out, vec![Out::Press((0..=6).collect())]);
     assert_eq!(pieces, vec![vec![0, 3, 5]]);
 }
