@@ -113,6 +113,17 @@ fn a_link_4_slide_is_fitted_with_its_rests_held_still() {
 /// track with them; the fit started from the two rests, which the frames
 /// alone pin within millimetres, finds the slide.
 #[test]
+fn a_link_5_slide_is_paced_by_its_own_frames() {
+    let (_, out) = smoothed_slide("slides_link_5_pace", "lwr_5_link", "1", "0");
+    // Measured 1.07, two of its three slides within 20 % of their path;
+    // with each slipping frame's pace fitted through the rests around
+    // it too, 1.95 and one (docs/validation.md, *A slip's pace from its
+    // own frames*).
+    let ratio = median_path_ratio(&out);
+    assert!((ratio - 1.0).abs() <= 0.2, "{out}");
+}
+
+#[test]
 fn a_slide_between_two_rests_is_fitted_from_the_rests() {
     let (row, out) = smoothed_slide("slides_rests", "lwr_5_link", "3", "2");
     // Measured 2.0 mm; without the start from the rests, 17.6 mm

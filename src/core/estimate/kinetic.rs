@@ -34,7 +34,9 @@
 //! or more joints feel, is fitted a second time with its places expected
 //! to stay put wherever it sticks (and a frame held still free to slip
 //! along the nearest slide's direction), and the cheaper fit is kept
-//! (`docs/decisions.md`, session 65).
+//! (`docs/decisions.md`, session 65). In that fit each slipping frame's
+//! velocity is fitted through the frames of its own slip alone: through
+//! the rests as well, the slope reads a slide slower than it goes.
 //!
 //! The velocities and states depend on the places that the search
 //! moves, so the search runs in rounds: they are held fixed through a
@@ -71,6 +73,14 @@ const SWITCH_COST: f64 = 10.0;
 /// within 20 % go from none of ten presses to four at surface seed 0
 /// (`docs/validation.md`, *Rests held still on link 4*).
 const HELD_STILL_MIN_JOINTS: usize = 4;
+
+/// The shortest slip whose pace is fitted through its own frames, s
+/// ([`slip_velocities`]): through a few frames the slope is noise. The
+/// shared motor-side observer example's held presses break into slips
+/// of 2–15 ms at 1 kHz, and paced on their own they put its place 157 mm
+/// off at p90 at surface seed 2 (23 mm with the window's pace). `synth`
+/// slips for the middle half of a press of 0.3–1.2 s.
+const PACED_MIN_SECS: f64 = 0.2;
 
 /// Half the window a frame's velocity is fitted over, s (see
 /// `docs/decisions.md`, *The slide's direction over a wider window*).
@@ -205,7 +215,81 @@ fn slipping(
         .normal_with(locations, DVec3::new(0.0, ratio.y, ratio.z), Drag::Held(&moving))?
         .residuals;
     let can_slip: Vec<bool> = moving.directions.iter().map(|d| d.length() > 0.0).collect();
-    states(moving, &stick, &slip, &can_slip, held_still)
+    let chosen = states(moving, &stick, &slip, &can_slip, held_still)?;
+    if held_still {
+        slip_velocities(problem, locations, chosen)
+    } else {
+        Some(chosen)
+    }
+}
+
+/// `slides` with each slipping frame's velocity fitted again through the
+/// frames of its own slip only (within the window): the places held
+/// still on either side would flatten the slope, and a slide fitted at
+/// that slower pace lags its truth by centimetres at its end
+/// (`docs/decisions.md`, *A slip's pace from its own frames*). A slip
+/// shorter than [`PACED_MIN_SECS`] keeps the window's pace. `None` where
+/// the surface cannot be evaluated.
+fn slip_velocities(problem: &Problem, locations: &[MeshPoint], mut slides: Slides) -> Option<Slides> {
+    let surface: Vec<_> = locations
+        .iter()
+        .map(|&at| problem.shape.frame(at))
+        .collect::<Option<_>>()?;
+    let points: Vec<DVec3> = surface.iter().map(|s| s.point).collect();
+    let times: Vec<f64> = problem.frames.iter().map(|f| f.t_secs).collect();
+    let slips: Vec<bool> = slides.directions.iter().map(|d| d.length() > 0.0).collect();
+    let mut run_start = 0;
+    while run_start < slips.len() {
+        if !slips.get(run_start).copied().unwrap_or(false) {
+            run_start += 1;
+            continue;
+        }
+        let mut run_end = run_start;
+        while slips.get(run_end + 1).copied().unwrap_or(false) {
+            run_end += 1;
+        }
+        if times.get(run_end)? - times.get(run_start)? >= PACED_MIN_SECS {
+            let (mut first, mut last) = (run_start, run_start);
+            for t in run_start..=run_end {
+                let now = *times.get(t)?;
+                while first < t && times.get(first).is_some_and(|&s| s < now - WINDOW_SECS) {
+                    first += 1;
+                }
+                last = last.max(t);
+                while last < run_end && times.get(last + 1).is_some_and(|&s| s <= now + WINDOW_SECS) {
+                    last += 1;
+                }
+                let normal = surface.get(t)?.inward_normal;
+                if let Some(velocity) = fitted_velocity(points.get(first..=last)?, times.get(first..=last)?, normal)
+                    && let Some(v) = slides.velocities_m_per_s.get_mut(t)
+                {
+                    *v = velocity;
+                }
+            }
+        }
+        run_start = run_end + 1;
+    }
+    Some(slides)
+}
+
+/// The slope of the line fitted through `points` at `times` (least
+/// squares), along the surface of inward normal `normal`, m/s. `None`
+/// where the times do not spread or the slope is not finite.
+fn fitted_velocity(points: &[DVec3], times: &[f64], normal: DVec3) -> Option<DVec3> {
+    let count = points.len().min(times.len()) as f64;
+    if count < 2.0 {
+        return None;
+    }
+    let mean_t = times.iter().sum::<f64>() / count;
+    let mean_p = points.iter().sum::<DVec3>() / count;
+    let (mut moved, mut spread) = (DVec3::ZERO, 0.0);
+    for (p, &time) in points.iter().zip(times) {
+        let dt = time - mean_t;
+        moved += (*p - mean_p) * dt;
+        spread += dt * dt;
+    }
+    let velocity = along_surface(moved / spread, normal);
+    (spread > 0.0 && velocity.is_finite()).then_some(velocity)
 }
 
 /// `slides` with each frame's direction cleared where the press sticks:
@@ -299,6 +383,7 @@ pub(super) fn slides_at(problem: &Problem, locations: &[MeshPoint]) -> Option<Sl
         .iter()
         .map(|&at| problem.shape.frame(at))
         .collect::<Option<_>>()?;
+    let points: Vec<DVec3> = surface.iter().map(|s| s.point).collect();
     let times: Vec<f64> = problem.frames.iter().map(|f| f.t_secs).collect();
     let mut directions = Vec::with_capacity(surface.len());
     let mut velocities_m_per_s = Vec::with_capacity(surface.len());
@@ -312,21 +397,8 @@ pub(super) fn slides_at(problem: &Problem, locations: &[MeshPoint]) -> Option<Sl
             last += 1;
         }
         let span = first.min(t)..=last;
-        let frames = (last - first.min(t) + 1) as f64;
-        let mean_t = times.get(span.clone())?.iter().sum::<f64>() / frames;
-        let mean_p = surface.get(span.clone())?.iter().map(|s| s.point).sum::<DVec3>() / frames;
-        let (mut moved, mut spread) = (DVec3::ZERO, 0.0);
-        for (s, &time) in surface.get(span.clone())?.iter().zip(times.get(span)?) {
-            let dt = time - mean_t;
-            moved += (s.point - mean_p) * dt;
-            spread += dt * dt;
-        }
-        let velocity = if spread > 0.0 {
-            along_surface(moved / spread, here.inward_normal)
-        } else {
-            DVec3::ZERO
-        };
-        let velocity = if velocity.is_finite() { velocity } else { DVec3::ZERO };
+        let velocity =
+            fitted_velocity(points.get(span.clone())?, times.get(span)?, here.inward_normal).unwrap_or(DVec3::ZERO);
         directions.push(if velocity.length() > MOVING_M_PER_S {
             velocity.normalize()
         } else {
