@@ -107,11 +107,6 @@ fn a_link_4_slide_is_fitted_with_its_rests_held_still() {
     assert!((ratio - 1.0).abs() <= 0.2, "{out}");
 }
 
-/// The same link 5 session at surface seed 2: its press at 3.35 s rests,
-/// slides 2 cm and rests again, and while it slips its frames alone lie
-/// 4 cm off (their drag exceeds the friction cone), the smoother's
-/// track with them; the fit started from the two rests, which the frames
-/// alone pin within millimetres, finds the slide.
 #[test]
 fn a_link_5_slide_is_paced_by_its_own_frames() {
     let (_, out) = smoothed_slide("slides_link_5_pace", "lwr_5_link", "1", "0");
@@ -123,6 +118,11 @@ fn a_link_5_slide_is_paced_by_its_own_frames() {
     assert!((ratio - 1.0).abs() <= 0.2, "{out}");
 }
 
+/// The same link 5 session at surface seed 2: its press at 3.35 s rests,
+/// slides 2 cm and rests again, and while it slips its frames alone lie
+/// 4 cm off (their drag exceeds the friction cone), the smoother's
+/// track with them; the fit started from the two rests, which the frames
+/// alone pin within millimetres, finds the slide.
 #[test]
 fn a_slide_between_two_rests_is_fitted_from_the_rests() {
     let (row, out) = smoothed_slide("slides_rests", "lwr_5_link", "3", "2");

@@ -49,7 +49,7 @@
 use glam::DVec3;
 
 use crate::core::estimate::press::{Drag, Found, Problem, Slides, along_surface};
-use crate::core::geometry::shell::MeshPoint;
+use crate::core::geometry::shell::{MeshPoint, SurfaceFrame};
 
 /// The slowest a place moves over the surface in a frame that may slip,
 /// m/s: the track's own jitter (a fraction of a millimetre over the
@@ -231,12 +231,7 @@ fn slipping(
 /// shorter than [`PACED_MIN_SECS`] keeps the window's pace. `None` where
 /// the surface cannot be evaluated.
 fn slip_velocities(problem: &Problem, locations: &[MeshPoint], mut slides: Slides) -> Option<Slides> {
-    let surface: Vec<_> = locations
-        .iter()
-        .map(|&at| problem.shape.frame(at))
-        .collect::<Option<_>>()?;
-    let points: Vec<DVec3> = surface.iter().map(|s| s.point).collect();
-    let times: Vec<f64> = problem.frames.iter().map(|f| f.t_secs).collect();
+    let Track { surface, points, times } = Track::at(problem, locations)?;
     let slips: Vec<bool> = slides.directions.iter().map(|d| d.length() > 0.0).collect();
     let mut run_start = 0;
     while run_start < slips.len() {
@@ -270,6 +265,30 @@ fn slip_velocities(problem: &Problem, locations: &[MeshPoint], mut slides: Slide
         run_start = run_end + 1;
     }
     Some(slides)
+}
+
+/// A press's places as the velocity fits read them: each frame's surface
+/// frame, its point (link frame, m) and its time (s).
+struct Track {
+    surface: Vec<SurfaceFrame>,
+    points: Vec<DVec3>,
+    times: Vec<f64>,
+}
+
+impl Track {
+    /// The track of `locations`; `None` where the surface cannot be
+    /// evaluated.
+    fn at(problem: &Problem, locations: &[MeshPoint]) -> Option<Self> {
+        let surface: Vec<SurfaceFrame> = locations
+            .iter()
+            .map(|&at| problem.shape.frame(at))
+            .collect::<Option<_>>()?;
+        Some(Self {
+            points: surface.iter().map(|s| s.point).collect(),
+            times: problem.frames.iter().map(|f| f.t_secs).collect(),
+            surface,
+        })
+    }
 }
 
 /// The slope of the line fitted through `points` at `times` (least
@@ -379,12 +398,7 @@ fn drag(slides: &Slides, free: bool) -> Drag<'_> {
 /// Each frame's slide (see the module's documentation) at `locations`.
 /// `None` where the surface cannot be evaluated.
 pub(super) fn slides_at(problem: &Problem, locations: &[MeshPoint]) -> Option<Slides> {
-    let surface: Vec<_> = locations
-        .iter()
-        .map(|&at| problem.shape.frame(at))
-        .collect::<Option<_>>()?;
-    let points: Vec<DVec3> = surface.iter().map(|s| s.point).collect();
-    let times: Vec<f64> = problem.frames.iter().map(|f| f.t_secs).collect();
+    let Track { surface, points, times } = Track::at(problem, locations)?;
     let mut directions = Vec::with_capacity(surface.len());
     let mut velocities_m_per_s = Vec::with_capacity(surface.len());
     let (mut first, mut last) = (0, 0);
