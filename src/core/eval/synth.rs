@@ -4,7 +4,7 @@
 //! holds, may slide and may carry friction, and ramps down; the sensors
 //! add a per-joint bias and Gaussian noise. Deterministic per seed.
 
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 
 use crate::core::numerics::rng::Rng;
 use crate::core::over_time::frame::SequenceFrame;
@@ -121,6 +121,11 @@ impl Default for ObserverSim {
 /// The Coulomb friction's speed scale in the simulated plant, rad/s (a
 /// sharper switch than the calibration's model assumes).
 const PLANT_STICTION_SPEED_RAD_S: f64 = 0.005;
+
+/// The cosine of the angle (60°) past which a slide's heading, out of
+/// the surface's plane or turned from the last frame's direction, gives
+/// way to the direction carried on (see `Track::slide_direction`).
+const CARRY_BELOW: f64 = 0.5;
 
 impl Default for SynthSettings {
     /// Six seconds at 200 Hz; presses of 0.3–1.2 s, 0.3–1 s apart, of
@@ -515,10 +520,15 @@ struct Track {
     place: Option<crate::core::geometry::shell::MeshPoint>,
     /// The press's slide and drag directions, link frame: drawn at its
     /// first frame as angles in the tangent plane there, then kept (the
-    /// slide takes its part along the surface at each frame). A mesh's
+    /// slide takes its part along the surface at each frame, and is
+    /// carried over an edge as [`Track::slide_direction`] says). A mesh's
     /// tangents are its triangles' edges, so angles taken anew at every
     /// frame would turn both at every edge the slide crosses.
     heading: Option<(DVec3, DVec3)>,
+    /// The slide's direction at the last frame and the inward normal
+    /// there, link frame: carried over an edge where the heading would
+    /// turn (see [`Track::slide_direction`]).
+    carried: Option<(DVec3, DVec3)>,
 }
 
 impl Track {
@@ -528,7 +538,50 @@ impl Track {
             index: 0,
             place: None,
             heading: None,
+            carried: None,
         }
+    }
+
+    /// The slide's direction in the tangent plane of `frame`: the press's
+    /// heading's part along the surface; or the last frame's direction
+    /// turned with the surface (the arc from its normal to this one),
+    /// which then becomes the heading, where the place has just crossed
+    /// a crease (its normal turned by more than
+    /// [`crate::core::geometry::shell::CREASE_DEGREES`]), or where the
+    /// heading's part is short (more than 60° out of the plane,
+    /// [`CARRY_BELOW`]) or turns from the last direction by more than
+    /// 60°. The heading alone, taken along the surface at every frame,
+    /// flips where a slide runs over a rim onto a face, and runs along a
+    /// crease that the slide meets at a slant: the place and its push
+    /// would go back and forth over the edge frame by frame, turning by
+    /// 40–90° each time, which no object sliding over an arm does.
+    fn slide_direction(
+        heading: &mut Option<(DVec3, DVec3)>,
+        carried: &mut Option<(DVec3, DVec3)>,
+        frame: &crate::core::geometry::shell::SurfaceFrame,
+    ) -> DVec3 {
+        let normal = frame.inward_normal;
+        let on_surface = |v: DVec3| v - v.dot(normal) * normal;
+        let Some((slide_in_link, drag_in_link)) = *heading else {
+            return DVec3::ZERO;
+        };
+        let along = on_surface(slide_in_link);
+        let direction = along.normalize_or_zero();
+        let crease_cos = crate::core::geometry::shell::CREASE_DEGREES.to_radians().cos();
+        let carried_on = carried.and_then(|(before, before_normal)| {
+            let on = on_surface(DQuat::from_rotation_arc(before_normal, normal) * before).try_normalize()?;
+            let creased = before_normal.dot(normal) < crease_cos;
+            (creased || along.length() < CARRY_BELOW || direction.dot(on) < CARRY_BELOW).then_some(on)
+        });
+        let direction = match carried_on {
+            Some(on) => {
+                *heading = Some((on, drag_in_link));
+                on
+            }
+            None => direction,
+        };
+        *carried = Some((direction, normal));
+        direction
     }
 
     /// The contact at time `t` in `pose` (frames `dt_secs` apart), the
@@ -545,6 +598,7 @@ impl Track {
             self.index += 1;
             self.place = None;
             self.heading = None;
+            self.carried = None;
         }
         let p = self.presses.get(self.index).filter(|p| t >= p.start)?;
         let ramp = ramp_secs.max(1e-9);
@@ -556,12 +610,11 @@ impl Track {
         // Slide from where the press is now.
         let at = self.place.or_else(|| pool.location.get(p.sample).copied())?;
         let f = shape.frame(at)?;
-        let (slide_in_link, drag_in_link) = *self.heading.get_or_insert_with(|| {
+        let (_, drag_in_link) = *self.heading.get_or_insert_with(|| {
             let towards = |angle: f64| f.tangents[0] * angle.cos() + f.tangents[1] * angle.sin();
             (towards(p.slide_angle), towards(p.friction_angle))
         });
-        let on_surface = |v: DVec3| (v - v.dot(f.inward_normal) * f.inward_normal).normalize_or_zero();
-        let direction = on_surface(slide_in_link);
+        let direction = Self::slide_direction(&mut self.heading, &mut self.carried, &f);
         let sliding = p.slides_at(t) && p.slide_speed > 0.0;
         if sliding || p.kinetic.is_none() {
             self.place = Some(shape.walk(at, direction * (p.slide_speed * dt_secs)));

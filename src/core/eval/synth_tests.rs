@@ -342,3 +342,39 @@ fn no_press_starts_inside_a_neighbouring_link_where_asked() {
         "without the test {buried} of {starts} presses start inside"
     );
 }
+
+/// A slide runs on over a rim or along a crease: its push never turns
+/// by more than 20° from one frame to the next and back, by as much, to
+/// within 20° of where it was at the frame after. Link 7 seed 3 (kinetic friction) slides over the flange's rim
+/// and link 4 seed 1 (no friction) along a crease: with the heading
+/// taken along the surface at every frame, their place and push went
+/// back and forth over the edge, frame by frame, in 26 and 79 frames.
+#[test]
+fn a_slide_over_a_rim_or_along_a_crease_does_not_go_back_and_forth() {
+    let robot = builtin::lwr4plus_generated().unwrap();
+    for (link, seed, kinetic_friction) in [("lwr_7_link", 3, Some((0.3, 0.6))), ("lwr_4_link", 1, None)] {
+        let settings = SynthSettings {
+            slide_m_per_s: 0.1,
+            slide_min_m_per_s: 0.02,
+            kinetic_friction,
+            ..SynthSettings::default()
+        };
+        let links = [robot.link_id(link).unwrap()];
+        let frames = synthesize(&robot, &links, &settings, seed).unwrap();
+        let pushes: Vec<Option<DVec3>> = frames
+            .iter()
+            .map(|f| f.contact.and_then(|c| c.force_world.try_normalize()))
+            .collect();
+        let turns = |a: DVec3, b: DVec3| a.dot(b) < 20f64.to_radians().cos();
+        let back_and_forth = pushes
+            .windows(3)
+            .filter(|w| matches!(w, [Some(a), Some(b), Some(c)] if turns(*a, *b) && turns(*b, *c) && !turns(*a, *c)))
+            .count();
+        let slid = frames.windows(2).filter(|w| match (w[0].contact, w[1].contact) {
+            (Some(a), Some(b)) => a.link == b.link && a.point_in_link != b.point_in_link,
+            _ => false,
+        });
+        assert!(slid.count() > 200, "{link} seed {seed} hardly slid");
+        assert_eq!(back_and_forth, 0, "{link} seed {seed}: frames back and forth");
+    }
+}
