@@ -91,7 +91,9 @@ pub struct PressAnswer {
     /// (see [`crate::core::estimate::kinetic`]); `None` otherwise.
     pub kinetic_friction: Option<f64>,
     /// `-2 ln` of the posterior at the fit (the cost of the module's
-    /// documentation, γ's prior included when friction is kept).
+    /// documentation, γ's prior included when friction is kept), without
+    /// the normalizer of places held still (see `Normal::cost_as_moving`):
+    /// answers from other starts and pieces are weighed against it.
     pub cost: f64,
     /// Whether the friction model was kept.
     pub friction: bool,
@@ -164,7 +166,7 @@ pub fn explain_press(
         // The tests that cost nothing first: the reference search with
         // μ_k held at 0 runs only for a fit that passes them.
         .filter(|k| {
-            let cost = k.found.normal.cost;
+            let cost = k.found.normal.cost_as_moving();
             cost < frictionless.normal.cost - KINETIC_GAIN
                 && k.found.ratio.x <= RATIO_LIMIT_SPREADS * KINETIC_SPREAD
                 && k.slid_m() >= min_slide_m
@@ -222,7 +224,7 @@ pub fn explain_press(
         contacts,
         tangential_ratio_in_link: if slides.is_some() { DVec3::ZERO } else { ratio },
         kinetic_friction: slides.is_some().then_some(ratio.x),
-        cost: found.normal.cost,
+        cost: found.normal.cost_as_moving(),
         friction,
         gain,
     })

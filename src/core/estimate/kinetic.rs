@@ -123,7 +123,7 @@ impl Kinetic {
     /// at 0. `None` where the surface cannot be evaluated.
     pub(super) fn weighed(mut self, problem: &Problem) -> Option<Self> {
         let (still, _) = rounds(problem, self.start.clone(), false, false)?;
-        self.gain = still.normal.cost - self.found.normal.cost;
+        self.gain = still.normal.cost - self.found.normal.cost_as_moving();
         Some(self)
     }
 }
@@ -204,6 +204,7 @@ fn slipping(
         Slides {
             directions: moving.drag_directions(),
             velocities_m_per_s: moving.velocities_m_per_s,
+            held_still: moving.held_still,
         }
     } else {
         moving
@@ -316,8 +317,9 @@ fn fitted_velocity(points: &[DVec3], times: &[f64], normal: DVec3) -> Option<DVe
 /// or slipping with its `slip` residual (where `can_slip`), that costs
 /// least, 10 a change, `SWITCH_COST`. A frame without a direction that
 /// slips is given a unit one (the gated model reads only the state).
-/// Where `held_still`, a frame that sticks has no velocity either: the
-/// slide term expects it not to move.
+/// Where `held_still`, a frame that sticks has no velocity either, and
+/// is held still: the slide term expects it not to move, and holds it
+/// closer ([`crate::core::estimate::press::STILL_SLIDE_FRACTION`]).
 fn states(mut slides: Slides, stick: &[f64], slip: &[f64], can_slip: &[bool], held_still: bool) -> Option<Slides> {
     let n = stick.len();
     let mut from = vec![[0usize; 2]; n];
@@ -349,9 +351,10 @@ fn states(mut slides: Slides, stick: &[f64], slip: &[f64], can_slip: &[bool], he
     for t in (0..n).rev() {
         if held_still
             && state == 0
-            && let Some(v) = slides.velocities_m_per_s.get_mut(t)
+            && let (Some(v), Some(held)) = (slides.velocities_m_per_s.get_mut(t), slides.held_still.get_mut(t))
         {
             *v = DVec3::ZERO;
+            *held = true;
         }
         if let Some(d) = slides.directions.get_mut(t) {
             if state == 0 {
@@ -420,9 +423,11 @@ pub(super) fn slides_at(problem: &Problem, locations: &[MeshPoint]) -> Option<Sl
         });
         velocities_m_per_s.push(velocity);
     }
+    let held_still = vec![false; directions.len()];
     Some(Slides {
         directions,
         velocities_m_per_s,
+        held_still,
     })
 }
 

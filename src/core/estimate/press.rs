@@ -75,6 +75,19 @@ const CONVERGED: f64 = 1e-3;
 /// micrometres after three).
 const LOCATE_STEPS: usize = 4;
 
+/// The slide term's length scale between two frames held still, as a
+/// fraction of the press fit's (see [`Slides::held_still`]). A contact
+/// that sticks does not move over the surface, and at the full scale
+/// its place wandered by 0.1–1 mm every 50 ms through a rest, which the
+/// slide's path took in: the generated link 6 and 7 slides' median paths
+/// ran 1.06–1.23 times their true length at surface seed 0, and 1.00–1.09
+/// with it but for link 7 seed 1, whose press crosses the flange's rim
+/// (`docs/decisions.md`, *Rests held still, and still*). Its prior's
+/// normalizer (`4 ln` of the fraction for a step's two tangent
+/// coordinates) is in the cost, so fits that hold different frames
+/// still are compared alike.
+pub const STILL_SLIDE_FRACTION: f64 = 0.3;
+
 /// Shortest interval between frames the slide term divides by, s
 /// (frames sharing a time stamp are tied this tightly).
 const MIN_DT_SECS: f64 = 1e-6;
@@ -262,6 +275,11 @@ pub struct Slides {
     pub directions: Vec<DVec3>,
     /// The place's velocity over the surface, link frame, m/s.
     pub velocities_m_per_s: Vec<DVec3>,
+    /// Frames held still: they stick in a fit whose rests are held
+    /// still ([`crate::core::estimate::kinetic`]). The slide term holds a
+    /// place between two such frames within [`STILL_SLIDE_FRACTION`] of
+    /// the slide's length scale.
+    pub held_still: Vec<bool>,
 }
 
 impl Slides {
@@ -411,6 +429,18 @@ impl Drag<'_> {
         }
     }
 
+    /// Whether frames `t - 1` and `t` are both held still
+    /// ([`Slides::held_still`]).
+    fn holds_still(self, t: usize) -> bool {
+        match self {
+            Drag::Kinetic(slides) | Drag::Drift(slides) | Drag::Gated(slides) | Drag::Held(slides) => {
+                let held = |k: usize| slides.held_still.get(k).copied().unwrap_or(false);
+                t.checked_sub(1).is_some_and(|before| held(before) && held(t))
+            }
+            Drag::None | Drag::Fixed => false,
+        }
+    }
+
     /// Whether the search moves a ratio (γ or `μ_k`).
     fn is_free(self) -> bool {
         matches!(self, Drag::Fixed | Drag::Kinetic(_) | Drag::Gated(_) | Drag::Held(_))
@@ -455,6 +485,9 @@ impl<'a> Problem<'a> {
 pub(super) struct Normal {
     /// `-2 ln` posterior (up to a constant).
     pub(super) cost: f64,
+    /// The part of `cost` that is the normalizer of the places held
+    /// still ([`STILL_SLIDE_FRACTION`]; 0 or less).
+    pub(super) held_still_normalizer: f64,
     /// Each frame's surface.
     pub(super) surface: Vec<SurfaceFrame>,
     /// Each frame's profiled push, N.
@@ -483,6 +516,7 @@ impl Normal {
         let n = surface.len();
         let mut normal = Normal {
             cost: 0.0,
+            held_still_normalizer: 0.0,
             surface,
             magnitudes: vec![0.0; n],
             residuals: vec![0.0; n],
@@ -499,6 +533,35 @@ impl Normal {
             normal.rhs_ratio = -ratio / (spread * spread);
         }
         normal
+    }
+
+    /// `cost` without the normalizer of the places held still: what
+    /// kinetic friction is weighed by against answers that hold no place
+    /// still. Its normalizer compares only answers that may hold places
+    /// still (the fit held still against the one that moves on); against
+    /// others it would count each frame held still as 4.8 lower, however
+    /// well it fits, and kinetic friction was then kept on a generated
+    /// press that slid throughout without friction (`docs/decisions.md`,
+    /// *Rests held still, and still*).
+    pub(super) fn cost_as_moving(&self) -> f64 {
+        self.cost - self.held_still_normalizer
+    }
+
+    /// Adds the slide from frame `t - 1` to frame `t` (`dt_secs` apart)
+    /// under `drag`'s expected move, at the length scale `slide` (m/√s),
+    /// or [`STILL_SLIDE_FRACTION`] of it between two frames held still,
+    /// whose prior's normalizer then goes into the cost.
+    fn add_slide_under(&mut self, drag: Drag, t: usize, slide: f64, dt_secs: f64) -> Option<()> {
+        let scale = if drag.holds_still(t) {
+            let normalizer = 4.0 * STILL_SLIDE_FRACTION.ln();
+            self.cost += normalizer;
+            self.held_still_normalizer += normalizer;
+            STILL_SLIDE_FRACTION
+        } else {
+            1.0
+        };
+        let spread = scale * slide;
+        self.add_slide(t, 1.0 / (spread * spread * dt_secs), drag.expected_move(t, dt_secs)?)
     }
 
     /// Adds the slide from frame `t - 1` to frame `t`, `weight |p_t -
@@ -731,7 +794,7 @@ impl Problem<'_> {
             if t > 0 {
                 let earlier = self.frames.get(t - 1)?;
                 let dt_secs = (frame.t_secs - earlier.t_secs).max(MIN_DT_SECS);
-                normal.add_slide(t, 1.0 / (slide * slide * dt_secs), drag.expected_move(t, dt_secs)?)?;
+                normal.add_slide_under(drag, t, slide, dt_secs)?;
             }
         }
         normal.cost.is_finite().then_some(normal)

@@ -514,6 +514,7 @@ fn place_covariances_are_the_inverse_s_diagonal_blocks() {
     let corner = (corner + corner.transpose()) * 0.5;
     let normal = Normal {
         cost: 0.0,
+        held_still_normalizer: 0.0,
         surface: Vec::new(),
         magnitudes: Vec::new(),
         residuals: Vec::new(),
