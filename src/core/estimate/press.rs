@@ -78,14 +78,15 @@ const LOCATE_STEPS: usize = 4;
 /// The slide term's length scale between two frames held still, as a
 /// fraction of the press fit's (see [`Slides::held_still`]). A contact
 /// that sticks does not move over the surface, and at the full scale
-/// its place wandered by 0.1–1 mm every 50 ms through a rest, which the
-/// slide's path took in: the generated link 6 and 7 slides' median paths
-/// ran 1.06–1.23 times their true length at surface seed 0, and 1.00–1.09
-/// with it but for link 7 seed 1, whose press crosses the flange's rim
-/// (`docs/decisions.md`, *Rests held still, and still*). Its prior's
-/// normalizer (`4 ln` of the fraction for a step's two tangent
-/// coordinates) is in the cost, so fits that hold different frames
-/// still are compared alike.
+/// its place wanders by 0.1–1 mm every 50 ms through a rest, which the
+/// slide's path takes in: the generated link 6 and 7 slides' median
+/// paths are 1.06–1.23 times their true length at surface seed 0 at the
+/// full scale, and 1.00–1.09 at this one but for link 7 seed 1, whose
+/// press crosses the flange's rim (`docs/decisions.md`, *Rests held
+/// still, and still*). Its prior's normalizer (`4 ln` of the fraction
+/// for a step's two tangent coordinates) is in the cost, so fits that
+/// hold different frames still are compared alike; against answers
+/// that hold nothing still it is left out ([`Normal::cost_as_moving`]).
 pub const STILL_SLIDE_FRACTION: f64 = 0.3;
 
 /// Shortest interval between frames the slide term divides by, s
@@ -539,10 +540,10 @@ impl Normal {
     /// kinetic friction is weighed by against answers that hold no place
     /// still. Its normalizer compares only answers that may hold places
     /// still (the fit held still against the one that moves on); against
-    /// others it would count each frame held still as 4.8 lower, however
-    /// well it fits, and kinetic friction was then kept on a generated
-    /// press that slid throughout without friction (`docs/decisions.md`,
-    /// *Rests held still, and still*).
+    /// others it would count each frame held still 4.8 lower, however
+    /// well it fits, and keep kinetic friction on a generated press that
+    /// slides throughout without friction (`docs/decisions.md`, *Rests
+    /// held still, and still*).
     pub(super) fn cost_as_moving(&self) -> f64 {
         self.cost - self.held_still_normalizer
     }
