@@ -86,7 +86,7 @@ const LOCATE_STEPS: usize = 4;
 /// still, and still*). Its prior's normalizer (`4 ln` of the fraction
 /// for a step's two tangent coordinates) is in the cost, so fits that
 /// hold different frames still are compared alike; against answers
-/// that hold nothing still it is left out ([`Normal::cost_as_moving`]).
+/// that hold nothing still it is left out (`Normal::cost_as_moving`).
 pub const STILL_SLIDE_FRACTION: f64 = 0.3;
 
 /// Shortest interval between frames the slide term divides by, s
