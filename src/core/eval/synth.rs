@@ -6,6 +6,7 @@
 
 use glam::{DQuat, DVec3};
 
+use crate::core::geometry::shell::{CREASE_DEGREES, MeshPoint, SurfaceFrame};
 use crate::core::numerics::rng::Rng;
 use crate::core::over_time::frame::SequenceFrame;
 use crate::core::over_time::observer::Lag;
@@ -517,7 +518,7 @@ struct Track {
     presses: Vec<Press>,
     index: usize,
     /// Where the press is now (it slides from here).
-    place: Option<crate::core::geometry::shell::MeshPoint>,
+    place: Option<MeshPoint>,
     /// The press's slide and drag directions, link frame: drawn at its
     /// first frame as angles in the tangent plane there, then kept (the
     /// slide takes its part along the surface at each frame, and is
@@ -547,7 +548,7 @@ impl Track {
     /// turned with the surface (the arc from its normal to this one),
     /// which then becomes the heading, where the place has just crossed
     /// a crease (its normal turned by more than
-    /// [`crate::core::geometry::shell::CREASE_DEGREES`]), or where the
+    /// [`CREASE_DEGREES`]), or where the
     /// heading's part is short (more than 60° out of the plane,
     /// [`CARRY_BELOW`]) or turns from the last direction by more than
     /// 60°. The heading alone, taken along the surface at every frame,
@@ -558,7 +559,7 @@ impl Track {
     fn slide_direction(
         heading: &mut Option<(DVec3, DVec3)>,
         carried: &mut Option<(DVec3, DVec3)>,
-        frame: &crate::core::geometry::shell::SurfaceFrame,
+        frame: &SurfaceFrame,
     ) -> DVec3 {
         let normal = frame.inward_normal;
         let on_surface = |v: DVec3| v - v.dot(normal) * normal;
@@ -567,7 +568,7 @@ impl Track {
         };
         let along = on_surface(slide_in_link);
         let direction = along.normalize_or_zero();
-        let crease_cos = crate::core::geometry::shell::CREASE_DEGREES.to_radians().cos();
+        let crease_cos = CREASE_DEGREES.to_radians().cos();
         let carried_on = carried.and_then(|(before, before_normal)| {
             let on = on_surface(DQuat::from_rotation_arc(before_normal, normal) * before).try_normalize()?;
             let creased = before_normal.dot(normal) < crease_cos;

@@ -345,10 +345,11 @@ fn no_press_starts_inside_a_neighbouring_link_where_asked() {
 
 /// A slide runs on over a rim or along a crease: its push never turns
 /// by more than 20° from one frame to the next and back, by as much, to
-/// within 20° of where it was at the frame after. Link 7 seed 3 (kinetic friction) slides over the flange's rim
-/// and link 4 seed 1 (no friction) along a crease: with the heading
-/// taken along the surface at every frame, their place and push went
-/// back and forth over the edge, frame by frame, in 26 and 79 frames.
+/// within 20° of where it was at the frame after. Link 7 seed 3
+/// (kinetic friction) slides over the flange's rim and link 4 seed 1 (no
+/// friction) along a crease: with the heading taken along the surface
+/// at every frame, their place and push go back and forth over the edge,
+/// frame by frame, in 26 and 79 frames.
 #[test]
 fn a_slide_over_a_rim_or_along_a_crease_does_not_go_back_and_forth() {
     let robot = builtin::lwr4plus_generated().unwrap();
