@@ -10,7 +10,7 @@ shift || true
 targets=("$@")
 ./seed.sh
 if [ ${#targets[@]} -eq 0 ]; then
-    targets=(stl obj dae gltf urdf scene session_json session_csv recording live ros_recording rosmsg settings mesh_surface calibration stretches pair foxglove_readback)
+    targets=(stl obj dae gltf urdf scene session_json session_csv recording live ros_recording rosmsg settings mesh_surface calibration stretches pair press synth foxglove_readback)
     # Every target built in one cargo call first, so that their links
     # share the cores: a build per `fuzz run` linked them one at a time
     # (after a change to the crate, about 30 s a target in CI; all 12 in

@@ -50,6 +50,38 @@ cases = {
 for name, (selector, values) in cases.items():
     open(f"{sys.argv[1]}/{name}", "wb").write(bytes([selector]) + struct.pack("<18d", *values))
 PY
+# A press: link selector, σ, force range, μ, slide length, then 40 frames
+# of (t, seven torques, seven angles, start); one that slides (torques
+# that turn), one held, one whose times repeat and go back.
+mkdir -p corpus/press
+python3 - corpus/press <<'PY'
+import math, struct, sys
+def press(name, link, turn, times):
+    values = [link, 0.05, 1.0, 30.0, 0.2, 0.003]
+    for k, t in enumerate(times):
+        a = turn * k / 40
+        tau = [0.8 * math.cos(a + j) for j in range(7)]
+        q = [0.3 * math.sin(0.5 * t + j) for j in range(7)]
+        values += [t] + tau + q + [k * turn]
+    open(f"{sys.argv[1]}/{name}", "wb").write(struct.pack(f"<{len(values)}d", *values))
+press("slides", 4, 2.0, [0.01 * k for k in range(40)])
+press("held", 5, 0.0, [0.01 * k for k in range(40)])
+press("times", 3, 1.0, [0.01 * (k % 7) for k in range(40)])
+PY
+# Synthetic settings: a flags byte (1 observer, 2 motor side, 4 kinetic
+# friction, 8 avoid covered, bits 4–5 contacts at once), then 24 f64s
+# (seed, duration, rate, press, gap, force, ramp, slide, slowest slide,
+# friction, bias, noise, motion, least torque, observer gain, mass and
+# centre of mass error, joint friction, kinetic friction).
+mkdir -p corpus/synth
+python3 - corpus/synth <<'PY'
+import struct, sys
+base = [3.0, 2.0, 100.0, 0.3, 1.2, 0.3, 1.0, 5.0, 25.0, 0.05, 0.1, 0.02, 0.1, 0.01, 0.05, 0.2, 0.5,
+        50.0, 0.08, 0.005, 0.2, 0.5, 0.3, 0.6]
+cases = {"slides": 0x14, "observer": 0x13, "two": 0x2c, "plain": 0x10}
+for name, flags in cases.items():
+    open(f"{sys.argv[1]}/{name}", "wb").write(bytes([flags]) + struct.pack("<24d", *base))
+PY
 # A box, then one of its faces repeated; and a sliver and a giant.
 {
     printf 'v 0 0 0\nv 0.1 0 0\nv 0.1 0.1 0\nv 0 0.1 0\nv 0 0 0.3\nv 0.1 0 0.3\nv 0.1 0.1 0.3\nv 0 0.1 0.3\n'

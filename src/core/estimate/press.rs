@@ -464,8 +464,12 @@ impl<'a> Problem<'a> {
             .map_or(0, |f| f.torque_model.twists(self.link).len())
     }
 
-    /// The press `frames` on `link`; `None` without frames or without a
-    /// positive finite slide length (the slide prior divides by it).
+    /// The press `frames` on `link`; `None` without frames, without a
+    /// positive finite slide length (the slide prior divides by it), with
+    /// a force range that is empty, negative or NaN (a push is clamped to
+    /// it), with a weight that is negative or not finite, or with a time
+    /// that is not finite (the slide's velocity divides by the times'
+    /// differences).
     pub(super) fn new(
         shape: &'a LinkShape,
         link: LinkId,
@@ -473,7 +477,16 @@ impl<'a> Problem<'a> {
         settings: &'a PressSettings<'a>,
     ) -> Option<Self> {
         let slide = settings.slide_m_per_sqrt_s;
-        (!frames.is_empty() && slide > 0.0 && slide.is_finite()).then_some(Self {
+        let (f_min, f_max) = settings.force_range_newtons;
+        let valid = !frames.is_empty()
+            && slide > 0.0
+            && slide.is_finite()
+            && f_min >= 0.0
+            && f_min.is_finite()
+            && f_min <= f_max
+            && settings.weights.iter().all(|w| *w >= 0.0 && w.is_finite())
+            && frames.iter().all(|f| f.t_secs.is_finite());
+        valid.then_some(Self {
             shape,
             link,
             frames,

@@ -488,6 +488,52 @@ fn hard_presses_give_no_fit_or_a_finite_one() {
     assert_eq!(fit_press(shape, p.link, &frames, &settings(0.1)), None);
 }
 
+/// A force range that is empty or NaN, a weight that is negative or not
+/// finite, or a time that is not finite gives no fit, with and without
+/// friction, rather than a panic (the push is clamped to the range) or
+/// a NaN (`fuzz/fuzz_targets/press.rs` found the empty range).
+#[test]
+fn degenerate_settings_and_times_give_no_fit() {
+    let p = press([0.15, -0.1], 0.05, 1);
+    let shape = p.surface.shape(p.link).unwrap();
+    let frames = press_frames(&p);
+    for friction in [0.0, 0.2] {
+        assert!(explain_press(shape, p.link, &frames, &settings(friction)).is_some());
+        let narrow = 1.398_043_286_095_352_4e-76;
+        for range in [
+            (narrow, narrow * (1.0 - 1e-13)),
+            (5.0, 1.0),
+            (f64::NAN, 30.0),
+            (1.0, f64::NAN),
+            (-1.0, 30.0),
+        ] {
+            let settings = PressSettings {
+                force_range_newtons: range,
+                ..settings(friction)
+            };
+            assert_eq!(explain_press(shape, p.link, &frames, &settings), None, "{range:?}");
+        }
+        for bad in [-1.0, f64::NAN, f64::INFINITY] {
+            let mut weights = WEIGHTS;
+            weights[3] = bad;
+            let settings = PressSettings {
+                weights: &weights,
+                ..settings(friction)
+            };
+            assert_eq!(explain_press(shape, p.link, &frames, &settings), None, "{bad}");
+        }
+        for bad in [f64::NAN, f64::NEG_INFINITY] {
+            let mut frames = press_frames(&p);
+            frames[7].t_secs = bad;
+            assert_eq!(
+                explain_press(shape, p.link, &frames, &settings(friction)),
+                None,
+                "{bad}"
+            );
+        }
+    }
+}
+
 /// The place covariances are the diagonal blocks of the inverse of
 /// the whole bordered system (checked against a dense inverse by
 /// Gauss–Jordan elimination), with γ marginalised and without.
