@@ -13,8 +13,9 @@ use crate::core::estimate::contact::{PatchForms, PosedSurface};
 use crate::core::estimate::measurement::Measurement;
 use crate::core::estimate::pair::{HeldPush, PairEstimate, PairSettings, PairStart, estimate_pair};
 use crate::core::estimate::phases::{PhaseHierarchy, link_ranges};
+use crate::core::estimate::place_spread::PlaceSpread;
 use crate::core::estimate::posterior::{Posterior, estimate_keeping_forms};
-use crate::core::estimate::press::{PlaceSpread, PressFrame, PressSettings, locate, press_spreads};
+use crate::core::estimate::press::{PressFrame, PressSettings, locate, press_spreads};
 use crate::core::estimate::refine::{contact_at_offsets, refine};
 use crate::core::estimate::settings::{EstimateError, EstimatorSettings, Mode};
 use crate::core::estimate::summary::{

@@ -7,9 +7,10 @@
 use glam::DVec3;
 
 use crate::core::estimate::kinetic::{descend_kinetic, gated_places};
+use crate::core::estimate::place_spread::PlaceSpread;
 use crate::core::estimate::press::{
-    Drag, FRICTION_GAIN, KINETIC_SPREAD, PlaceSpread, PressContact, PressFrame, PressSettings, Problem,
-    RATIO_LIMIT_SPREADS, along_surface,
+    Drag, FRICTION_GAIN, KINETIC_SPREAD, PressContact, PressFrame, PressSettings, Problem, RATIO_LIMIT_SPREADS,
+    along_surface,
 };
 use crate::core::geometry::shell::MeshPoint;
 use crate::core::robot::model::LinkId;

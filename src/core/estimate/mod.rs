@@ -12,6 +12,7 @@ pub mod observability;
 pub mod pair;
 pub mod pair_grid;
 pub mod phases;
+pub mod place_spread;
 pub mod posterior;
 pub mod press;
 pub mod refine;

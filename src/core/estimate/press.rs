@@ -31,6 +31,8 @@
 
 use glam::{DMat2, DMat3, DVec2, DVec3};
 
+use crate::core::estimate::place_spread::PlaceSpread;
+use crate::core::estimate::settings::force_range_is_valid;
 use crate::core::geometry::shell::{MeshPoint, SurfaceFrame};
 use crate::core::robot::model::LinkId;
 use crate::core::robot::torque::{TorqueModel, weighted_dot as inner};
@@ -139,60 +141,6 @@ pub struct PressContact {
     /// How far the whole press leaves this frame's place undetermined
     /// (see [`PlaceSpread`]); `None` where it cannot be computed.
     pub spread: Option<PlaceSpread>,
-}
-
-/// The uncertainty of one frame's place given the whole press: the
-/// Laplace approximation of the posterior at the fit, with γ free under
-/// its prior (spread μ per direction) even where the frictionless fit is
-/// reported. A press that drags while the arm is still cannot tell a
-/// tangential force from a shifted place (on the LWR's link 4, three
-/// joints see a push: a place 50–70 mm off explains a drag of 17 % of the
-/// push as well as the truth does); the place's spread along that
-/// direction is then what μ allows, and the credible region says so
-/// instead of shrinking with every frame of the press.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PlaceSpread {
-    /// The surface's two unit tangents at the place, link frame.
-    pub tangents_in_link: [DVec3; 2],
-    /// Covariance of the place along the two tangents, m².
-    pub covariance_m2: DMat2,
-}
-
-impl PlaceSpread {
-    /// The points within `level` (a squared Mahalanobis distance) of the
-    /// place, a patch of radius `rho_m` around it counted in: `dᵀ (Σ +
-    /// ρ² I)⁻¹ d ≤ level` for an offset `d` projected on the tangents.
-    /// `None` where the matrix is singular or not finite.
-    #[must_use]
-    pub fn region(&self, rho_m: f64, level: f64) -> Option<PlaceRegion> {
-        let widened = self.covariance_m2 + DMat2::IDENTITY * (rho_m * rho_m);
-        let det = widened.determinant();
-        (det.is_finite() && det > 0.0).then(|| PlaceRegion {
-            tangents_in_link: self.tangents_in_link,
-            inverse_m2: widened.inverse(),
-            level,
-        })
-    }
-}
-
-/// An ellipse around a place along its surface ([`PlaceSpread::region`]),
-/// its inverse formed once for the many points tested against it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PlaceRegion {
-    tangents_in_link: [DVec3; 2],
-    inverse_m2: DMat2,
-    level: f64,
-}
-
-impl PlaceRegion {
-    /// Whether the point `offset_in_link` from the place (projected on the
-    /// place's tangents) lies in the region.
-    #[must_use]
-    pub fn contains(&self, offset_in_link: DVec3) -> bool {
-        let [t0, t1] = self.tangents_in_link;
-        let d = DVec2::new(t0.dot(offset_in_link), t1.dot(offset_in_link));
-        d.dot(self.inverse_m2 * d) <= self.level
-    }
 }
 
 /// Each frame's [`PlaceSpread`] at the frames' `start` places with no
@@ -481,9 +429,7 @@ impl<'a> Problem<'a> {
         let valid = !frames.is_empty()
             && slide > 0.0
             && slide.is_finite()
-            && f_min >= 0.0
-            && f_min.is_finite()
-            && f_min <= f_max
+            && force_range_is_valid(f_min, f_max)
             && settings.weights.iter().all(|w| *w >= 0.0 && w.is_finite())
             && frames.iter().all(|f| f.t_secs.is_finite());
         valid.then_some(Self {

@@ -11,39 +11,6 @@ use crate::core::robot::builtin;
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::surface::sampling::{Surface, SurfaceRequest};
 
-/// The region is the ellipse `dᵀ(Σ + ρ²I)⁻¹d ≤ level` along the
-/// place's tangents: its edge along each axis of a diagonal `Σ` at
-/// `√(level (σᵢ² + ρ²))`, the normal direction ignored; a singular
-/// matrix has none.
-#[test]
-fn a_place_region_is_the_ellipse_of_its_spread_and_patch() {
-    let spread = PlaceSpread {
-        tangents_in_link: [DVec3::X, DVec3::Y],
-        covariance_m2: DMat2::from_diagonal(DVec2::new(0.02 * 0.02, 0.005 * 0.005)),
-    };
-    let (rho_m, level) = (0.003, 4.61);
-    let region = spread.region(rho_m, level).unwrap();
-    let edge_x = (level * (0.02f64.powi(2) + rho_m * rho_m)).sqrt();
-    let edge_y = (level * (0.005f64.powi(2) + rho_m * rho_m)).sqrt();
-    assert!(region.contains(DVec3::new(0.999 * edge_x, 0.0, 0.0)));
-    assert!(!region.contains(DVec3::new(1.001 * edge_x, 0.0, 0.0)));
-    assert!(region.contains(DVec3::new(0.0, -0.999 * edge_y, 0.5)));
-    assert!(!region.contains(DVec3::new(0.0, -1.001 * edge_y, 0.0)));
-    // Halfway along both axes: (½)² + (½)² ≤ 1.
-    assert!(region.contains(DVec3::new(0.5 * edge_x, 0.5 * edge_y, 0.0)));
-    assert!(!region.contains(DVec3::new(0.75 * edge_x, 0.75 * edge_y, 0.0)));
-    let flat = PlaceSpread {
-        covariance_m2: DMat2::ZERO,
-        ..spread
-    };
-    assert!(flat.region(0.0, level).is_none());
-    let not_finite = PlaceSpread {
-        covariance_m2: DMat2::from_diagonal(DVec2::new(f64::NAN, 1.0)),
-        ..spread
-    };
-    assert!(not_finite.region(rho_m, level).is_none());
-}
-
 /// A press on the LWR's link 5: 60 frames at 50 Hz while every joint
 /// swings by up to 0.3 rad, a push of 5–15 N at one place plus
 /// `ratio` (link frame) times it along the surface, σ = 0.05 N·m.

@@ -231,7 +231,7 @@ pub(crate) fn validate(
         return Err(EstimateError::TooLarge { chi2: scaled });
     }
     let (min, max) = (settings.force_min_newtons, settings.force_max_newtons);
-    if !(min.is_finite() && max.is_finite() && min >= 0.0 && min <= max) {
+    if !force_range_is_valid(min, max) {
         return Err(EstimateError::BadForceRange { min, max });
     }
     if let Some(alpha) = settings.phase_alpha
@@ -283,3 +283,10 @@ pub const MAX_MAGNITUDES: usize = 1000;
 /// sensor's own. Within it every kernel keeps its tolerances (offsets,
 /// evidence and smoothing were tested finite at sums of 1e24).
 pub const MAX_CHI2: f64 = 1e16;
+
+/// Whether `[min, max]` is a range of pushes a fit can clamp to: both
+/// finite, `0 ≤ min ≤ max` (NaN fails).
+#[must_use]
+pub fn force_range_is_valid(min: f64, max: f64) -> bool {
+    min.is_finite() && max.is_finite() && min >= 0.0 && min <= max
+}
