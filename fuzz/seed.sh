@@ -68,6 +68,17 @@ press("slides", 4, 2.0, [0.01 * k for k in range(40)])
 press("held", 5, 0.0, [0.01 * k for k in range(40)])
 press("times", 3, 1.0, [0.01 * (k % 7) for k in range(40)])
 PY
+# A pair: σ, start sample, its force, μ, then a frame's seven torques and
+# the next frame's (the pair carried into it).
+mkdir -p corpus/pair
+python3 - corpus/pair <<'PY'
+import struct, sys
+frame = [0.9, 1.2, -0.4, -1.1, 0.3, 0.25, -0.05]
+later = [t * 0.9 for t in frame]
+for name, mu in (("carried", 0.0), ("carried_friction", 0.2)):
+    values = [0.05, 17.0, 12.0, mu] + frame + later
+    open(f"{sys.argv[1]}/{name}", "wb").write(struct.pack(f"<{len(values)}d", *values))
+PY
 # Synthetic settings: a flags byte (1 observer, 2 motor side, 4 kinetic
 # friction, 8 avoid covered, bits 4–5 contacts at once), then 24 f64s
 # (seed, duration, rate, press, gap, force, ramp, slide, slowest slide,

@@ -1,6 +1,7 @@
 //! Two contacts in one frame and the chain of two states over frames: any
 //! torques, σ and starts give a pair whose numbers are finite and whose
-//! probability of two is a probability, or an error; never a panic. Any
+//! probability of two is a probability, or an error; never a panic; so
+//! does that pair carried into the next frame's torques. Any
 //! times and evidence ratios give the chain's probabilities in [0, 1].
 #![no_main]
 
@@ -8,6 +9,7 @@ use std::sync::OnceLock;
 
 use proprioscope::core::estimate::contact::PosedSurface;
 use proprioscope::core::estimate::pair::{PairSettings, PairStart, estimate_pair};
+use proprioscope::core::estimate::pair_held::estimate_pair_held;
 use proprioscope::core::estimate::posterior::estimate;
 use proprioscope::core::estimate::settings::EstimatorSettings;
 use proprioscope::core::over_time::pairs::SecondContactChain;
@@ -76,6 +78,36 @@ libfuzzer_sys::fuzz_target!(|data: &[u8]| {
                 assert!((0.0..=1.0).contains(&pair.probability_two), "{pair:?}");
                 for c in &pair.contacts {
                     assert!(c.point_world.is_finite() && c.placed.force_newtons.is_finite(), "{pair:?}");
+                }
+                // The pair carried into the next frame (the torques that
+                // follow), either contact the new one.
+                let next: Vec<f64> = rest.iter().copied().skip(7).take(7).collect();
+                let both = pair.contacts.clone().map(|c| c.placed);
+                if next.len() == 7
+                    && let Ok(next_single) = estimate(&posed, &next, &settings, None)
+                {
+                    for new in 0..3 {
+                        let held = estimate_pair_held(
+                            &posed,
+                            pose,
+                            &next,
+                            &settings,
+                            None,
+                            &next_single,
+                            &PairSettings::default(),
+                            &both,
+                            new,
+                        );
+                        if let Ok(Some(held)) = held {
+                            assert!(new < 2, "{held:?}");
+                            let a = &held.account;
+                            assert!((0.0..=1.0).contains(&a.probability_two), "{held:?}");
+                            assert!(!held.new_log_occam.is_nan(), "{held:?}");
+                            for c in &a.contacts {
+                                assert!(c.point_world.is_finite() && c.placed.force_newtons.is_finite(), "{held:?}");
+                            }
+                        }
+                    }
                 }
             }
         }

@@ -1,7 +1,9 @@
 //! A session's second contacts, after its single-contact estimates: each
 //! poorly explained frame's two-contact search in order (each starts where the
 //! frames before left the contacts), then the chain of two states over
-//! the frames' evidence, smoothed over the whole session or filtered
+//! the frames' evidence, smoothed over the whole session (each run of
+//! frames called two then carried into the frames beside it that one
+//! contact explains, the arriving push's place held) or filtered
 //! ([`crate::core::over_time::pairs`]); live, a frame at a time with the
 //! chain filtered ([`LivePairs`]); frames alone, each searched on its own
 //! ([`PairsOver`]).
@@ -12,7 +14,8 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms};
-use crate::core::estimate::pair::{HeldPush, PairEstimate, PairSettings, Unidentifiable};
+use crate::core::estimate::pair::{HeldPush, PairEstimate, PairSettings, Placed, Unidentifiable};
+use crate::core::estimate::pair_held::HeldPair;
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Verdict;
 use crate::core::eval::metrics::percentile;
@@ -73,15 +76,20 @@ pub struct FramePair {
     /// ([`crate::core::over_time::pairs::bridged`]; smoothed sessions
     /// only: a filter has not seen the frame after).
     pub bridged: bool,
+    /// Whether the pair is the one of the run of frames called two next
+    /// to this frame, carried into it where one contact explains the
+    /// frame, the arriving or leaving push's place held near where the
+    /// frame beside has it (`carry_pairs`; smoothed sessions only).
+    pub carried: bool,
 }
 
 impl FramePair {
     /// Whether the frame is called two contacts: more probable than one
-    /// over the session, and identifiable (by its own rules, or bridged
-    /// by the frames beside it).
+    /// over the session, and identifiable (by its own rules, bridged by
+    /// the frames beside it, or carried from them).
     #[must_use]
     pub fn has_two(&self) -> bool {
-        (self.pair.identifiable() || self.bridged) && self.probability_two > 0.5
+        (self.pair.identifiable() || self.bridged || self.carried) && self.probability_two > 0.5
     }
 }
 
@@ -255,6 +263,51 @@ pub fn session_pairs_timed(
         );
         search_ms.push(elapsed_ms(t0));
     }
+    let (mut probabilities, mut bridges) = chain_over(&found, frames, pair_settings, over);
+    let mut carried = vec![false; found.len()];
+    if matches!(over, PairsOver::Smoothed(_)) {
+        let called: Vec<bool> = found
+            .iter()
+            .zip(&probabilities)
+            .zip(&bridges)
+            .map(|((pair, &p), &b)| pair.as_ref().is_some_and(|pair| (pair.identifiable() || b) && p > 0.5))
+            .collect();
+        carried = carry_pairs(
+            estimator,
+            robot,
+            (frames, singles),
+            pair_settings,
+            (&mut found, &mut search_ms),
+            &called,
+        )?;
+        if carried.contains(&true) {
+            (probabilities, bridges) = chain_over(&found, frames, pair_settings, over);
+        }
+    }
+    let pairs = found
+        .into_iter()
+        .zip(probabilities)
+        .zip(bridges.into_iter().zip(carried))
+        .map(|((pair, probability_two), (bridged, carried))| {
+            pair.map(|pair| FramePair {
+                pair,
+                probability_two,
+                bridged,
+                carried,
+            })
+        })
+        .collect();
+    Ok(Some((pairs, search_ms)))
+}
+
+/// Each frame's probability of two contacts, and whether the frames
+/// beside it bridge its pair, from the frames' accounts `found`.
+fn chain_over(
+    found: &[Option<PairEstimate>],
+    frames: &[SequenceFrame<'_>],
+    pair_settings: &PairSettings,
+    over: PairsOver,
+) -> (Vec<f64>, Vec<bool>) {
     let times: Vec<f64> = frames.iter().map(|f| f.t_secs).collect();
     let ratios: Vec<f64> = found.iter().map(|p| log_ratio(p.as_ref())).collect();
     let probabilities = match over {
@@ -276,19 +329,159 @@ pub fn session_pairs_timed(
         }
         PairsOver::Alone | PairsOver::Filtered(_) => vec![false; found.len()],
     };
-    let pairs = found
-        .into_iter()
-        .zip(probabilities)
-        .zip(bridges)
-        .map(|((pair, probability_two), bridged)| {
-            pair.map(|pair| FramePair {
-                pair,
-                probability_two,
-                bridged,
-            })
-        })
-        .collect();
-    Ok(Some((pairs, search_ms)))
+    (probabilities, bridges)
+}
+
+/// Each run of frames called two (`called`) carried into the frames
+/// before and after it that one contact explains (which were not
+/// searched), a frame at a time while the pair stays the better account
+/// there ([`carry_step`]); the frames it reaches get that account in
+/// `found`, and each search's time is added to its frame's in
+/// `search_ms`. Which frames it reached.
+///
+/// A second push that arrives or leaves gradually is weak in the frames
+/// at either end of its run: one contact, shifted a little, explains
+/// them within the noise, and a frame alone prices the second push's
+/// place over the whole surface. With its place held near where the
+/// frame beside has it ([`crate::core::estimate::pair_held`]) the pair
+/// is the more probable account in some of them (`../shared` two-contact
+/// example: 60 → 65 of its 83 frames where both press at surface seed 0,
+/// the link-7 probe's push from 7.5 N on instead of 8.9 N).
+fn carry_pairs(
+    estimator: &Estimator,
+    robot: &Robot,
+    (frames, singles): (&[SequenceFrame<'_>], &[Option<SingleSeen>]),
+    pair_settings: &PairSettings,
+    (found, search_ms): (&mut [Option<PairEstimate>], &mut [f64]),
+    called: &[bool],
+) -> Result<Vec<bool>, (usize, EstimateError)> {
+    let n = found.len();
+    let mut carried = vec![false; n];
+    let is_called = |k: usize| called.get(k).copied().unwrap_or(false);
+    for k in (0..n).filter(|&k| is_called(k)) {
+        let first = k == 0 || !is_called(k - 1);
+        let last = !is_called(k + 1);
+        for backward in [true, false] {
+            if (backward && !first) || (!backward && !last) {
+                continue;
+            }
+            let Some(mut held) = found
+                .get(k)
+                .and_then(|p| p.as_ref())
+                .map(|p| p.contacts.clone().map(|c| c.placed))
+            else {
+                continue;
+            };
+            // The run's edge puts the contact nearer its single contact
+            // first: the other is the one that arrives or leaves.
+            let mut new = 1;
+            let mut j = k;
+            while let Some(next) = if backward {
+                j.checked_sub(1)
+            } else {
+                Some(j + 1).filter(|&x| x < n)
+            } {
+                if is_called(next) || carried.get(next).copied().unwrap_or(true) {
+                    break;
+                }
+                let (Some(frame), Some(Some(single))) = (frames.get(next), singles.get(next)) else {
+                    break;
+                };
+                let t0 = Instant::now();
+                let step =
+                    carry_step(estimator, robot, frame, single, pair_settings, &held, new).map_err(|e| (next, e))?;
+                if let Some(ms) = search_ms.get_mut(next) {
+                    *ms += elapsed_ms(t0);
+                }
+                let Some((mut account, now_new)) = step else {
+                    break;
+                };
+                held = account.contacts.clone().map(|c| c.placed);
+                new = now_new;
+                for contact in &mut account.contacts {
+                    contact.probability = Vec::new();
+                }
+                if let (Some(slot), Some(c)) = (found.get_mut(next), carried.get_mut(next)) {
+                    *slot = Some(account);
+                    *c = true;
+                }
+                j = next;
+            }
+        }
+    }
+    Ok(carried)
+}
+
+/// The pair `held` (`held[new]` the contact that arrives or leaves)
+/// carried into `frame`, whose single contact is `single`: its account
+/// there and which of its contacts is the new one, or `None` where it is
+/// not kept. Kept where
+/// - one contact explains the frame (a frame searched has its own pair
+///   and rules: a slide that drags beyond the friction cone is a pair
+///   there, 30–120 nats above one contact within the cone, that the push
+///   held before explains);
+/// - the pair is more probable than one contact, and identifiable but
+///   for one of its pushes alone explaining the torques within the noise
+///   (a χ² threshold, as [`bridged`] reads it);
+/// - it explains the torques better than the session's own single
+///   contact here, its push as smoothed (kinetic friction and all), by
+///   more than the new contact's Occam factor and the prior odds of two
+///   (a frame alone weighs the pair against one contact within a static
+///   friction cone: on a generated link 7 slide drawn with
+///   `--avoid-covered`, seed 2, 21 frames beside a false pair were
+///   carried before this, 5 after);
+/// - its contacts are `held`'s, each within the separation.
+fn carry_step(
+    estimator: &Estimator,
+    robot: &Robot,
+    frame: &SequenceFrame<'_>,
+    single: &SingleSeen,
+    pair_settings: &PairSettings,
+    held: &[Placed; 2],
+    new: usize,
+) -> Result<Option<(PairEstimate, usize)>, EstimateError> {
+    if !single.explained {
+        return Ok(None);
+    }
+    let Some(HeldPair { account, new_log_occam }) =
+        estimator.pair_held_at(robot, frame.joint_positions, frame.tau, pair_settings, held, new)?
+    else {
+        return Ok(None);
+    };
+    let prior_log_odds = pair_settings.prior_two.ln() - (-pair_settings.prior_two).ln_1p();
+    let beats_push = single
+        .push
+        .and_then(|h| estimator.held_push_chi2(robot, frame.joint_positions, frame.tau, &h))
+        .is_none_or(|chi2_push| 0.5 * (chi2_push - account.residual_chi2) + new_log_occam + prior_log_odds > 0.0);
+    let kept = account.probability_two > 0.5
+        && beats_push
+        && matches!(account.unidentifiable, None | Some(Unidentifiable::OneExplains))
+        && same_places(&account, held, pair_settings.separation_m);
+    if !kept {
+        return Ok(None);
+    }
+    // The new contact is the one nearer where it was.
+    let now_new = held.get(new).map_or(1, |before| {
+        let off = |p: &Placed| {
+            if p.link == before.link {
+                p.point_in_link.distance(before.point_in_link)
+            } else {
+                f64::INFINITY
+            }
+        };
+        let [a, b] = account.contacts.each_ref().map(|c| &c.placed);
+        usize::from(off(b) < off(a))
+    });
+    Ok(Some((account, now_new)))
+}
+
+/// Whether `account`'s contacts are `held`'s: each on the same link as
+/// one of them, within `separation_m`.
+fn same_places(account: &PairEstimate, held: &[Placed; 2], separation_m: f64) -> bool {
+    let near = |a: &Placed, b: &Placed| a.link == b.link && a.point_in_link.distance(b.point_in_link) < separation_m;
+    let [a, b] = account.contacts.each_ref().map(|c| &c.placed);
+    let [c, d] = held;
+    (near(a, c) && near(b, d)) || (near(a, d) && near(b, c))
 }
 
 /// What the app's timeline keeps of a frame's two-contact account.
@@ -369,6 +562,7 @@ impl LivePairs {
             pair,
             probability_two,
             bridged: false,
+            carried: false,
         }))
     }
 

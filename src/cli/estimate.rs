@@ -589,6 +589,7 @@ pub(super) fn pair_verdict_json(pair: &FramePair) -> serde_json::Value {
         "identifiable": pair.pair.identifiable(),
         "unidentifiable": pair.pair.unidentifiable.map(|u| u.describe(pair.pair.sensing_joints)),
         "bridged": pair.bridged,
+        "carried": pair.carried,
     })
 }
 

@@ -11,7 +11,8 @@ use glam::DVec3;
 
 use crate::core::estimate::contact::{PatchForms, PosedSurface};
 use crate::core::estimate::measurement::Measurement;
-use crate::core::estimate::pair::{HeldPush, PairEstimate, PairSettings, PairStart, estimate_pair};
+use crate::core::estimate::pair::{HeldPush, PairEstimate, PairSettings, PairStart, Placed, estimate_pair};
+use crate::core::estimate::pair_held::{HeldPair, estimate_pair_held};
 use crate::core::estimate::phases::{PhaseHierarchy, link_ranges};
 use crate::core::estimate::place_spread::PlaceSpread;
 use crate::core::estimate::posterior::{Posterior, estimate_keeping_forms};
@@ -210,6 +211,39 @@ impl Estimator {
         )
     }
 
+    /// The two-contact account of torques `tau` at `joint_positions` with
+    /// both contacts where the frame beside left them, `both[new]` held
+    /// near its place there ([`crate::core::estimate::pair_held`]).
+    ///
+    /// # Errors
+    /// As [`Estimator::update`].
+    pub fn pair_held_at(
+        &self,
+        robot: &Robot,
+        joint_positions: &[f64],
+        tau: &[f64],
+        pair: &PairSettings,
+        both: &[Placed; 2],
+        new: usize,
+    ) -> Result<Option<HeldPair>, EstimateError> {
+        let (pose, torque_model, posterior) = self.posterior_at(robot, joint_positions, tau, None)?;
+        let posed = PosedSurface {
+            torque_model: &torque_model,
+            surface: &self.surface,
+        };
+        estimate_pair_held(
+            &posed,
+            &pose,
+            tau,
+            &self.settings,
+            self.hierarchy.as_ref(),
+            &posterior,
+            pair,
+            both,
+            new,
+        )
+    }
+
     /// Whether `held`, a push that explained an earlier frame, explains
     /// the torques `tau` at `joint_positions` as well: with its force's
     /// direction in its link's frame kept and its magnitude fitted (at
@@ -219,26 +253,36 @@ impl Estimator {
     /// fit finds it, and the frames that follow keep it.
     #[must_use]
     pub fn held_push_explains(&self, robot: &Robot, joint_positions: &[f64], tau: &[f64], held: &HeldPush) -> bool {
+        self.held_push_chi2(robot, joint_positions, tau, held)
+            .is_some_and(|chi2| chi_square_survival(chi2, tau.len().saturating_sub(1)) >= POOR_FIT_P)
+    }
+
+    /// The residual χ² of `held` on the torques `tau` at
+    /// `joint_positions`, its force's direction in its link's frame kept
+    /// and its magnitude fitted (at least 0); `None` for a push of no
+    /// direction or torques of the wrong length.
+    #[must_use]
+    pub fn held_push_chi2(&self, robot: &Robot, joint_positions: &[f64], tau: &[f64], held: &HeldPush) -> Option<f64> {
         let length = held.force_in_link.length();
         if !(length > 0.0 && length.is_finite()) {
-            return false;
+            return None;
         }
         let pose = RobotPose::new(robot, joint_positions);
         let torque_model = TorqueModel::new(robot, &pose, &self.links);
         let per_newton = torque_model.torques(held.link, held.point_in_link, held.force_in_link / length);
         let weights = self.settings.weights();
         if per_newton.len() != tau.len() || weights.len() != tau.len() {
-            return false;
+            return None;
         }
         let along = weighted_dot(&weights, tau, &per_newton);
         let norm = weighted_dot(&weights, &per_newton, &per_newton);
         if !(norm > 0.0 && norm.is_finite()) {
-            return false;
+            return None;
         }
         let newtons = (along / norm).max(0.0);
         let left: Vec<f64> = tau.iter().zip(&per_newton).map(|(t, u)| t - newtons * u).collect();
         let chi2 = weighted_dot(&weights, &left, &left);
-        chi2.is_finite() && chi_square_survival(chi2, tau.len().saturating_sub(1)) >= POOR_FIT_P
+        chi2.is_finite().then_some(chi2)
     }
 
     /// A frame's summary from its own posterior: the contact refined

@@ -11,6 +11,7 @@ pub mod measurement;
 pub mod observability;
 pub mod pair;
 pub mod pair_grid;
+pub mod pair_held;
 pub mod phases;
 pub mod place_spread;
 pub mod posterior;

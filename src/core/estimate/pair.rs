@@ -340,36 +340,36 @@ enum Seed {
 
 /// One contact with the other held: where, and ln of the one-contact
 /// evidence of the torques left to it, with its posterior.
-struct Conditional {
-    placed: Placed,
-    log_evidence: f64,
+pub(super) struct Conditional {
+    pub(super) placed: Placed,
+    pub(super) log_evidence: f64,
     /// ln of its Occam factor: the evidence over its best sample's
     /// likelihood (the share of its prior place and magnitude the torques
     /// left to it allow).
-    log_occam: f64,
-    posterior: Posterior,
+    pub(super) log_occam: f64,
+    pub(super) posterior: Posterior,
 }
 
 /// A pair searched: `(ln Z₂, residual χ², contacts)`.
-type Best = (f64, f64, [Conditional; 2]);
+pub(super) type Best = (f64, f64, [Conditional; 2]);
 
 /// What the search of one frame reads.
 #[derive(Clone)]
-struct Search<'a> {
-    posed: &'a PosedSurface<'a>,
-    tau: &'a [f64],
-    settings: &'a EstimatorSettings,
-    hierarchy: Option<&'a PhaseHierarchy>,
-    pair: &'a PairSettings,
-    weights: Vec<f64>,
-    ln_prior_norm: f64,
-    pose: &'a RobotPose,
+pub(super) struct Search<'a> {
+    pub(super) posed: &'a PosedSurface<'a>,
+    pub(super) tau: &'a [f64],
+    pub(super) settings: &'a EstimatorSettings,
+    pub(super) hierarchy: Option<&'a PhaseHierarchy>,
+    pub(super) pair: &'a PairSettings,
+    pub(super) weights: Vec<f64>,
+    pub(super) ln_prior_norm: f64,
+    pub(super) pose: &'a RobotPose,
     /// Whether the separation holds across links too (else on one link).
-    across_links: bool,
+    pub(super) across_links: bool,
 }
 
 /// `x − y`, element by element.
-fn minus(x: &[f64], y: &[f64]) -> Vec<f64> {
+pub(super) fn minus(x: &[f64], y: &[f64]) -> Vec<f64> {
     x.iter().zip(y).map(|(a, b)| a - b).collect()
 }
 
@@ -383,11 +383,11 @@ impl Search<'_> {
     }
 
     /// The pair's residual χ².
-    fn residual(&self, a: &Placed, b: &Placed) -> f64 {
+    pub(super) fn residual(&self, a: &Placed, b: &Placed) -> f64 {
         self.chi2(&minus(&minus(self.tau, &a.torques), &b.torques))
     }
 
-    fn too_near(&self, link: LinkId, point_in_link: DVec3, other: &Placed) -> bool {
+    pub(super) fn too_near(&self, link: LinkId, point_in_link: DVec3, other: &Placed) -> bool {
         if link == other.link {
             return point_in_link.distance(other.point_in_link) < self.pair.separation_m;
         }
@@ -396,7 +396,7 @@ impl Search<'_> {
         self.across_links && here.distance(there) < self.pair.separation_m
     }
 
-    fn measurement<'m>(&'m self, left: &'m [f64]) -> Measurement<'m> {
+    pub(super) fn measurement<'m>(&'m self, left: &'m [f64]) -> Measurement<'m> {
         Measurement {
             tau: left,
             weights: &self.weights,
@@ -444,7 +444,7 @@ impl Search<'_> {
     /// summed, would count twice what both can explain of the same misfit
     /// (on the `../shared` link 6 slide, pairs whose pushes missed the
     /// torques by χ² 2,816 came out 1,329 nats above one contact).
-    fn pair_friction_gain(&self, a: &Placed, b: &Placed) -> f64 {
+    pub(super) fn pair_friction_gain(&self, a: &Placed, b: &Placed) -> f64 {
         let one_way = |first: &Placed, second: &Placed| match self.friction_on(first, &minus(self.tau, &second.torques))
         {
             Some((torques, gain)) => {
@@ -463,7 +463,7 @@ impl Search<'_> {
     /// force explains). The samples' own peak is the patch model's, linear
     /// in the offset across a patch: a misfit that no place of the surface
     /// removes is taken up there by offsets beyond the surface's reach.
-    fn log_evidence_one(&self, single: &Posterior) -> f64 {
+    pub(super) fn log_evidence_one(&self, single: &Posterior) -> f64 {
         let surface = self.posed.surface;
         let first = single.map_point;
         let peak_from_samples = self
@@ -513,7 +513,7 @@ impl Search<'_> {
     }
 
     /// Sample `k` pushed with `f` newtons.
-    fn at_sample(&self, k: usize, f: f64) -> Placed {
+    pub(super) fn at_sample(&self, k: usize, f: f64) -> Placed {
         let surface = self.posed.surface;
         let link = surface.link.get(k).copied().unwrap_or_default();
         let point_in_link = surface.point_in_link.get(k).copied().unwrap_or_default();
@@ -530,7 +530,7 @@ impl Search<'_> {
     }
 
     /// A refined contact from sample `start`.
-    fn refined(&self, r: &RefinedContact) -> Placed {
+    pub(super) fn refined(&self, r: &RefinedContact) -> Placed {
         Placed {
             point: r.start,
             link: r.link,
@@ -549,7 +549,7 @@ impl Search<'_> {
     /// One contact given `other`: the one-contact posterior of the torques
     /// left, its contact refined on the continuous surface where that stays
     /// away from `other` (else its best sample away from it).
-    fn conditional(&self, other: &Placed) -> Result<Option<Conditional>, EstimateError> {
+    pub(super) fn conditional(&self, other: &Placed) -> Result<Option<Conditional>, EstimateError> {
         let surface = self.posed.surface;
         let left = minus(self.tau, &other.torques);
         let posterior = estimate(self.posed, &left, self.settings, self.hierarchy)?;
@@ -639,7 +639,7 @@ impl Search<'_> {
     /// Coordinate descent on the continuous surface: each contact refined
     /// in turn with the other held, until the pair's residual stops
     /// falling.
-    fn polish(&self, a: &mut Placed, b: &mut Placed) {
+    pub(super) fn polish(&self, a: &mut Placed, b: &mut Placed) {
         if !self.settings.patches {
             return;
         }
@@ -782,24 +782,7 @@ pub fn estimate_pair(
     pair: &PairSettings,
     starts_given: &[PairStart],
 ) -> Result<Option<PairEstimate>, EstimateError> {
-    let surface = posed.surface;
-    let ln_prior_norm = if settings.patches {
-        surface.area_m2.iter().sum::<f64>().ln()
-    } else {
-        (surface.len().max(1) as f64).ln()
-    };
-    let search = Search {
-        posed,
-        tau,
-        settings,
-        hierarchy,
-        pair,
-        weights: settings.weights(),
-        ln_prior_norm,
-        pose,
-        across_links: false,
-    };
-    let first = single.map_point;
+    let search = Search::new(posed, pose, tau, settings, hierarchy, pair);
     let log_evidence_one = search.log_evidence_one(single);
     // From the places given, or from where one contact is believed to be,
     // or from each contact of the best pair of a coarse grid of samples,
@@ -845,44 +828,85 @@ pub fn estimate_pair(
             best = Some(found);
         }
     }
-    let Some((log_evidence_two, residual_chi2, [a, b])) = best else {
-        return Ok(None);
-    };
-    let odds = (pair.prior_two / (1.0 - pair.prior_two)).ln() + log_evidence_two - log_evidence_one;
-    let sensing_joints = sensing(posed, a.placed.link, b.placed.link);
-    let unidentifiable = search.unidentifiable(sensing_joints, &a.placed, &b.placed);
-    let world = |k: usize| -> DVec3 {
-        match (surface.link.get(k), surface.point_in_link.get(k)) {
-            (Some(&link), Some(&p)) => pose.point_to_world(link, p),
-            _ => DVec3::ZERO,
+    Ok(best.map(|best| search.account(single, log_evidence_one, best)))
+}
+
+impl Search<'_> {
+    /// The search of one frame's pair, the separation on one link only.
+    pub(super) fn new<'a>(
+        posed: &'a PosedSurface<'a>,
+        pose: &'a RobotPose,
+        tau: &'a [f64],
+        settings: &'a EstimatorSettings,
+        hierarchy: Option<&'a PhaseHierarchy>,
+        pair: &'a PairSettings,
+    ) -> Search<'a> {
+        let surface = posed.surface;
+        let ln_prior_norm = if settings.patches {
+            surface.area_m2.iter().sum::<f64>().ln()
+        } else {
+            (surface.len().max(1) as f64).ln()
+        };
+        Search {
+            posed,
+            tau,
+            settings,
+            hierarchy,
+            pair,
+            weights: settings.weights(),
+            ln_prior_norm,
+            pose,
+            across_links: false,
         }
-    };
-    let contact = |c: Conditional| PairContact {
-        point_world: pose.point_to_world(c.placed.link, c.placed.point_in_link),
-        force_world: c.placed.force_newtons
-            * pose
-                .world_from_link
-                .get(c.placed.link)
-                .map_or(DVec3::ZERO, |w| w.transform_vector3(c.placed.inward_normal_in_link)),
-        credible90: credible_set(&c.posterior, world, 0.9),
-        probability: c.posterior.probability,
-        placed: c.placed,
-    };
-    // The contact nearer the single contact's place first.
-    let first_world = world(first);
-    let mut contacts = [contact(a), contact(b)];
-    if contacts[1].point_world.distance(first_world) < contacts[0].point_world.distance(first_world) {
-        contacts.swap(0, 1);
     }
-    Ok(Some(PairEstimate {
-        contacts,
-        log_evidence_one,
-        log_evidence_two,
-        probability_two: logistic(odds),
-        residual_chi2,
-        sensing_joints,
-        unidentifiable,
-    }))
+
+    /// The frame's account of the pair `best` against its single contact
+    /// `single` (of ln evidence `log_evidence_one`).
+    pub(super) fn account(
+        &self,
+        single: &Posterior,
+        log_evidence_one: f64,
+        (log_evidence_two, residual_chi2, [a, b]): Best,
+    ) -> PairEstimate {
+        let (posed, pose, pair) = (self.posed, self.pose, self.pair);
+        let surface = posed.surface;
+        let first = single.map_point;
+        let odds = (pair.prior_two / (1.0 - pair.prior_two)).ln() + log_evidence_two - log_evidence_one;
+        let sensing_joints = sensing(posed, a.placed.link, b.placed.link);
+        let unidentifiable = self.unidentifiable(sensing_joints, &a.placed, &b.placed);
+        let world = |k: usize| -> DVec3 {
+            match (surface.link.get(k), surface.point_in_link.get(k)) {
+                (Some(&link), Some(&p)) => pose.point_to_world(link, p),
+                _ => DVec3::ZERO,
+            }
+        };
+        let contact = |c: Conditional| PairContact {
+            point_world: pose.point_to_world(c.placed.link, c.placed.point_in_link),
+            force_world: c.placed.force_newtons
+                * pose
+                    .world_from_link
+                    .get(c.placed.link)
+                    .map_or(DVec3::ZERO, |w| w.transform_vector3(c.placed.inward_normal_in_link)),
+            credible90: credible_set(&c.posterior, world, 0.9),
+            probability: c.posterior.probability,
+            placed: c.placed,
+        };
+        // The contact nearer the single contact's place first.
+        let first_world = world(first);
+        let mut contacts = [contact(a), contact(b)];
+        if contacts[1].point_world.distance(first_world) < contacts[0].point_world.distance(first_world) {
+            contacts.swap(0, 1);
+        }
+        PairEstimate {
+            contacts,
+            log_evidence_one,
+            log_evidence_two,
+            probability_two: logistic(odds),
+            residual_chi2,
+            sensing_joints,
+            unidentifiable,
+        }
+    }
 }
 
 /// ln of a posterior's marginal likelihood over the surface prior: its

@@ -627,3 +627,57 @@ fn the_separation_holds_across_links_only_in_the_search_apart() {
         );
     }
 }
+
+/// A pair held where the frame beside had it prices the new contact's
+/// place over a few centimetres of its link, not the whole surface: its
+/// evidence is higher than the same pair's in a frame alone by about ln
+/// of the surface's area over that patch's (less the two labellings'
+/// ln 2), and the new contact stays within the separation of where it
+/// started. A weak second push (4 N) beside a firm one.
+#[test]
+fn a_pair_held_near_its_place_pays_less_for_it() {
+    use crate::core::estimate::pair_held::estimate_pair_held;
+    let s = scene();
+    let settings = EstimatorSettings::exact(vec![SIGMA; 7]);
+    let pair_settings = PairSettings::default();
+    let posed = s.posed();
+    for nth in 0..4 {
+        let (a, b) = (s.truth_on("lwr_5_link", nth), s.truth_on("lwr_7_link", nth));
+        let tau = s.torques(&[(a, 14.0), (b, 4.0)], 40 + nth as u64);
+        let search = search_of(&posed, &s.pose, &tau, &settings, &pair_settings);
+        let both = [
+            search.at_sample(s.nearest_sample(a), 14.0),
+            search.at_sample(s.nearest_sample(b), 4.0),
+        ];
+        let alone = s.pair_from(&tau, &PairStart::Both(Box::new(both.clone()))).unwrap();
+        let single = estimate(&posed, &tau, &settings, None).unwrap();
+        let held = |new| {
+            estimate_pair_held(
+                &posed,
+                &s.pose,
+                &tau,
+                &settings,
+                None,
+                &single,
+                &pair_settings,
+                &both,
+                new,
+            )
+            .unwrap()
+        };
+        let held_pair = held(1).unwrap();
+        let gain = held_pair.account.log_evidence_two - alone.log_evidence_two;
+        assert!(gain > 2.0, "push {nth}: held {gain} nats above the frame alone");
+        assert!(held_pair.new_log_occam.is_finite() && held_pair.new_log_occam < 0.0);
+        assert!((held_pair.account.log_evidence_one - alone.log_evidence_one).abs() < 1e-12);
+        let start = s.pose.point_to_world(both[1].link, both[1].point_in_link);
+        let nearest = held_pair
+            .account
+            .contacts
+            .iter()
+            .map(|c| c.point_world.distance(start))
+            .fold(f64::INFINITY, f64::min);
+        assert!(nearest <= pair_settings.separation_m, "push {nth}: {nearest} m");
+        assert!(held(2).is_none());
+    }
+}
