@@ -89,7 +89,23 @@ impl FramePair {
     /// the frames beside it, or carried from them).
     #[must_use]
     pub fn has_two(&self) -> bool {
-        (self.pair.identifiable() || self.bridged || self.carried) && self.probability_two > 0.5
+        calls_two(&self.pair, self.probability_two, self.bridged || self.carried)
+    }
+}
+
+/// Whether a frame's `pair` is called two: more probable than one over
+/// the frames taken together (`probability_two`), and identifiable by its
+/// own rules or `vouched` for by the frames beside it.
+fn calls_two(pair: &PairEstimate, probability_two: f64, vouched: bool) -> bool {
+    (pair.identifiable() || vouched) && probability_two > 0.5
+}
+
+/// `pair` as a session keeps it: its summary, not its contacts'
+/// posteriors over the surface (memory stays flat in the frames
+/// searched).
+fn summary_only(pair: &mut PairEstimate) {
+    for contact in &mut pair.contacts {
+        contact.probability = Vec::new();
     }
 }
 
@@ -164,10 +180,8 @@ impl PairFollower {
         {
             pair.unidentifiable = Some(Unidentifiable::HeldExplains);
         }
-        // A session keeps each pair's summary, not its posteriors over
-        // the surface: memory stays flat in the frames searched.
-        for contact in pair.iter_mut().flat_map(|p| p.contacts.iter_mut()) {
-            contact.probability = Vec::new();
+        if let Some(pair) = pair.as_mut() {
+            summary_only(pair);
         }
         self.tracker.observe(None, pair.as_ref());
         Ok(pair)
@@ -270,7 +284,7 @@ pub fn session_pairs_timed(
             .iter()
             .zip(&probabilities)
             .zip(&bridges)
-            .map(|((pair, &p), &b)| pair.as_ref().is_some_and(|pair| (pair.identifiable() || b) && p > 0.5))
+            .map(|((pair, &p), &b)| pair.as_ref().is_some_and(|pair| calls_two(pair, p, b)))
             .collect();
         carried = carry_pairs(
             estimator,
@@ -361,8 +375,8 @@ fn carry_pairs(
     for k in (0..n).filter(|&k| is_called(k)) {
         let first = k == 0 || !is_called(k - 1);
         let last = !is_called(k + 1);
-        for backward in [true, false] {
-            if (backward && !first) || (!backward && !last) {
+        for (backward, edge) in [(true, first), (false, last)] {
+            if !edge {
                 continue;
             }
             let Some(mut held) = found
@@ -398,9 +412,7 @@ fn carry_pairs(
                 };
                 held = account.contacts.clone().map(|c| c.placed);
                 new = now_new;
-                for contact in &mut account.contacts {
-                    contact.probability = Vec::new();
-                }
+                summary_only(&mut account);
                 if let (Some(slot), Some(c)) = (found.get_mut(next), carried.get_mut(next)) {
                     *slot = Some(account);
                     *c = true;

@@ -194,21 +194,18 @@ impl Estimator {
         pair: &PairSettings,
         starts: &[PairStart],
     ) -> Result<Option<PairEstimate>, EstimateError> {
-        let (pose, torque_model, posterior) = self.posterior_at(robot, joint_positions, tau, None)?;
-        let posed = PosedSurface {
-            torque_model: &torque_model,
-            surface: &self.surface,
-        };
-        estimate_pair(
-            &posed,
-            &pose,
-            tau,
-            &self.settings,
-            self.hierarchy.as_ref(),
-            &posterior,
-            pair,
-            starts,
-        )
+        self.with_single(robot, joint_positions, tau, |posed, pose, posterior| {
+            estimate_pair(
+                posed,
+                pose,
+                tau,
+                &self.settings,
+                self.hierarchy.as_ref(),
+                posterior,
+                pair,
+                starts,
+            )
+        })
     }
 
     /// The two-contact account of torques `tau` at `joint_positions` with
@@ -226,22 +223,37 @@ impl Estimator {
         both: &[Placed; 2],
         new: usize,
     ) -> Result<Option<HeldPair>, EstimateError> {
+        self.with_single(robot, joint_positions, tau, |posed, pose, posterior| {
+            estimate_pair_held(
+                posed,
+                pose,
+                tau,
+                &self.settings,
+                self.hierarchy.as_ref(),
+                posterior,
+                pair,
+                both,
+                new,
+            )
+        })
+    }
+
+    /// `then` of the surface posed at `joint_positions`, the pose, and the
+    /// one-contact posterior of `tau` there: what a frame's pair search
+    /// starts from.
+    fn with_single<T>(
+        &self,
+        robot: &Robot,
+        joint_positions: &[f64],
+        tau: &[f64],
+        then: impl FnOnce(&PosedSurface<'_>, &RobotPose, &Posterior) -> Result<T, EstimateError>,
+    ) -> Result<T, EstimateError> {
         let (pose, torque_model, posterior) = self.posterior_at(robot, joint_positions, tau, None)?;
         let posed = PosedSurface {
             torque_model: &torque_model,
             surface: &self.surface,
         };
-        estimate_pair_held(
-            &posed,
-            &pose,
-            tau,
-            &self.settings,
-            self.hierarchy.as_ref(),
-            &posterior,
-            pair,
-            both,
-            new,
-        )
+        then(&posed, &pose, &posterior)
     }
 
     /// Whether `held`, a push that explained an earlier frame, explains

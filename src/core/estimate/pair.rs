@@ -586,28 +586,46 @@ impl Search<'_> {
             .filter_map(|&k| posterior.log_likelihood.get(k))
             .map(|&l| (l - top).exp())
             .sum();
-        let log_evidence = top + sum.max(1.0).ln() - self.ln_prior_norm;
-        let area = if self.settings.patches {
-            surface.ln_area.get(point).copied().unwrap_or(0.0)
-        } else {
-            0.0
-        };
         let refined = self
             .settings
             .patches
             .then(|| refine(self.posed.torque_model, surface, &posterior, &self.measurement(&left)))
             .flatten()
             .filter(|r| !self.too_near(r.link, r.point_in_link, other));
+        let log_evidence = top + sum.max(1.0).ln() - self.ln_prior_norm;
+        Ok(Some(self.conditional_of(
+            posterior,
+            (point, top),
+            log_evidence,
+            refined,
+        )))
+    }
+
+    /// One contact's conditional account from its posterior: its best
+    /// sample `point` (of log-likelihood `top`), its evidence, and its
+    /// place refined on the continuous surface (`None`: the sample's).
+    pub(super) fn conditional_of(
+        &self,
+        posterior: Posterior,
+        (point, top): (usize, f64),
+        log_evidence: f64,
+        refined: Option<RefinedContact>,
+    ) -> Conditional {
+        let area = if self.settings.patches {
+            self.posed.surface.ln_area.get(point).copied().unwrap_or(0.0)
+        } else {
+            0.0
+        };
         let placed = match refined {
             Some(r) => self.refined(&r),
             None => self.at_sample(point, posterior.force_newtons.get(point).copied().unwrap_or(0.0)),
         };
-        Ok(Some(Conditional {
+        Conditional {
             placed,
             log_evidence,
             log_occam: log_evidence - (top - area),
             posterior,
-        }))
+        }
     }
 
     /// `one` refined from where it is with `other`'s torques taken away;

@@ -162,12 +162,6 @@ fn conditional_near(
         return Ok(None);
     }
     let sum: f64 = likely.iter().map(|&(_, l)| (l - top).exp()).sum();
-    let log_evidence = top + sum.max(1.0).ln() - ln_prior_norm;
-    let area = if search.settings.patches {
-        surface.ln_area.get(point).copied().unwrap_or(0.0)
-    } else {
-        0.0
-    };
     let refined = search
         .settings
         .patches
@@ -184,14 +178,11 @@ fn conditional_near(
         })
         .flatten()
         .filter(|r| near.holds(r.link, r.point_in_link) && !search.too_near(r.link, r.point_in_link, other));
-    let placed = match refined {
-        Some(r) => search.refined(&r),
-        None => search.at_sample(point, posterior.force_newtons.get(point).copied().unwrap_or(0.0)),
-    };
-    Ok(Some(Conditional {
-        placed,
-        log_evidence,
-        log_occam: log_evidence - (top - area),
+    let log_evidence = top + sum.max(1.0).ln() - ln_prior_norm;
+    Ok(Some(search.conditional_of(
         posterior,
-    }))
+        (point, top),
+        log_evidence,
+        refined,
+    )))
 }
