@@ -37,6 +37,8 @@ struct Run {
     threads: usize,
     wall_secs: f64,
     peak_mib: Option<f64>,
+    /// Processor time of all threads over wall time and thread count, %.
+    busy_percent: Option<f64>,
     detection_percent: f64,
     false_alarm_percent: f64,
     median_mm: f64,
@@ -91,6 +93,7 @@ pub fn run(args: &RecordingBench) -> Result<()> {
         reset_peak_memory();
         let mut called = vec![false; frames.len()];
         let mut errors_m = Vec::new();
+        let cpu0 = cpu_secs();
         let t0 = Instant::now();
         pool.install(|| {
             estimate_sequence(
@@ -111,11 +114,15 @@ pub fn run(args: &RecordingBench) -> Result<()> {
             )
         })?;
         let wall_secs = t0.elapsed().as_secs_f64();
+        let busy_percent = cpu0
+            .zip(cpu_secs())
+            .map(|(before, after)| 100.0 * (after - before) / (wall_secs * threads as f64));
         let found = detection(&truth, &called);
         runs.push(Run {
             threads,
             wall_secs,
             peak_mib: peak_memory_mib(),
+            busy_percent,
             detection_percent: 100.0 * found.detection_rate(),
             false_alarm_percent: 100.0 * found.false_alarm_rate(),
             median_mm: 1e3 * percentile(&errors_m, 0.5),
@@ -138,21 +145,22 @@ fn table(runs: &[Run], frames: usize, recorded_secs: f64) -> Result<String> {
     let mut out = String::new();
     writeln!(
         out,
-        "| threads | wall [s] | frames/s | real-time factor | speed-up | peak memory [MiB] | detection | false alarms | median [mm] | p90 [mm] |"
+        "| threads | wall [s] | frames/s | real-time factor | speed-up | peak memory [MiB] | threads busy | detection | false alarms | median [mm] | p90 [mm] |"
     )?;
-    writeln!(out, "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")?;
+    writeln!(out, "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")?;
     for r in runs {
         let speedup = one
             .as_ref()
             .map_or_else(|_| "–".to_owned(), |one| format!("{:.2}×", one / r.wall_secs));
         writeln!(
             out,
-            "| {} | {:.1} | {:.0} | {:.2} | {speedup} | {} | {:.1} % | {:.1} % | {:.1} | {:.1} |",
+            "| {} | {:.1} | {:.0} | {:.2} | {speedup} | {} | {} | {:.1} % | {:.1} % | {:.1} | {:.1} |",
             r.threads,
             r.wall_secs,
             frames as f64 / r.wall_secs,
             recorded_secs / r.wall_secs,
             r.peak_mib.map_or_else(|| "–".to_owned(), |m| format!("{m:.0}")),
+            r.busy_percent.map_or_else(|| "–".to_owned(), |b| format!("{b:.0} %")),
             r.detection_percent,
             r.false_alarm_percent,
             r.median_mm,
@@ -177,4 +185,21 @@ fn peak_memory_mib() -> Option<f64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib / 1024.0)
+}
+
+/// The processor time the process's threads have taken, user and system,
+/// s (Linux; elsewhere `None`). With the wall time and thread count it
+/// says how much of the pool waited: the share that runs in order shows
+/// as threads idle.
+fn cpu_secs() -> Option<f64> {
+    // proc(5): the fields after the command's closing parenthesis, from
+    // the state (field 3); utime and stime are fields 14 and 15, in
+    // USER_HZ ticks, 100 a second on Linux.
+    const TICKS_PER_SEC: f64 = 100.0;
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let after_name = stat.rsplit_once(')')?.1;
+    let mut fields = after_name.split_whitespace().skip(11);
+    let user: f64 = fields.next()?.parse().ok()?;
+    let system: f64 = fields.next()?.parse().ok()?;
+    Some((user + system) / TICKS_PER_SEC)
 }
