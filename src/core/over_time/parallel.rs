@@ -9,23 +9,21 @@
 //! and filtered frames block by block, smoothed frames stretch by stretch
 //! ([`crate::core::over_time::stretches`]).
 
-use std::collections::VecDeque;
 use std::ops::Range;
 use std::time::Instant;
 
 use rayon::prelude::*;
 
 use crate::core::estimate::estimator::{Estimator, PendingUpdate, Update, elapsed_ms, finite};
-use crate::core::estimate::posterior::CompactPosterior;
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Summary;
 use crate::core::over_time::frame::SequenceFrame;
+use crate::core::over_time::in_order::{InOrder, Waiting, WaitingFrame, help_or_wait, press_fitter};
 use crate::core::over_time::offsets::FrameLikelihood;
-use crate::core::over_time::presses::{FrictionGate, Offered, PressJob, PressQueue};
+use crate::core::over_time::presses::{FrictionGate, PressQueue};
 use crate::core::over_time::smoother::FilterState;
 use crate::core::over_time::stretches::{Piece, PreparedStep, StepPreparer, Stretch, StretchSmoother};
 use crate::core::over_time::temporal::{Belief, TemporalError, TemporalModel};
-use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::Robot;
 
 /// Why a sequence could not be estimated.
@@ -49,7 +47,7 @@ pub enum SequenceError {
 pub const BLOCK_FRAMES: usize = 64;
 
 /// A frame's number, what its work gave, and the milliseconds it took.
-type Done<T> = (usize, Result<T, EstimateError>, f64);
+pub(super) type Done<T> = (usize, Result<T, EstimateError>, f64);
 
 /// What the caller is told, and asked, while a sequence runs: before
 /// each block whether to go on, each frame's update in order, and each
@@ -89,7 +87,7 @@ fn block(start: usize, frames: usize) -> Range<usize> {
 
 /// The frames of a block whose estimate succeeded; a failed one is left
 /// out where `failed` says so, else it is the sequence's error.
-fn succeeded<T>(
+pub(super) fn succeeded<T>(
     done: Vec<(usize, Result<T, EstimateError>, f64)>,
     failed: &mut impl FnMut(usize, &EstimateError) -> bool,
 ) -> Result<Vec<(usize, T, f64)>, SequenceError> {
@@ -146,11 +144,11 @@ fn likelihoods<W: Send>(
 
 /// A block's frames with the step each closes, or why the frames after
 /// them were not taken.
-struct PreparedBlock {
-    done: Vec<Done<(WaitingFrame, Option<PreparedStep>)>>,
+pub(super) struct PreparedBlock {
+    pub(super) done: Vec<Done<(WaitingFrame, Option<PreparedStep>)>>,
     /// A frame whose time the steps refused: the frames before it are in
     /// `done`, the rest of the block is not.
-    refused: Option<TemporalError>,
+    pub(super) refused: Option<TemporalError>,
 }
 
 /// The likelihoods of the block from `start` (in parallel) and the steps
@@ -161,9 +159,32 @@ fn prepared(
     start: usize,
     preparer: &mut StepPreparer,
 ) -> PreparedBlock {
-    let frames = sequence.2;
-    let mut done = Vec::with_capacity(BLOCK_FRAMES);
-    for (i, result, ms) in likelihoods(sequence, start, WaitingFrame::of) {
+    into_steps(likelihoods(sequence, start, WaitingFrame::of), sequence.2, preparer)
+}
+
+/// One frame's likelihoods, its pending update compacted, and the
+/// milliseconds they took.
+pub(super) fn frame_likelihood(
+    (estimator, robot, frames): (&Estimator, &Robot, &[SequenceFrame]),
+    i: usize,
+) -> Option<Done<(WaitingFrame, FrameLikelihood)>> {
+    let f = frames.get(i)?;
+    let t0 = Instant::now();
+    let result = estimator
+        .update_for_sequence(robot, f.joint_positions, f.tau)
+        .map(|(pending, likelihood)| (WaitingFrame::of(pending), likelihood));
+    Some((i, result, elapsed_ms(t0)))
+}
+
+/// A block's frames, with their likelihoods in order, gathered into the
+/// steps they close.
+pub(super) fn into_steps(
+    block: Vec<Done<(WaitingFrame, FrameLikelihood)>>,
+    frames: &[SequenceFrame],
+    preparer: &mut StepPreparer,
+) -> PreparedBlock {
+    let mut done = Vec::with_capacity(block.len());
+    for (i, result, ms) in block {
         let Ok((pending, likelihood)) = result else {
             done.push((i, result.map(|(pending, _)| (pending, None)), ms));
             continue;
@@ -390,205 +411,6 @@ pub(crate) fn smooth(
     Ok(true)
 }
 
-/// A frame settled by its press's fit or on its own.
-type Settled = (usize, Update, f64);
-
-/// Fits a press as a task of `scope` that answers through `fitted`; or
-/// now, where nothing runs beside this thread.
-fn press_fitter<'a: 'scope, 'scope>(
-    scope: &rayon::Scope<'scope>,
-    fitted: std::sync::mpsc::Sender<(usize, Vec<Settled>)>,
-) -> impl Fn(PressJob<'a>, usize) -> Option<Vec<Settled>> {
-    move |job, slot| {
-        if rayon::current_num_threads() <= 1 {
-            return Some(job.fit());
-        }
-        let fitted = fitted.clone();
-        scope.spawn(move |_| {
-            // The receiver outlives every task (the scope ends first).
-            let _ = fitted.send((slot, job.fit()));
-        });
-        None
-    }
-}
-
-/// Settled frames on their way out in frame order: a press that ends is
-/// fitted as a task beside the filter (a fit is a fifth of a smoothed
-/// recording's work, and depends on its own frames only), and the frames
-/// after it wait for its fit.
-struct InOrder<'a, 's> {
-    presses: PressQueue<'a>,
-    /// Fits a press as a task (answering later, through `fitted`), or now.
-    fit: &'s dyn Fn(PressJob<'a>, usize) -> Option<Vec<Settled>>,
-    fitted: std::sync::mpsc::Receiver<(usize, Vec<Settled>)>,
-    /// From slot `front` on: frames ready to leave, or a press in flight.
-    slots: VecDeque<Option<Vec<Settled>>>,
-    front: usize,
-    /// The presses in flight: the bytes each one's frames hold, by slot.
-    in_flight: std::collections::BTreeMap<usize, usize>,
-}
-
-impl<'a, 's> InOrder<'a, 's> {
-    fn new(
-        presses: PressQueue<'a>,
-        fit: &'s dyn Fn(PressJob<'a>, usize) -> Option<Vec<Settled>>,
-        fitted: std::sync::mpsc::Receiver<(usize, Vec<Settled>)>,
-    ) -> Self {
-        Self {
-            presses,
-            fit,
-            fitted,
-            slots: VecDeque::new(),
-            front: 0,
-            in_flight: std::collections::BTreeMap::new(),
-        }
-    }
-
-    /// Presses in flight.
-    fn presses_in_flight(&self) -> usize {
-        self.in_flight.len()
-    }
-
-    /// Bytes the frames of the presses in flight hold.
-    fn bytes(&self) -> usize {
-        self.in_flight.values().sum()
-    }
-
-    /// What the press queue hands on: a frame joins the last slot (or a
-    /// new one after a press); a press takes a slot and is fitted.
-    fn take(&mut self, offered: Offered<'a>) {
-        match offered {
-            Offered::Frame(i, update, ms) => match self.slots.back_mut() {
-                Some(Some(frames)) => frames.push((i, update, ms)),
-                _ => self.slots.push_back(Some(vec![(i, update, ms)])),
-            },
-            Offered::Press(job) => {
-                let slot = self.front + self.slots.len();
-                let bytes = job.bytes();
-                if let Some(frames) = (self.fit)(job, slot) {
-                    self.slots.push_back(Some(frames));
-                } else {
-                    self.slots.push_back(None);
-                    self.in_flight.insert(slot, bytes);
-                }
-                // Frames after the press start a slot of their own.
-                self.slots.push_back(Some(Vec::new()));
-            }
-        }
-    }
-
-    /// Frame `i`, smoothed, through the presses.
-    fn offer(&mut self, i: usize, settled: (Update, Option<Summary>), ms: f64) {
-        let mut offered = Vec::new();
-        self.presses.offer(i, settled, ms, &mut |o| offered.push(o));
-        for o in offered {
-            self.take(o);
-        }
-    }
-
-    /// Takes in the presses fitted, then hands on every frame whose turn
-    /// has come.
-    fn emit(&mut self, each: &mut impl FnMut(usize, Update, f64)) {
-        for (slot, frames) in self.fitted.try_iter() {
-            if let Some(place) = slot.checked_sub(self.front).and_then(|k| self.slots.get_mut(k)) {
-                *place = Some(frames);
-            }
-            self.in_flight.remove(&slot);
-        }
-        // The last slot may still grow: it leaves only once a later one exists.
-        while self.slots.len() > 1 && matches!(self.slots.front(), Some(Some(_))) {
-            if let Some(Some(frames)) = self.slots.pop_front() {
-                for (i, update, ms) in frames {
-                    each(i, update, ms);
-                }
-            }
-            self.front += 1;
-        }
-        if let [Some(frames)] = self.slots.make_contiguous() {
-            for (i, update, ms) in frames.drain(..) {
-                each(i, update, ms);
-            }
-        }
-    }
-
-    /// Hands on the last press and every frame, helping the fits in
-    /// flight (or waiting) until they are done.
-    fn finish(&mut self, each: &mut impl FnMut(usize, Update, f64)) {
-        let mut offered = Vec::new();
-        self.presses.settle(&mut |o| offered.push(o));
-        for o in offered {
-            self.take(o);
-        }
-        loop {
-            self.emit(each);
-            if self.in_flight.is_empty() {
-                break;
-            }
-            help_or_wait();
-        }
-        self.emit(each);
-    }
-}
-
-/// A frame's own estimate while it waits for its smoothed belief: its
-/// pose and its posterior, compacted (kept rather than computed again:
-/// it is a third of a frame's work).
-struct WaitingFrame {
-    pose: RobotPose,
-    posterior: CompactPosterior,
-}
-
-impl WaitingFrame {
-    fn of(pending: PendingUpdate) -> Self {
-        Self {
-            pose: pending.pose,
-            posterior: CompactPosterior::of(pending.posterior),
-        }
-    }
-
-    fn bytes(&self) -> usize {
-        size_of::<Self>() + self.posterior.bytes()
-    }
-
-    fn expand(self) -> PendingUpdate {
-        PendingUpdate {
-            pose: self.pose,
-            posterior: self.posterior.expand(),
-        }
-    }
-}
-
-/// The frames filtered and not yet settled, in order: number, what each
-/// has cost so far, its own estimate.
-#[derive(Default)]
-struct Waiting {
-    frames: VecDeque<(usize, f64, WaitingFrame)>,
-    /// Bytes their posteriors hold.
-    bytes: usize,
-}
-
-impl Waiting {
-    fn push(&mut self, i: usize, ms: f64, frame: WaitingFrame) {
-        self.bytes += frame.bytes();
-        self.frames.push_back((i, ms, frame));
-    }
-
-    /// The first `n`, in order.
-    fn take(&mut self, n: usize) -> Vec<(usize, f64, WaitingFrame)> {
-        let taken: Vec<_> = self.frames.drain(..n.min(self.frames.len())).collect();
-        let freed: usize = taken.iter().map(|(_, _, f)| f.bytes()).sum();
-        self.bytes = self.bytes.saturating_sub(freed);
-        taken
-    }
-}
-
-/// Runs a task of the pool on this thread if one waits, else yields.
-fn help_or_wait() {
-    if rayon::yield_now() != Some(rayon::Yield::Executed) {
-        std::thread::sleep(std::time::Duration::from_micros(200));
-    }
-}
-
 /// The pieces of a smoothed recording under way: spawned, smoothed and
 /// waiting for their turn, settled.
 #[derive(Default)]
@@ -694,14 +516,14 @@ fn settle_stretch(
         let done: Vec<Done<(Update, Option<Summary>)>> = chunk
             .into_par_iter()
             .enumerate()
-            .filter_map(|(j, (i, ms, waiting))| {
-                let t0 = Instant::now();
-                let f = frames.get(i)?;
-                let pending = waiting.expand();
-                let belief = stretch.belief(c * BLOCK_FRAMES + j)?;
-                let alone = estimator.summary_alone(robot, &pending, f.tau, &belief);
-                let update = estimator.with_belief_as(robot, pending, f.tau, &belief, !estimator.fits_presses());
-                Some((i, Ok((update, alone)), ms + share_ms + elapsed_ms(t0)))
+            .filter_map(|(j, entry)| {
+                settle_frame(
+                    (estimator, robot, frames),
+                    stretch,
+                    c * BLOCK_FRAMES + j,
+                    entry,
+                    share_ms,
+                )
             })
             .collect();
         c += 1;
@@ -711,4 +533,22 @@ fn settle_stretch(
         out.emit(each);
     }
     Ok(true)
+}
+
+/// A waiting frame's own posterior seen through its smoothed belief (the
+/// `k`-th of `stretch`), with the milliseconds it has cost in all.
+pub(super) fn settle_frame(
+    (estimator, robot, frames): (&Estimator, &Robot, &[SequenceFrame]),
+    stretch: &Stretch,
+    k: usize,
+    (i, ms, waiting): (usize, f64, WaitingFrame),
+    share_ms: f64,
+) -> Option<Done<(Update, Option<Summary>)>> {
+    let t0 = Instant::now();
+    let f = frames.get(i)?;
+    let pending = waiting.expand();
+    let belief = stretch.belief(k)?;
+    let alone = estimator.summary_alone(robot, &pending, f.tau, &belief);
+    let update = estimator.with_belief_as(robot, pending, f.tau, &belief, !estimator.fits_presses());
+    Some((i, Ok((update, alone)), ms + share_ms + elapsed_ms(t0)))
 }

@@ -11,6 +11,7 @@ use crate::core::numerics::lanes;
 use crate::core::over_time::frame::SequenceFrame;
 use crate::core::over_time::offsets::{FrameLikelihood, PatchInformation};
 use crate::core::over_time::parallel::{self, Callbacks};
+use crate::core::over_time::pipeline;
 use crate::core::over_time::presses::FrictionGate;
 use crate::core::over_time::smoother::FilterState;
 use crate::core::over_time::temporal::{Belief, TemporalModel, TemporalSettings, is_continuous_recording};
@@ -287,6 +288,9 @@ pub fn estimate_sequence_while(
     match (model, temporal) {
         (None, _) | (_, Temporal::None) => parallel::alone(estimator, robot, frames, calls),
         (Some(model), Temporal::Filter) => parallel::filter(estimator, robot, model, frames, calls),
+        (Some(model), Temporal::Smooth) if rayon::current_num_threads() >= pipeline::MIN_THREADS => {
+            pipeline::smooth(estimator, robot, model, frames, calls)
+        }
         (Some(model), Temporal::Smooth) => parallel::smooth(estimator, robot, model, frames, calls),
     }
 }
