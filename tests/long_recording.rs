@@ -9,7 +9,9 @@ use proprioscope::core::config::estimator::EstimatorConfig;
 use proprioscope::core::estimate::estimator::Estimator;
 use proprioscope::core::eval::synth::{SynthFrame, SynthSettings, as_sequence, joint_positions, synthesize};
 use proprioscope::core::over_time::offsets::FrameLikelihood;
-use proprioscope::core::over_time::sequence::{Temporal, automatic_temporal, estimate_sequence};
+use proprioscope::core::over_time::sequence::{
+    Temporal, automatic_temporal, estimate_sequence, estimate_sequence_while,
+};
 use proprioscope::core::over_time::smoother::Smoother;
 use proprioscope::core::over_time::stretches::StretchSmoother;
 use proprioscope::core::over_time::temporal::{Belief, TemporalModel, TemporalSettings};
@@ -190,4 +192,84 @@ fn every_recording_is_smoothed() {
     let times: Vec<f64> = (0..600_000).map(|i| f64::from(i) * 1e-3).collect();
     let (temporal, _) = automatic_temporal(&times, &TemporalSettings::default());
     assert_eq!(temporal, Temporal::Smooth);
+}
+
+/// Frames handed on, frames failed, the error where none is skipped,
+/// frames handed on before a stop.
+type Outcome = (Vec<usize>, Vec<usize>, String, Vec<usize>);
+
+/// On any number of threads, a frame whose estimate fails is handed to
+/// `failed`: left out where it says so (the others as without it, in
+/// order), else the sequence's error, naming it; and a sequence that
+/// `keep_going` stops ends with what it has handed on, in order.
+#[test]
+fn failed_frames_and_a_stop_on_any_number_of_threads() {
+    let (robot, frames, estimator, model) = recording(1.0, 7);
+    let positions = joint_positions(&robot, &frames).unwrap();
+    let bad_tau = vec![f64::NAN; 7];
+    let mut sequence = as_sequence(&frames, &positions);
+    let bad = 300;
+    sequence[bad].tau = &bad_tau;
+    let runs: Vec<Outcome> = [1, 2, 4]
+        .iter()
+        .map(|&threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let (mut out, mut failed) = (Vec::new(), Vec::new());
+                let skipped = estimate_sequence_while(
+                    &estimator,
+                    &robot,
+                    (Some(&model), Temporal::Smooth),
+                    &sequence,
+                    || true,
+                    |i, _, _| out.push(i),
+                    |i, _| {
+                        failed.push(i);
+                        true
+                    },
+                );
+                assert_eq!(skipped, Ok(true), "{threads} threads");
+                let refused = estimate_sequence_while(
+                    &estimator,
+                    &robot,
+                    (Some(&model), Temporal::Smooth),
+                    &sequence,
+                    || true,
+                    |_, _, _| {},
+                    |_, _| false,
+                )
+                .unwrap_err()
+                .to_string();
+                let mut calls = 0;
+                let mut stopped = Vec::new();
+                let kept_going = estimate_sequence_while(
+                    &estimator,
+                    &robot,
+                    (Some(&model), Temporal::Smooth),
+                    &sequence,
+                    || {
+                        calls += 1;
+                        calls < 8
+                    },
+                    |i, _, _| stopped.push(i),
+                    |_, _| true,
+                );
+                assert_eq!(kept_going, Ok(false), "{threads} threads");
+                (out, failed, refused, stopped)
+            })
+        })
+        .collect();
+    for (threads, (out, failed, refused, stopped)) in [1, 2, 4].iter().zip(&runs) {
+        assert_eq!(failed, &vec![bad], "{threads} threads");
+        assert_eq!(out.len(), frames.len() - 1, "{threads} threads");
+        assert!(!out.contains(&bad), "{threads} threads");
+        assert!(out.windows(2).all(|w| w[0] < w[1]), "{threads} threads: in order");
+        assert!(
+            refused.starts_with(&format!("frame {bad}:")),
+            "{threads} threads: {refused}"
+        );
+        assert!(stopped.len() < out.len(), "{threads} threads: stopped");
+        assert!(stopped.windows(2).all(|w| w[0] < w[1]), "{threads} threads: in order");
+    }
+    assert_eq!(runs[0].0, runs[2].0);
 }
