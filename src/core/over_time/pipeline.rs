@@ -73,6 +73,22 @@ enum Event {
     Settled(usize, Vec<SettledDone>),
     /// A press fitted: its slot and its frames.
     Fitted(usize, Vec<Settled>),
+    /// A task or thread stopped without its answer (it panicked): the
+    /// calling thread stops waiting, and the scope passes the panic on.
+    Stopped,
+}
+
+/// Sends [`Event::Stopped`] if dropped while its thread unwinds, so that
+/// a panic anywhere ends the wait for the answer it took with it.
+struct StopOnPanic(Sender<Event>);
+
+impl Drop for StopOnPanic {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            // The calling thread may have stopped already.
+            let _ = self.0.send(Event::Stopped);
+        }
+    }
 }
 
 /// What the feeder hands the filter.
@@ -113,7 +129,8 @@ pub(crate) fn smooth(
             let (events_tx, events) = channel::<Event>();
             let (credits_tx, credits) = channel::<()>();
             let (feed_tx, feed) = sync_channel::<Feed>(AHEAD_BLOCKS);
-            threads.spawn(move || feeder(scope, sequence, model, &credits, &feed_tx));
+            let feeder_events = events_tx.clone();
+            threads.spawn(move || feeder(scope, sequence, model, (&credits, &feed_tx), feeder_events));
             let filter_events = events_tx.clone();
             threads.spawn(move || filter_thread(scope, model, &feed, &filter_events));
             let fit = fitter(scope, events_tx.clone());
@@ -138,6 +155,7 @@ pub(crate) fn smooth(
                         state.settled_tasks.insert(task, done);
                     }
                     Event::Fitted(slot, frames) => state.out.accept(slot, frames),
+                    Event::Stopped => return Ok(false),
                 }
                 state.settle(scope, sequence, &events_tx);
                 state.hand_on(&mut each, &mut calls.failed)?;
@@ -147,8 +165,10 @@ pub(crate) fn smooth(
             state.out.emit(&mut each);
             while state.out.presses_in_flight() > 0 {
                 let Ok(event) = events.recv() else { break };
-                if let Event::Fitted(slot, frames) = event {
-                    state.out.accept(slot, frames);
+                match event {
+                    Event::Fitted(slot, frames) => state.out.accept(slot, frames),
+                    Event::Stopped => return Ok(false),
+                    _ => {}
                 }
                 state.out.emit(&mut each);
             }
@@ -172,6 +192,7 @@ fn fitter<'a: 'scope, 'scope>(
     move |job, slot| {
         let events = events.clone();
         scope.spawn(move |_| {
+            let _alarm = StopOnPanic(events.clone());
             // The receiver outlives every task (the scope ends first).
             let _ = events.send(Event::Fitted(slot, job.fit()));
         });
@@ -294,6 +315,7 @@ impl<'a, 's> Calling<'a, 's> {
                 let offset = first;
                 first += chunk.len();
                 scope.spawn(move |_| {
+                    let _alarm = StopOnPanic(events.clone());
                     let done = chunk
                         .into_iter()
                         .enumerate()
@@ -341,9 +363,11 @@ fn feeder<'scope>(
     scope: &rayon::Scope<'scope>,
     sequence: Sequence<'scope>,
     model: &TemporalModel,
-    credits: &Receiver<()>,
-    feed: &SyncSender<Feed>,
+    (credits, feed): (&Receiver<()>, &SyncSender<Feed>),
+    events: Sender<Event>,
 ) {
+    let alarm = StopOnPanic(events);
+    let events = &alarm.0;
     let frames = sequence.2;
     let mut preparer = StepPreparer::new(model);
     let mut under_way = std::collections::VecDeque::new();
@@ -370,7 +394,8 @@ fn feeder<'scope>(
         };
         let mut parts: Vec<(usize, Vec<LikelihoodDone>)> = parts.iter().take(tasks).collect();
         if parts.len() < tasks {
-            // A task did not answer (it panicked; the scope says so).
+            // A task did not answer: it panicked, and the scope says so.
+            let _ = events.send(Event::Stopped);
             return;
         }
         parts.sort_unstable_by_key(|(task, _)| *task);
@@ -402,6 +427,7 @@ fn likelihoods<'scope>(
         let last = first.saturating_add(TASK_FRAMES).min(end);
         let tx = tx.clone();
         scope.spawn(move |_| {
+            // A panic here drops `tx` unanswered; the feeder sees it.
             let done = (first..last).filter_map(|i| frame_likelihood(sequence, i)).collect();
             // The feeder waits for every task of its block.
             let _ = tx.send((task, done));
@@ -419,6 +445,7 @@ fn filter_thread<'scope>(
     feed: &Receiver<Feed>,
     events: &Sender<Event>,
 ) {
+    let _alarm = StopOnPanic(events.clone());
     let mut smoother = StretchSmoother::new(model, model.store_limit_bytes());
     let mut number = 0;
     let mut cut = |piece: crate::core::over_time::stretches::Piece, pieces: &mut Vec<(usize, usize)>| {
@@ -426,6 +453,7 @@ fn filter_thread<'scope>(
         number += 1;
         pieces.push((n, bytes));
         scope.spawn(move |_| {
+            let _alarm = StopOnPanic(events.clone());
             let t0 = Instant::now();
             let stretch = piece.smooth(model);
             // The receiver outlives every task (the scope ends first).
@@ -434,7 +462,8 @@ fn filter_thread<'scope>(
     };
     let last = loop {
         let Ok(item) = feed.recv() else {
-            // The feeder stopped: the calling thread has.
+            // The feeder stopped: the calling thread has, or a task
+            // panicked (the feeder has said so).
             return;
         };
         let PreparedBlock { done, refused } = match item {
