@@ -218,3 +218,20 @@ pub(super) fn help_or_wait() {
         std::thread::sleep(std::time::Duration::from_micros(200));
     }
 }
+
+/// Whether the smoother may take another block: nothing is in flight, or
+/// what it counts (`bytes`: the store, the stretches in flight, the
+/// frames waiting for them and the presses being fitted) is within
+/// `limit_bytes` with no more stretches in flight than `threads`; and no
+/// more presses are being fitted than `threads`. Both ways a recording is
+/// smoothed hold the filter back by this rule.
+pub(super) fn room_for_more(
+    stretches_in_flight: usize,
+    bytes: usize,
+    presses_in_flight: usize,
+    limit_bytes: usize,
+    threads: usize,
+) -> bool {
+    (stretches_in_flight == 0 || (bytes <= limit_bytes && stretches_in_flight <= threads))
+        && presses_in_flight <= threads
+}

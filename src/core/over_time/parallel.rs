@@ -18,7 +18,7 @@ use crate::core::estimate::estimator::{Estimator, PendingUpdate, Update, elapsed
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Summary;
 use crate::core::over_time::frame::SequenceFrame;
-use crate::core::over_time::in_order::{InOrder, Waiting, WaitingFrame, help_or_wait, press_fitter};
+use crate::core::over_time::in_order::{InOrder, Waiting, WaitingFrame, help_or_wait, press_fitter, room_for_more};
 use crate::core::over_time::offsets::FrameLikelihood;
 use crate::core::over_time::presses::{FrictionGate, PressQueue};
 use crate::core::over_time::smoother::FilterState;
@@ -370,11 +370,14 @@ pub(crate) fn smooth(
             // Settle what is smoothed; while the pieces and presses in
             // flight and the store hold more than the limit, help them.
             let room = |pieces: &Pieces, waiting: &Waiting, out: &InOrder| {
-                let in_flight = pieces.spawned - pieces.settled;
-                (in_flight == 0
-                    || (smoother.held_bytes() + pieces.bytes_in_flight + waiting.bytes + out.bytes() <= limit
-                        && in_flight <= threads))
-                    && out.presses_in_flight() <= threads
+                let bytes = smoother.held_bytes() + pieces.bytes_in_flight + waiting.bytes + out.bytes();
+                room_for_more(
+                    pieces.spawned - pieces.settled,
+                    bytes,
+                    out.presses_in_flight(),
+                    limit,
+                    threads,
+                )
             };
             if !pieces.settle_until(
                 &done_rx,

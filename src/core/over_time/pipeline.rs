@@ -29,7 +29,7 @@ use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms, finite};
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Summary;
 use crate::core::over_time::frame::SequenceFrame;
-use crate::core::over_time::in_order::{InOrder, Settled, Waiting, WaitingFrame};
+use crate::core::over_time::in_order::{InOrder, Settled, Waiting, WaitingFrame, room_for_more};
 use crate::core::over_time::parallel::{
     BLOCK_FRAMES, Callbacks, Done, PreparedBlock, SequenceError, frame_likelihood, into_steps, settle_frame, succeeded,
 };
@@ -255,10 +255,14 @@ impl<'a, 's> Calling<'a, 's> {
     /// Whether memory and the tasks under way leave room for another
     /// block (as [`crate::core::over_time::parallel`] counts it).
     fn room(&self) -> bool {
-        let pieces = self.piece_bytes.len();
         let bytes = self.held_bytes + self.piece_bytes.values().sum::<usize>() + self.waiting.bytes + self.out.bytes();
-        (pieces == 0 || (bytes <= self.limit_bytes && pieces <= self.threads))
-            && self.out.presses_in_flight() <= self.threads
+        room_for_more(
+            self.piece_bytes.len(),
+            bytes,
+            self.out.presses_in_flight(),
+            self.limit_bytes,
+            self.threads,
+        )
     }
 
     /// Gives the feeder blocks while there is room, up to
