@@ -304,15 +304,8 @@ pub(crate) fn smooth(
         impl FnMut(usize, &EstimateError) -> bool,
     >,
 ) -> Result<bool, SequenceError> {
-    // A smoothed frame whose estimate is not finite is left out and
-    // handed to `failed` once the presses are settled; the first it does
-    // not skip is the sequence's error.
-    let mut refused: Vec<(usize, EstimateError)> = Vec::new();
-    let mut each = |i: usize, update: Update, ms: f64| match finite(update) {
-        Ok(update) => (calls.each)(i, update, ms),
-        Err(source) => refused.push((i, source)),
-    };
-    let settled = rayon::in_place_scope(|scope| -> Result<bool, SequenceError> {
+    let each = &mut calls.each;
+    rayon::in_place_scope(|scope| -> Result<bool, SequenceError> {
         let (done_tx, done_rx) = std::sync::mpsc::channel::<(usize, Stretch, f64, usize)>();
         let (press_tx, press_rx) = std::sync::mpsc::channel::<(usize, Vec<(usize, Update, f64)>)>();
         let fit_press = press_fitter(scope, press_tx);
@@ -384,7 +377,7 @@ pub(crate) fn smooth(
                 room,
                 (estimator, robot, frames),
                 (&mut waiting, &mut out),
-                (&mut calls.keep_going, &mut each, &mut calls.failed),
+                (&mut calls.keep_going, &mut *each, &mut calls.failed),
             )? {
                 return Ok(false);
             }
@@ -398,20 +391,13 @@ pub(crate) fn smooth(
             |pieces, _, _| pieces.settled == pieces.spawned,
             (estimator, robot, frames),
             (&mut waiting, &mut out),
-            (&mut calls.keep_going, &mut each, &mut calls.failed),
+            (&mut calls.keep_going, &mut *each, &mut calls.failed),
         )? {
             return Ok(false);
         }
-        out.finish(&mut each);
+        out.finish(each);
         Ok(true)
-    })?;
-    if !settled {
-        return Ok(false);
-    }
-    if let Some((frame, source)) = refused.into_iter().find(|(i, e)| !(calls.failed)(*i, e)) {
-        return Err(SequenceError::Frame { frame, source });
-    }
-    Ok(true)
+    })
 }
 
 /// The pieces of a smoothed recording under way: spawned, smoothed and

@@ -288,9 +288,47 @@ pub fn estimate_sequence_while(
     match (model, temporal) {
         (None, _) | (_, Temporal::None) => parallel::alone(estimator, robot, frames, calls),
         (Some(model), Temporal::Filter) => parallel::filter(estimator, robot, model, frames, calls),
-        (Some(model), Temporal::Smooth) if rayon::current_num_threads() >= pipeline::MIN_THREADS => {
-            pipeline::smooth(estimator, robot, model, frames, calls)
-        }
-        (Some(model), Temporal::Smooth) => parallel::smooth(estimator, robot, model, frames, calls),
+        (Some(model), Temporal::Smooth) => smooth(estimator, robot, model, frames, calls),
     }
+}
+
+/// Smooths `frames` on the path that suits the pool: threads of its own
+/// for the parts in order from [`pipeline::MIN_THREADS`] up, else the
+/// calling thread doing a worker's share. A smoothed frame whose estimate
+/// is not finite is left out and handed to `failed` once the presses are
+/// settled (they may still move it); the first it does not skip is the
+/// sequence's error.
+fn smooth(
+    estimator: &Estimator,
+    robot: &Robot,
+    model: &TemporalModel,
+    frames: &[SequenceFrame],
+    calls: Callbacks<impl FnMut() -> bool, impl FnMut(usize, Update, f64), impl FnMut(usize, &EstimateError) -> bool>,
+) -> Result<bool, SequenceError> {
+    let Callbacks {
+        keep_going,
+        mut each,
+        mut failed,
+    } = calls;
+    let mut refused: Vec<(usize, EstimateError)> = Vec::new();
+    let calls = Callbacks {
+        keep_going,
+        each: |i: usize, update: Update, ms: f64| match finite(update) {
+            Ok(update) => each(i, update, ms),
+            Err(source) => refused.push((i, source)),
+        },
+        failed: &mut failed,
+    };
+    let settled = if rayon::current_num_threads() >= pipeline::MIN_THREADS {
+        pipeline::smooth(estimator, robot, model, frames, calls)?
+    } else {
+        parallel::smooth(estimator, robot, model, frames, calls)?
+    };
+    if !settled {
+        return Ok(false);
+    }
+    if let Some((frame, source)) = refused.into_iter().find(|(i, e)| !failed(*i, e)) {
+        return Err(SequenceError::Frame { frame, source });
+    }
+    Ok(true)
 }
