@@ -22,10 +22,11 @@
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, Sender, SyncSender, TryRecvError, channel, sync_channel};
 use std::time::Instant;
 
-use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms, finite};
+use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms};
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Summary;
 use crate::core::over_time::frame::SequenceFrame;
@@ -91,6 +92,51 @@ impl Drop for StopOnPanic {
     }
 }
 
+/// How long each thread in order waited, and for what, ns: which part
+/// holds the others back (`RUST_LOG=proprioscope=debug` prints it once a
+/// recording is smoothed; the `device` runs read it).
+#[derive(Default)]
+struct Waits {
+    /// The feeder, for a block granted (room in memory, or the filter
+    /// [`AHEAD_BLOCKS`] behind).
+    feeder_credit: AtomicU64,
+    /// The feeder, for a block's likelihoods from the pool.
+    feeder_likelihoods: AtomicU64,
+    /// The feeder, for the filter to take a block.
+    feeder_filter: AtomicU64,
+    /// The filter, for the feeder's next block.
+    filter_feed: AtomicU64,
+    /// The calling thread, for any event.
+    calling_events: AtomicU64,
+}
+
+impl Waits {
+    /// `what()`, its time added to `to`.
+    fn timed<T>(to: &AtomicU64, what: impl FnOnce() -> T) -> T {
+        let t0 = Instant::now();
+        let out = what();
+        to.fetch_add(
+            u64::try_from(t0.elapsed().as_nanos()).unwrap_or(u64::MAX),
+            Ordering::Relaxed,
+        );
+        out
+    }
+
+    fn log(&self, wall_secs: f64) {
+        let secs = |a: &AtomicU64| a.load(Ordering::Relaxed) as f64 * 1e-9;
+        log::debug!(
+            "smoothed in {wall_secs:.2} s on {} threads; waited: feeder {:.2} s for room, {:.2} s for likelihoods, \
+             {:.2} s for the filter; filter {:.2} s for steps; calling thread {:.2} s for the others",
+            rayon::current_num_threads(),
+            secs(&self.feeder_credit),
+            secs(&self.feeder_likelihoods),
+            secs(&self.feeder_filter),
+            secs(&self.filter_feed),
+            secs(&self.calling_events),
+        );
+    }
+}
+
 /// What the feeder hands the filter.
 enum Feed {
     Block(PreparedBlock),
@@ -119,20 +165,19 @@ pub(crate) fn smooth(
     >,
 ) -> Result<bool, SequenceError> {
     let sequence: Sequence<'_> = (estimator, robot, frames);
-    let mut refused: Vec<(usize, EstimateError)> = Vec::new();
-    let mut each = |i: usize, update: Update, ms: f64| match finite(update) {
-        Ok(update) => (calls.each)(i, update, ms),
-        Err(source) => refused.push((i, source)),
-    };
-    let settled = rayon::in_place_scope(|scope| {
+    let each = &mut calls.each;
+    let waits = Waits::default();
+    let t0 = Instant::now();
+    let waits_ref = &waits;
+    let out = rayon::in_place_scope(|scope| {
         std::thread::scope(|threads| -> Result<bool, SequenceError> {
             let (events_tx, events) = channel::<Event>();
             let (credits_tx, credits) = channel::<()>();
             let (feed_tx, feed) = sync_channel::<Feed>(AHEAD_BLOCKS);
             let feeder_events = events_tx.clone();
-            threads.spawn(move || feeder(scope, sequence, model, (&credits, &feed_tx), feeder_events));
+            threads.spawn(move || feeder(scope, sequence, model, (&credits, &feed_tx), feeder_events, waits_ref));
             let filter_events = events_tx.clone();
-            threads.spawn(move || filter_thread(scope, model, &feed, &filter_events));
+            threads.spawn(move || filter_thread(scope, model, &feed, &filter_events, waits_ref));
             let fit = fitter(scope, events_tx.clone());
             // Fits answer through the events; this channel stays empty.
             let (_unused, fitted) = channel();
@@ -140,7 +185,9 @@ pub(crate) fn smooth(
             let mut state = Calling::new(InOrder::new(queue, &fit, fitted), model.store_limit_bytes());
             state.ask(&credits_tx, frames.len());
             while !state.finished() {
-                let Ok(event) = events.recv() else { break };
+                let Ok(event) = Waits::timed(&waits_ref.calling_events, || events.recv()) else {
+                    break;
+                };
                 match event {
                     Event::Filtered(block) => {
                         if !(calls.keep_going)() {
@@ -158,11 +205,11 @@ pub(crate) fn smooth(
                     Event::Stopped => return Ok(false),
                 }
                 state.settle(scope, sequence, &events_tx);
-                state.hand_on(&mut each, &mut calls.failed)?;
+                state.hand_on(each, &mut calls.failed)?;
                 state.ask(&credits_tx, frames.len());
             }
             state.out.last_press();
-            state.out.emit(&mut each);
+            state.out.emit(each);
             while state.out.presses_in_flight() > 0 {
                 let Ok(event) = events.recv() else { break };
                 match event {
@@ -170,18 +217,13 @@ pub(crate) fn smooth(
                     Event::Stopped => return Ok(false),
                     _ => {}
                 }
-                state.out.emit(&mut each);
+                state.out.emit(each);
             }
             Ok(true)
         })
-    })?;
-    if !settled {
-        return Ok(false);
-    }
-    if let Some((frame, source)) = refused.into_iter().find(|(i, e)| !(calls.failed)(*i, e)) {
-        return Err(SequenceError::Frame { frame, source });
-    }
-    Ok(true)
+    });
+    waits.log(t0.elapsed().as_secs_f64());
+    out
 }
 
 /// Fits a press as a task of `scope` that answers through the events.
@@ -369,6 +411,7 @@ fn feeder<'scope>(
     model: &TemporalModel,
     (credits, feed): (&Receiver<()>, &SyncSender<Feed>),
     events: Sender<Event>,
+    waits: &Waits,
 ) {
     let alarm = StopOnPanic(events);
     let events = &alarm.0;
@@ -379,7 +422,7 @@ fn feeder<'scope>(
     loop {
         while start < frames.len() {
             let granted = if under_way.is_empty() {
-                credits.recv().is_ok()
+                Waits::timed(&waits.feeder_credit, || credits.recv()).is_ok()
             } else {
                 match credits.try_recv() {
                     Ok(()) => true,
@@ -396,7 +439,8 @@ fn feeder<'scope>(
         let Some((parts, tasks)) = under_way.pop_front() else {
             break;
         };
-        let mut parts: Vec<(usize, Vec<LikelihoodDone>)> = parts.iter().take(tasks).collect();
+        let mut parts: Vec<(usize, Vec<LikelihoodDone>)> =
+            Waits::timed(&waits.feeder_likelihoods, || parts.iter().take(tasks).collect());
         if parts.len() < tasks {
             // A task did not answer: it panicked, and the scope says so.
             let _ = events.send(Event::Stopped);
@@ -406,7 +450,7 @@ fn feeder<'scope>(
         let block = parts.into_iter().flat_map(|(_, done)| done).collect();
         let prepared = into_steps(block, frames, &mut preparer);
         let stop = prepared.refused.is_some();
-        if feed.send(Feed::Block(prepared)).is_err() || stop {
+        if !Waits::timed(&waits.feeder_filter, || feed.send(Feed::Block(prepared)).is_ok()) || stop {
             return;
         }
     }
@@ -448,6 +492,7 @@ fn filter_thread<'scope>(
     model: &'scope TemporalModel,
     feed: &Receiver<Feed>,
     events: &Sender<Event>,
+    waits: &Waits,
 ) {
     let _alarm = StopOnPanic(events.clone());
     let mut smoother = StretchSmoother::new(model, model.store_limit_bytes());
@@ -465,7 +510,7 @@ fn filter_thread<'scope>(
         });
     };
     let last = loop {
-        let Ok(item) = feed.recv() else {
+        let Ok(item) = Waits::timed(&waits.filter_feed, || feed.recv()) else {
             // The feeder stopped: the calling thread has, or a task
             // panicked (the feeder has said so).
             return;
