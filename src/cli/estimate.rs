@@ -401,7 +401,7 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
     if !outcomes.is_empty() {
         print_metrics(&outcomes)?;
     }
-    report_slides(&slides.finish())?;
+    report_slides(&robot, &slides.finish())?;
     if args.press_gaps {
         let gaps = args.estimator.with_threads(|| {
             session_gaps(
@@ -435,8 +435,9 @@ fn slide_places(robot: &Robot, update: &Update, truth: &Truth) -> (Option<(usize
 }
 
 /// The presses that slid: how long their estimated paths were against
-/// the true ones (`docs/validation.md`, *Sliding contacts*).
-fn report_slides(paths: &[SlidePath]) -> Result<()> {
+/// the true ones (`docs/validation.md`, *Sliding contacts*); each press's
+/// at debug level (`RUST_LOG=proprioscope=debug`).
+fn report_slides(robot: &Robot, paths: &[SlidePath]) -> Result<()> {
     let ratios: Vec<f64> = paths
         .iter()
         .filter_map(SlidePath::relative_error)
@@ -444,6 +445,15 @@ fn report_slides(paths: &[SlidePath]) -> Result<()> {
         .collect();
     if ratios.is_empty() {
         return Ok(());
+    }
+    for (n, path) in paths.iter().enumerate().filter(|(_, p)| p.slid()) {
+        log::debug!(
+            "press {n}: {}, {} frames, true path {:.1} mm, estimated {:.1} mm",
+            robot.links.get(path.link).map_or("?", |l| l.name.as_str()),
+            path.frames,
+            path.true_length_m * 1e3,
+            path.estimated_length_m * 1e3
+        );
     }
     let within = ratios.iter().filter(|&&r| (r - 1.0).abs() <= 0.2).count();
     outln!(
