@@ -153,16 +153,20 @@ fn the_shared_two_contact_example() {
     ]);
     assert!(ok, "{err}");
     let (both, error_mm, one) = two_contact_figures(&out);
-    // Measured: 78.3 %, 20.8 mm, 0.0 % (docs/validation.md, *Two
-    // contacts*); before each run of pairs was carried into the frames
+    // Measured: 91.6 %, 30.6 mm, 0.0 % (docs/validation.md, *Two
+    // contacts*); before a pair established over 0.1 s was carried into
+    // the frames beside it against its other contact held in place, 78.3 %
+    // and 20.8 mm (the frames it adds are the link 7 probe's rise to 7 N,
+    // placed about 35 mm off as in the frames where that probe presses
+    // alone); before each run of pairs was carried into the frames
     // beside it that one contact explains, 72.3 % and 21.1 mm; before
     // frames one push alone explains were bridged by the frames beside
     // them, 65.1 %; before pairs split across the wrist were searched
     // again, 74.7 %, 26.9 mm and the link 5 probe 23.1 mm off.
-    assert!(both >= 76.0, "{out}");
-    assert!(error_mm <= 25.0, "{out}");
+    assert!(both >= 88.0, "{out}");
+    assert!(error_mm <= 35.0, "{out}");
     assert!(one <= 2.0, "{out}");
-    // Each probe's median error where two are called (10.3 and 34.7 mm):
+    // Each probe's median error where two are called (11.1 and 35.5 mm):
     // the link 5 probe within 20 mm, the bound.
     let link5 = common::figure_after(&out, "each contact's median error", "lwr_5_link ");
     assert!(link5 <= 20.0, "{out}");
