@@ -19,6 +19,7 @@ use crate::core::estimate::pair_held::HeldPair;
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Verdict;
 use crate::core::eval::metrics::percentile;
+use crate::core::numerics::special::logistic;
 use crate::core::over_time::frame::SequenceFrame;
 use crate::core::over_time::pairs::{
     ChainFilter, NO_PAIR_LOG_RATIO, PairSketch, PairTracker, SecondContactChain, bridged,
@@ -489,8 +490,10 @@ fn carry_step(
         let Some(log_ratio) = held_pair_log_ratio(estimator, robot, frame, &account, now_new, new_log_occam) else {
             return Ok(None);
         };
-        // The chain over the frames weighs this frame by the same ratio.
+        // The account says so (the chain over the frames weighs this
+        // frame by the same ratio).
         account.log_evidence_one = account.log_evidence_two - log_ratio;
+        account.probability_two = logistic(log_ratio + prior_log_odds);
         log_ratio + prior_log_odds > 0.0
             && matches!(
                 account.unidentifiable,
