@@ -14,7 +14,7 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms};
-use crate::core::estimate::pair::{HeldPush, PairEstimate, PairSettings, Placed, Unidentifiable};
+use crate::core::estimate::pair::{HeldPush, PairContact, PairEstimate, PairSettings, Placed, Unidentifiable};
 use crate::core::estimate::pair_held::HeldPair;
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Verdict;
@@ -25,6 +25,7 @@ use crate::core::over_time::pairs::{
     ChainFilter, NO_PAIR_LOG_RATIO, PairSketch, PairTracker, SecondContactChain, bridged,
 };
 use crate::core::over_time::sequence::Temporal;
+use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::{LinkId, Robot};
 use crate::io::session::{ContactTruth, Frame};
 
@@ -388,9 +389,26 @@ fn carry_pairs(
             else {
                 continue;
             };
-            // The run's edge puts the contact nearer its single contact
-            // first: the other is the one that arrives or leaves.
-            let mut new = 1;
+            // Beside an established pair, the single contact the frames
+            // beyond the edge hold says which contact stays (the one on
+            // its link, nearer its place) and where one contact stood.
+            let anchor = if established {
+                anchor_push(frames, singles, k, backward)
+            } else {
+                None
+            };
+            // Else the run's edge puts the contact nearer its single
+            // contact first: the other is the one that arrives or leaves.
+            let mut new = anchor.map_or(1, |a| {
+                let off = |p: &Placed| {
+                    if p.link == a.link {
+                        p.point_in_link.distance(a.point_in_link)
+                    } else {
+                        f64::INFINITY
+                    }
+                };
+                usize::from(off(&held[0]) <= off(&held[1]))
+            });
             let mut j = k;
             while let Some(next) = if backward {
                 j.checked_sub(1)
@@ -411,7 +429,13 @@ fn carry_pairs(
                     single,
                     pair_settings,
                     (&held, new),
-                    established,
+                    if established {
+                        Beside::Established {
+                            anchor: anchor.as_ref(),
+                        }
+                    } else {
+                        Beside::Short
+                    },
                 )
                 .map_err(|e| (next, e))?;
                 if let Some(ms) = search_ms.get_mut(next) {
@@ -443,7 +467,7 @@ fn carry_pairs(
 /// that the push held before explains), its contacts are `held`'s, each
 /// within the separation, and the pair is the better account of the
 /// frame: as [`held_pair_log_ratio`] weighs it beside a pair the frames
-/// have `established`, else
+/// have established ([`Beside`]), else
 /// - the pair is more probable than one contact, and identifiable but
 ///   for one of its pushes alone explaining the torques within the noise
 ///   (a χ² threshold, as [`bridged`] reads it);
@@ -461,7 +485,7 @@ fn carry_step(
     single: &SingleSeen,
     pair_settings: &PairSettings,
     (held, new): (&[Placed; 2], usize),
-    established: bool,
+    beside: Beside<'_>,
 ) -> Result<Option<(PairEstimate, usize)>, EstimateError> {
     if !single.explained {
         return Ok(None);
@@ -486,8 +510,8 @@ fn carry_step(
         usize::from(off(b) < off(a))
     });
     let prior_log_odds = pair_settings.prior_two.ln() - (-pair_settings.prior_two).ln_1p();
-    let kept = if established {
-        let Some(log_ratio) = held_pair_log_ratio(estimator, robot, frame, &account, now_new, new_log_occam) else {
+    let kept = if let Beside::Established { anchor } = beside {
+        let Some(log_ratio) = held_pair_log_ratio(estimator, robot, frame, &account, new_log_occam, anchor) else {
             return Ok(None);
         };
         // The account says so (the chain over the frames weighs this
@@ -511,34 +535,114 @@ fn carry_step(
     Ok((kept && same_places(&account, held, pair_settings.separation_m)).then_some((account, now_new)))
 }
 
-/// `ln Z₂/Z₁` of a frame beside a pair the frames have established, with
-/// one contact meaning the pair's other contact alone, held where the
-/// pair has it (its push's direction kept, its magnitude fitted), and
-/// the new contact paying its Occam factor near where it was
-/// (`new_log_occam`); `None` where the push has no direction. A frame
-/// alone weighs the pair against one contact anywhere, and a single
-/// contact free to move takes up a second push of a few newtons by
-/// drifting along its link: on the `../shared` two-contact example the
-/// link-5 probe's place drifts 7 → 21 mm while the link-7 probe's push
-/// rises to 7 N, and no frame of the rise was called two. But the
+/// What a run of frames called two is, for the frames beside it.
+#[derive(Debug, Clone, Copy)]
+enum Beside<'a> {
+    /// Shorter than [`ESTABLISHED_PAIR_SECS`].
+    Short,
+    /// As long or longer, with the single contact that the frames beyond
+    /// its edge hold ([`anchor_push`]), where any.
+    Established { anchor: Option<&'a HeldPush> },
+}
+
+/// `ln Z₂/Z₁` of a frame beside a pair the frames have established, the
+/// new contact paying its Occam factor near where it was
+/// (`new_log_occam`), with one contact meaning the better of: either of
+/// the pair's contacts alone, held where the pair has it and pushing
+/// the way it pushes there (its magnitude fitted: the pair with the
+/// other push taken away); and `anchor`, the single contact where the
+/// frames beyond the run's edge hold it ([`anchor_push`]), pushing the
+/// way it pushed there. `None` where no such push can be fitted.
+///
+/// A frame alone weighs the pair against one contact anywhere, and a
+/// single contact free to move takes up a second push of a few newtons
+/// by drifting along its link: on the `../shared` two-contact example
+/// the link-5 probe's place drifts 7 → 21 mm while the link-7 probe's
+/// push rises to 7 N, and no frame of the rise was called two. But the
 /// frames before and after say where the first contact is, and it does
-/// not move by centimetres in the 50 ms a rise takes.
+/// not move by centimetres in the 50 ms a rise takes. The anchor keeps
+/// a pair whose staying contact the search moved off its place from
+/// winning by that shift alone: on a generated two-hand session
+/// (`synth --contacts 2 --avoid-covered --seed 1`) the pair's link-5
+/// contact sat 7–24 mm off a held press that the single contact placed
+/// within 1 mm, and its extra 1–2 N on link 7 was carried into 35 of the
+/// 195 frames where one hand presses; with the anchor, 1.
 fn held_pair_log_ratio(
     estimator: &Estimator,
     robot: &Robot,
     frame: &SequenceFrame<'_>,
     account: &PairEstimate,
-    new: usize,
     new_log_occam: f64,
+    anchor: Option<&HeldPush>,
 ) -> Option<f64> {
-    let other = &account.contacts.get(1 - new.min(1))?.placed;
-    let alone = HeldPush {
-        link: other.link,
-        point_in_link: other.point_in_link,
-        force_in_link: other.inward_normal_in_link,
+    let pose = RobotPose::new(robot, frame.joint_positions);
+    let chi2 = |held: &HeldPush| estimator.held_push_chi2(robot, frame.joint_positions, frame.tau, held);
+    let alone = |contact: &PairContact| {
+        let link_from_world = pose.world_from_link.get(contact.placed.link)?.inverse();
+        chi2(&HeldPush {
+            link: contact.placed.link,
+            point_in_link: contact.placed.point_in_link,
+            force_in_link: link_from_world.transform_vector3(contact.force_world),
+        })
     };
-    let chi2_alone = estimator.held_push_chi2(robot, frame.joint_positions, frame.tau, &alone)?;
-    Some(0.5 * (chi2_alone - account.residual_chi2) + new_log_occam)
+    let [a, b] = account.contacts.each_ref().map(alone);
+    let chi2_one = a.into_iter().chain(b).chain(anchor.and_then(chi2)).reduce(f64::min)?;
+    Some(0.5 * (chi2_one - account.residual_chi2) + new_log_occam)
+}
+
+/// How far beyond a run's edge, s, the frames that say where its staying
+/// contact stood alone are read ([`anchor_push`]).
+const ANCHOR_SECS: f64 = 0.5;
+
+/// The single contact that the frames beyond the edge `k` of a run of
+/// frames called two (before it where `backward`) hold where one contact
+/// explains them, within [`ANCHOR_SECS`] of the edge and up to the first
+/// frame without contact: of the pushes on the link most of them are
+/// on, the one whose place is nearest the others' (their medoid: a
+/// contact that drifts while a second push rises, or stands off for a
+/// frame, is outvoted by the frames where it stood); `None` where no
+/// such frame is.
+fn anchor_push(
+    frames: &[SequenceFrame<'_>],
+    singles: &[Option<SingleSeen>],
+    k: usize,
+    backward: bool,
+) -> Option<HeldPush> {
+    let t_edge = frames.get(k)?.t_secs;
+    let mut pushes = Vec::new();
+    let mut j = k;
+    while let Some(next) = if backward {
+        j.checked_sub(1)
+    } else {
+        Some(j + 1).filter(|&x| x < frames.len())
+    } {
+        let (Some(frame), Some(Some(single))) = (frames.get(next), singles.get(next)) else {
+            break;
+        };
+        if (frame.t_secs - t_edge).abs() > ANCHOR_SECS {
+            break;
+        }
+        if single.explained
+            && let Some(push) = single.push
+        {
+            pushes.push(push);
+        }
+        j = next;
+    }
+    let mut counts: BTreeMap<LinkId, usize> = BTreeMap::new();
+    for push in &pushes {
+        *counts.entry(push.link).or_default() += 1;
+    }
+    let link = counts.iter().max_by_key(|&(_, n)| *n).map(|(&link, _)| link)?;
+    pushes.retain(|p| p.link == link);
+    pushes
+        .iter()
+        .map(|p| {
+            let spread: f64 = pushes.iter().map(|q| q.point_in_link.distance(p.point_in_link)).sum();
+            (spread, p)
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, p)| *p)
 }
 
 /// Frames called two this close together, s, are one run for
@@ -871,5 +975,76 @@ mod tests {
         // 21 frames at 200 Hz span 0.1 s; 20 span 0.095 s.
         assert!(span_at(&run(21), 5) >= ESTABLISHED_PAIR_SECS);
         assert!(span_at(&run(20), 5) < ESTABLISHED_PAIR_SECS);
+    }
+
+    /// Frames at 200 Hz from 0 s.
+    fn frames_at_200_hz(n: usize) -> Vec<SequenceFrame<'static>> {
+        (0..n)
+            .map(|i| SequenceFrame {
+                t_secs: 0.005 * i as f64,
+                joint_positions: &[],
+                tau: &[],
+            })
+            .collect()
+    }
+
+    /// A single contact on `link` at `x` m along its x axis, explained.
+    fn seen_at(link: LinkId, x: f64) -> SingleSeen {
+        SingleSeen {
+            point: 0,
+            force_newtons: 10.0,
+            explained: true,
+            push: Some(HeldPush {
+                link,
+                point_in_link: DVec3::new(x, 0.0, 0.0),
+                force_in_link: DVec3::new(0.0, 0.0, -10.0),
+            }),
+        }
+    }
+
+    #[test]
+    fn where_one_contact_stood_is_read_from_most_frames_beyond_the_edge() {
+        let frames = frames_at_200_hz(200);
+        // A press on link 5 at 0.02 m from frame 10, drifting from frame
+        // 60 while a second push rises; the run called two begins at 80,
+        // and its frames' singles are on link 7.
+        let singles: Vec<Option<SingleSeen>> = (0..200)
+            .map(|i| match i {
+                0..10 => None,
+                10..60 => Some(seen_at(5, 0.02)),
+                60..80 => Some(seen_at(5, 0.02 + 0.001 * f64::from(i - 59))),
+                _ => Some(seen_at(7, 0.0)),
+            })
+            .collect();
+        let anchor = anchor_push(&frames, &singles, 80, true).unwrap();
+        assert_eq!(anchor.link, 5);
+        assert!((anchor.point_in_link.x - 0.02).abs() < 1e-12, "{anchor:?}");
+        // After the run's edge at 120: link 7, the frames beyond.
+        assert_eq!(anchor_push(&frames, &singles, 120, false).unwrap().link, 7);
+    }
+
+    #[test]
+    fn where_one_contact_stood_stops_at_a_frame_without_contact_and_half_a_second_out() {
+        let frames = frames_at_200_hz(300);
+        // No contact at 50: nothing before it is read from the edge at 60.
+        let mut singles: Vec<Option<SingleSeen>> = (0..300).map(|_| Some(seen_at(5, 0.03))).collect();
+        singles[50] = None;
+        for single in singles.iter_mut().take(50) {
+            *single = Some(seen_at(6, 0.0));
+        }
+        assert_eq!(anchor_push(&frames, &singles, 60, true).unwrap().link, 5);
+        // Frames not explained by their single contact are not read.
+        for single in singles.iter_mut().skip(51).take(9).flatten() {
+            single.explained = false;
+        }
+        assert!(anchor_push(&frames, &singles, 60, true).is_none());
+        // Beyond half a second (100 frames) from the edge, frames are not
+        // read: link 6 at 120–199 outnumbers link 5 within it from the
+        // edge at 230 (70 to 30), not from the edge at 299 (1 to 99).
+        for single in singles.iter_mut().skip(120).take(80) {
+            *single = Some(seen_at(6, 0.0));
+        }
+        assert_eq!(anchor_push(&frames, &singles, 299, true).unwrap().link, 5);
+        assert_eq!(anchor_push(&frames, &singles, 230, true).unwrap().link, 6);
     }
 }
