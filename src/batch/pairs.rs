@@ -401,8 +401,8 @@ fn carry_pairs(
             // contact first: the other is the one that arrives or leaves.
             let mut new = anchor.map_or(1, |a| {
                 let off = |p: &Placed| {
-                    if p.link == a.link {
-                        p.point_in_link.distance(a.point_in_link)
+                    if p.link == a.push.link {
+                        p.point_in_link.distance(a.push.point_in_link)
                     } else {
                         f64::INFINITY
                     }
@@ -421,12 +421,16 @@ fn carry_pairs(
                 let (Some(frame), Some(Some(single))) = (frames.get(next), singles.get(next)) else {
                     break;
                 };
+                let own_log_ratio = found
+                    .get(next)
+                    .and_then(|p| p.as_ref())
+                    .map(PairEstimate::log_evidence_ratio);
                 let t0 = Instant::now();
                 let step = carry_step(
                     estimator,
                     robot,
                     frame,
-                    single,
+                    (single, own_log_ratio),
                     pair_settings,
                     (&held, new),
                     if established {
@@ -459,12 +463,15 @@ fn carry_pairs(
 }
 
 /// The pair `held` (`held[new]` the contact that arrives or leaves)
-/// carried into `frame`, whose single contact is `single`: its account
-/// there and which of its contacts is the new one, or `None` where it is
-/// not kept. Kept where one contact explains the frame (a frame searched
-/// has its own pair and rules: a slide that drags beyond the friction
-/// cone is a pair there, 30–120 nats above one contact within the cone,
-/// that the push held before explains), its contacts are `held`'s, each
+/// carried into `frame`, whose single contact is `single` and whose own
+/// search's `ln Z₂/Z₁` is `own_log_ratio` (`None`: not searched): its
+/// account there and which of its contacts is the new one, or `None`
+/// where it is not kept. Kept where one contact explains the frame (a
+/// frame searched has its own pair and rules: a slide that drags beyond
+/// the friction cone is a pair there, 30–120 nats above one contact
+/// within the cone, that the push held before explains), or, beside an
+/// established pair, where the frame's own search found two more
+/// probable than one; where its contacts are `held`'s, each
 /// within the separation, and the pair is the better account of the
 /// frame: as [`held_pair_log_ratio`] weighs it beside a pair the frames
 /// have established ([`Beside`]), else
@@ -482,12 +489,17 @@ fn carry_step(
     estimator: &Estimator,
     robot: &Robot,
     frame: &SequenceFrame<'_>,
-    single: &SingleSeen,
+    (single, own_log_ratio): (&SingleSeen, Option<f64>),
     pair_settings: &PairSettings,
     (held, new): (&[Placed; 2], usize),
     beside: Beside<'_>,
 ) -> Result<Option<(PairEstimate, usize)>, EstimateError> {
-    if !single.explained {
+    // A frame searched on its own is carried into only beside an
+    // established pair, and only where its own pair is already more
+    // probable than one contact anywhere (it fails an identifiability
+    // rule that the run beside has settled).
+    let searched_and_two = matches!(beside, Beside::Established { .. }) && own_log_ratio.is_some_and(|r| r > 0.0);
+    if !single.explained && !searched_and_two {
         return Ok(None);
     }
     let Some(HeldPair {
@@ -511,7 +523,16 @@ fn carry_step(
     });
     let prior_log_odds = pair_settings.prior_two.ln() - (-pair_settings.prior_two).ln_1p();
     let kept = if let Beside::Established { anchor } = beside {
-        let Some(log_ratio) = held_pair_log_ratio(estimator, robot, frame, &account, new_log_occam, anchor) else {
+        // The frame's own single contact is one contact where it stood
+        // if it stands as near the anchor as the frames beyond did.
+        let own_single = single.push.filter(|p| {
+            single.explained
+                && anchor.is_some_and(|a| {
+                    a.push.link == p.link && a.push.point_in_link.distance(p.point_in_link) <= a.radius_m
+                })
+        });
+        let anchors = [anchor.map(|a| &a.push), own_single.as_ref()];
+        let Some(log_ratio) = held_pair_log_ratio(estimator, robot, frame, &account, new_log_occam, anchors) else {
             return Ok(None);
         };
         // The account says so (the chain over the frames weighs this
@@ -542,7 +563,7 @@ enum Beside<'a> {
     Short,
     /// As long or longer, with the single contact that the frames beyond
     /// its edge hold ([`anchor_push`]), where any.
-    Established { anchor: Option<&'a HeldPush> },
+    Established { anchor: Option<&'a Anchor> },
 }
 
 /// `ln Z₂/Z₁` of a frame beside a pair the frames have established, the
@@ -550,9 +571,10 @@ enum Beside<'a> {
 /// (`new_log_occam`), with one contact meaning the better of: either of
 /// the pair's contacts alone, held where the pair has it and pushing
 /// the way it pushes there (its magnitude fitted: the pair with the
-/// other push taken away); and `anchor`, the single contact where the
-/// frames beyond the run's edge hold it ([`anchor_push`]), pushing the
-/// way it pushed there. `None` where no such push can be fitted.
+/// other push taken away); and each of `anchors`, single contacts where
+/// one contact stood (the frames beyond the run's edge, [`anchor_push`],
+/// and the frame's own where it stands as near), pushing the way they
+/// pushed there. `None` where no such push can be fitted.
 ///
 /// A frame alone weighs the pair against one contact anywhere, and a
 /// single contact free to move takes up a second push of a few newtons
@@ -573,7 +595,7 @@ fn held_pair_log_ratio(
     frame: &SequenceFrame<'_>,
     account: &PairEstimate,
     new_log_occam: f64,
-    anchor: Option<&HeldPush>,
+    anchors: [Option<&HeldPush>; 2],
 ) -> Option<f64> {
     let pose = RobotPose::new(robot, frame.joint_positions);
     let chi2 = |held: &HeldPush| estimator.held_push_chi2(robot, frame.joint_positions, frame.tau, held);
@@ -586,8 +608,22 @@ fn held_pair_log_ratio(
         })
     };
     let [a, b] = account.contacts.each_ref().map(alone);
-    let chi2_one = a.into_iter().chain(b).chain(anchor.and_then(chi2)).reduce(f64::min)?;
+    let chi2_one = a
+        .into_iter()
+        .chain(b)
+        .chain(anchors.into_iter().flatten().filter_map(chi2))
+        .reduce(f64::min)?;
     Some(0.5 * (chi2_one - account.residual_chi2) + new_log_occam)
+}
+
+/// Where one contact stood beyond the edge of a run of frames called two.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Anchor {
+    /// The single contact there ([`anchor_push`]).
+    push: HeldPush,
+    /// How far the single contacts there stood from it, m: four in five
+    /// within this.
+    radius_m: f64,
 }
 
 /// How far beyond a run's edge, s, the frames that say where its staying
@@ -600,14 +636,14 @@ const ANCHOR_SECS: f64 = 0.5;
 /// frame without contact: of the pushes on the link most of them are
 /// on, the one whose place is nearest the others' (their medoid: a
 /// contact that drifts while a second push rises, or stands off for a
-/// frame, is outvoted by the frames where it stood); `None` where no
-/// such frame is.
+/// frame, is outvoted by the frames where it stood), and how far four in
+/// five of them stand from it; `None` where no such frame is.
 fn anchor_push(
     frames: &[SequenceFrame<'_>],
     singles: &[Option<SingleSeen>],
     k: usize,
     backward: bool,
-) -> Option<HeldPush> {
+) -> Option<Anchor> {
     let t_edge = frames.get(k)?.t_secs;
     let mut pushes = Vec::new();
     let mut j = k;
@@ -642,7 +678,18 @@ fn anchor_push(
             (spread, p)
         })
         .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, p)| *p)
+        .map(|(_, p)| {
+            let mut off: Vec<f64> = pushes
+                .iter()
+                .map(|q| q.point_in_link.distance(p.point_in_link))
+                .collect();
+            off.sort_by(f64::total_cmp);
+            let at = (off.len().saturating_sub(1) * 4 + 2) / 5;
+            Anchor {
+                push: *p,
+                radius_m: off.get(at).copied().unwrap_or(0.0),
+            }
+        })
 }
 
 /// Frames called two this close together, s, are one run for
@@ -1017,10 +1064,15 @@ mod tests {
             })
             .collect();
         let anchor = anchor_push(&frames, &singles, 80, true).unwrap();
-        assert_eq!(anchor.link, 5);
-        assert!((anchor.point_in_link.x - 0.02).abs() < 1e-12, "{anchor:?}");
+        assert_eq!(anchor.push.link, 5);
+        assert!((anchor.push.point_in_link.x - 0.02).abs() < 1e-12, "{anchor:?}");
+        // Of the 70 frames within half a second before frame 80 (10–79),
+        // 50 stand at 0.02 m and 20 drift 1–20 mm: four in five within
+        // 6 mm (of the 70 distances sorted, the one at 69 × 4/5 = 55.2,
+        // rounded: 55, 0-based).
+        assert!((anchor.radius_m - 0.006).abs() < 1e-12, "{anchor:?}");
         // After the run's edge at 120: link 7, the frames beyond.
-        assert_eq!(anchor_push(&frames, &singles, 120, false).unwrap().link, 7);
+        assert_eq!(anchor_push(&frames, &singles, 120, false).unwrap().push.link, 7);
     }
 
     #[test]
@@ -1032,7 +1084,7 @@ mod tests {
         for single in singles.iter_mut().take(50) {
             *single = Some(seen_at(6, 0.0));
         }
-        assert_eq!(anchor_push(&frames, &singles, 60, true).unwrap().link, 5);
+        assert_eq!(anchor_push(&frames, &singles, 60, true).unwrap().push.link, 5);
         // Frames not explained by their single contact are not read.
         for single in singles.iter_mut().skip(51).take(9).flatten() {
             single.explained = false;
@@ -1044,7 +1096,7 @@ mod tests {
         for single in singles.iter_mut().skip(120).take(80) {
             *single = Some(seen_at(6, 0.0));
         }
-        assert_eq!(anchor_push(&frames, &singles, 299, true).unwrap().link, 5);
-        assert_eq!(anchor_push(&frames, &singles, 230, true).unwrap().link, 6);
+        assert_eq!(anchor_push(&frames, &singles, 299, true).unwrap().push.link, 5);
+        assert_eq!(anchor_push(&frames, &singles, 230, true).unwrap().push.link, 6);
     }
 }
