@@ -588,7 +588,7 @@ enum Beside<'a> {
 /// (`synth --contacts 2 --avoid-covered --seed 1`) the pair's link-5
 /// contact sat 7–24 mm off a held press that the single contact placed
 /// within 1 mm, and its extra 1–2 N on link 7 was carried into 35 of the
-/// 195 frames where one hand presses; with the anchor, 1.
+/// 195 frames where one hand presses; with the anchors, none.
 fn held_pair_log_ratio(
     estimator: &Estimator,
     robot: &Robot,
