@@ -290,25 +290,10 @@ fn each_contact_is_scored_beside_the_other_and_alone() {
 /// every press, and scores every frame where both press.
 #[test]
 fn a_synthesized_two_hand_session_is_estimated_and_scored() {
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("two-hands");
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::temp_dir("two_contacts_hands");
     let path = dir.join("two-hands.session.json");
+    synth_two_hands(&path, "2", false);
     let path = path.to_str().unwrap();
-    let (ok, _, err) = common::run_out(&[
-        "synth",
-        path,
-        "--contacts",
-        "2",
-        "--seconds",
-        "6",
-        "--rate",
-        "100",
-        "--seed",
-        "2",
-        "--links",
-        "lwr_4_link,lwr_5_link,lwr_6_link,lwr_7_link",
-    ]);
-    assert!(ok, "{err}");
     let session: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     let frames = session["frames"].as_array().unwrap();
     let both = frames
@@ -326,12 +311,10 @@ fn a_synthesized_two_hand_session_is_estimated_and_scored() {
     assert!(detected >= 95.0, "{out}");
 }
 
-/// `synth --contacts 2 --avoid-covered --seed SEED` (6 s at 100 Hz, links
-/// 4–7), estimated with two contacts, smoothed: its standard output.
-fn two_hands_smoothed(seed: &str) -> String {
-    let dir = common::temp_dir(&format!("two_contacts_hands_{seed}"));
-    let path = dir.join("two-hands.json");
-    let (ok, _, err) = common::run_out(&[
+/// `synth PATH --contacts 2 --seed SEED` (6 s at 100 Hz, a second hand
+/// on links 4–7), with `--avoid-covered` where asked.
+fn synth_two_hands(path: &std::path::Path, seed: &str, avoid_covered: bool) {
+    let mut args = vec![
         "synth",
         path.to_str().unwrap(),
         "--contacts",
@@ -344,9 +327,20 @@ fn two_hands_smoothed(seed: &str) -> String {
         seed,
         "--links",
         "lwr_4_link,lwr_5_link,lwr_6_link,lwr_7_link",
-        "--avoid-covered",
-    ]);
+    ];
+    if avoid_covered {
+        args.push("--avoid-covered");
+    }
+    let (ok, _, err) = common::run_out(&args);
     assert!(ok, "{err}");
+}
+
+/// [`synth_two_hands`] with `--avoid-covered`, estimated with two
+/// contacts, smoothed: its standard output.
+fn two_hands_smoothed(seed: &str) -> String {
+    let dir = common::temp_dir(&format!("two_contacts_hands_{seed}"));
+    let path = dir.join("two-hands.json");
+    synth_two_hands(&path, seed, true);
     smoothed_pairs(&path, &dir.join("out.jsonl"))
 }
 

@@ -400,13 +400,7 @@ fn carry_pairs(
             // Else the run's edge puts the contact nearer its single
             // contact first: the other is the one that arrives or leaves.
             let mut new = anchor.map_or(1, |a| {
-                let off = |p: &Placed| {
-                    if p.link == a.push.link {
-                        p.point_in_link.distance(a.push.point_in_link)
-                    } else {
-                        f64::INFINITY
-                    }
-                };
+                let off = |p: &Placed| off_place(p, a.push.link, a.push.point_in_link);
                 usize::from(off(&held[0]) <= off(&held[1]))
             });
             let mut j = k;
@@ -511,13 +505,7 @@ fn carry_step(
     };
     // The new contact is the one nearer where it was.
     let now_new = held.get(new).map_or(1, |before| {
-        let off = |p: &Placed| {
-            if p.link == before.link {
-                p.point_in_link.distance(before.point_in_link)
-            } else {
-                f64::INFINITY
-            }
-        };
+        let off = |p: &Placed| off_place(p, before.link, before.point_in_link);
         let [a, b] = account.contacts.each_ref().map(|c| &c.placed);
         usize::from(off(b) < off(a))
     });
@@ -745,6 +733,16 @@ fn called_span_secs(frames: &[SequenceFrame<'_>], called: &[bool], k: usize) -> 
         }
     }
     last - first
+}
+
+/// How far `placed` is from `point_in_link` on `link`, m (infinite on
+/// another link).
+fn off_place(placed: &Placed, link: LinkId, point_in_link: DVec3) -> f64 {
+    if placed.link == link {
+        placed.point_in_link.distance(point_in_link)
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// Whether `account`'s contacts are `held`'s: each on the same link as
