@@ -131,7 +131,7 @@ pub struct ProprioscopeApp {
     visited: std::collections::VecDeque<(EstimateInputs, Outcome)>,
     /// The estimate asked of the worker last, and what it depends on.
     pending: Option<(u64, EstimateInputs)>,
-    /// Session frames shown again from [`Self::visited`] (for tests).
+    /// Session frames shown again from `Self::visited` (for tests).
     pub visited_hits: usize,
     /// A scene, URDF or robot being opened in the background.
     opening: Option<worker::Background<AppStart>>,
@@ -346,12 +346,12 @@ impl ProprioscopeApp {
         self.session.estimates.get(replay.frame).copied().flatten()
     }
 
-    /// The over-time contact's track over the last [`TRACK_SECS`] of the
+    /// The over-time contact's track over the last `TRACK_SECS` of the
     /// session up to the frame shown, while it stays on one link: each
     /// place taken into its link's frame at its own frame's pose, then
     /// into the world at the pose shown (so the track is where the contact
     /// went over the link, the arm's own motion left out); at most
-    /// [`TRACK_POINTS`] points, oldest first.
+    /// `TRACK_POINTS` points, oldest first.
     #[must_use]
     pub fn over_time_track(&self) -> Vec<DVec3> {
         let (Some(replay), Some(now)) = (self.model.replay.as_ref(), self.over_time_estimate()) else {

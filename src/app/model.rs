@@ -19,7 +19,7 @@ pub struct Push {
     pub force_newtons: f64,
 }
 
-/// Everything the user can change; changed only by [`Command`]s.
+/// Everything the user can change; changed only by `Command`s.
 #[derive(Debug, Clone)]
 pub struct Model {
     /// The robot.

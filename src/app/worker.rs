@@ -102,7 +102,7 @@ impl Worker {
     /// a panic inside `serve` is caught, logged on standard error and
     /// answered as an error outcome naming it, and the thread goes on with
     /// the next request (`serve` keeps no state a panic could leave half
-    /// made: see [`serve`]).
+    /// made: see `serve`).
     pub fn spawn_with<S>(wake: impl Fn() + Send + 'static, serve: S) -> Self
     where
         S: FnMut(&Request) -> Outcome + Send + 'static,

@@ -171,7 +171,7 @@ impl LiveSource {
 }
 
 impl Drop for LiveSource {
-    /// The thread ends within [`POLL`] and frees the address.
+    /// The thread ends within `POLL` and frees the address.
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
     }

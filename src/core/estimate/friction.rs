@@ -10,7 +10,7 @@
 //! the likelihood with g marginalised, and g is its posterior mean given
 //! that magnitude; places are compared by that marginal likelihood (the
 //! refinement's search on the surface, [`crate::core::estimate::refine`], minimises
-//! [`Fit::cost`]), so a tangential force no longer drags the place to
+//! `Fit::cost`), so a tangential force no longer drags the place to
 //! where the normal lies along the whole force. With torques `u` per
 //! newton of push and `J`
 //! (two columns) per newton along the tangents, `W = 1/σ²`:

@@ -12,6 +12,7 @@ pub mod observability;
 pub mod pair;
 pub mod pair_grid;
 pub mod pair_held;
+pub mod pair_identifiable;
 pub mod phases;
 pub mod place_spread;
 pub mod posterior;

@@ -1,7 +1,9 @@
 //! Tests of [`super`]: `pair.rs`.
 
 use super::*;
+use crate::core::estimate::contact::UnitTorqueSource;
 use crate::core::estimate::pair_grid::{COARSE_SAMPLES, best_magnitudes, coarse_pair};
+use crate::core::estimate::pair_identifiable::confirmed;
 use crate::core::numerics::rng::Rng;
 use crate::core::robot::builtin;
 use crate::core::robot::model::Robot;

@@ -4,7 +4,7 @@
 //! its magnitude, until the step is below a micrometre. The answer is the
 //! best point of the surface, not of the samples. With friction
 //! ([`Measurement::friction`]) "best" is the friction model's: the steps
-//! read the torques through that model's noise ([`Metric`]) and a step is
+//! read the torques through that model's noise (`Metric`) and a step is
 //! kept when it raises its marginal likelihood.
 
 use glam::DVec3;

@@ -56,7 +56,7 @@ pub struct EstimatorSettings {
     pub phase_alpha: Option<f64>,
     /// Exact mode (ours): each surface point stands for the patch of
     /// surface around it, and its mass is the likelihood integrated over
-    /// that patch (see [`patch_terms`]) rather than taken at the point.
+    /// that patch (see `patch_terms`) rather than taken at the point.
     /// `false` is the thesis' model (a point is a point); particle modes
     /// ignore it.
     pub patches: bool,

@@ -36,7 +36,7 @@ pub struct OrientReport {
 }
 
 impl TriMesh {
-    /// A mesh from positions and triangles (indices are checked by [`TriMesh::validate`]).
+    /// A mesh from positions and triangles (indices are checked by `TriMesh::validate`).
     #[must_use]
     pub fn new(positions: Vec<DVec3>, triangles: Vec<[u32; 3]>) -> Self {
         Self { positions, triangles }

@@ -159,7 +159,7 @@ pub fn ln_erfcx_parts_lanes<const L: usize>(x: &[f64; L], coefficients: &[f64; E
     (t, p)
 }
 
-/// What [`ln_erf_difference_many`] needs, fetched once.
+/// What `ln_erf_difference_many` needs, fetched once.
 #[derive(Debug, Clone, Copy)]
 pub struct ErfTable {
     coefficients: &'static [f64; ERFCX_DEGREE],

@@ -761,7 +761,7 @@ pub const PRESS_BRIDGE_SECS: f64 = 0.025;
 /// of the contact frames. Bridged,
 /// the press is fitted whole with kinetic friction and kept whole only
 /// where it stays on its link and costs no more than its pieces (see
-/// [`PressJob::fit`]): 99 % (`docs/decisions.md`, *Slips that the smoother
+/// `PressJob::fit`): 99 % (`docs/decisions.md`, *Slips that the smoother
 /// puts on the next link*).
 pub const LONG_BRIDGE_SECS: f64 = 0.6;
 

@@ -121,7 +121,7 @@ pub(super) fn rests_at_ends(in_link: &[Option<DVec3>]) -> Option<Vec<usize>> {
     Some(first)
 }
 
-/// The radius of a rest at a press's end ([`rests_at_ends`]), m: a few
+/// The radius of a rest at a press's end (`rests_at_ends`), m: a few
 /// millimetres of a frame alone's jitter.
 pub const END_REST_M: f64 = 0.01;
 
@@ -167,7 +167,7 @@ struct Group {
     apart: usize,
 }
 
-/// The radius of a [`Group`], m.
+/// The radius of a `Group`, m.
 pub const ALTERNATIVE_GROUP_M: f64 = 0.03;
 
 /// A frame alone places its press's contact elsewhere when on another

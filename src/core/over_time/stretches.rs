@@ -227,7 +227,7 @@ impl<'a> StretchSmoother<'a> {
     /// # Errors
     /// As [`FilterState::step`] (a frame's time checked as it comes);
     /// [`TemporalError::TooLarge`] when the limit cannot hold
-    /// [`MIN_STORE_FRAMES`] frames.
+    /// `MIN_STORE_FRAMES` frames.
     pub fn push(&mut self, t_secs: f64, likelihood: FrameLikelihood) -> Result<Option<Piece>, TemporalError> {
         match self.open.push(t_secs, likelihood)? {
             Some(step) => self.push_step(step),

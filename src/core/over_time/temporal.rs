@@ -555,7 +555,7 @@ impl TemporalModel {
     }
 }
 
-/// Bytes the [`Smoother`] holds for `frames` frames of `points` samples
+/// Bytes the `Smoother` holds for `frames` frames of `points` samples
 /// (with offsets tracked or not).
 #[must_use]
 pub fn smoother_bytes(frames: usize, points: usize, offsets: bool) -> usize {

@@ -1,0 +1,179 @@
+//! Whether the torques can tell a pair of contacts apart, and why not
+//! where they cannot ([`Unidentifiable`]).
+//!
+//! Two contacts have six unknowns (two surface coordinates and a
+//! magnitude each). Where fewer than six sensed joints feel either of
+//! them, fewer than three feel one of them (its three unknowns then take
+//! up any torques on its joints: on the `../shared` observer link-side
+//! example, filtered, 119 of 123 false pairs put a push on link 1 or 2 to
+//! take up the model error there), or their torques per newton point the
+//! same way, the pair is not identifiable
+//! ([`crate::core::estimate::pair::PairEstimate::identifiable`]): the
+//! report says so rather than call it a confident pair. So is a pair on one link where contacts have
+//! friction (μ > 0): the joints feel only the link's net wrench, and one
+//! contact pushing sideways makes every such wrench but for one number
+//! (its pitch, the moment along its own force), so a pair there is one
+//! contact's friction, or a model error, told apart by that number alone
+//! (on the `../shared` observer link-side example, smoothed, 26 of its 35
+//! false pairs were on link 6 twice). For the same reason, where contacts
+//! have friction, so is a pair whose contact farther out is not confirmed
+//! by its own joints (those that do not feel the other's link): where all
+//! of them, or all but one, read it within the noise, its torques fall on
+//! the other contact's joints, where that contact's friction frees two
+//! more unknowns (the false pairs of the `../shared` slides and dynamic
+//! link-6 example sat there); and so is a pair one of whose contacts
+//! alone, pushing sideways at its place, explains the torques within the
+//! noise (the other is its friction, on whichever link).
+
+use crate::core::estimate::contact::{PosedSurface, UnitTorqueSource};
+use crate::core::estimate::pair::{Placed, Search, minus};
+use crate::core::robot::model::LinkId;
+use crate::core::robot::torque::weighted_dot;
+
+/// Two torques per newton whose cosine (in the noise's metric) is above
+/// this trade their magnitudes: the pair is not identifiable.
+pub const COLLINEAR_COSINE: f64 = 0.98;
+
+/// Why a pair is not identifiable (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Unidentifiable {
+    /// Fewer than six sensed joints feel either contact.
+    FewJoints,
+    /// One contact's link is felt by fewer than three sensed joints: its
+    /// place and magnitude (three unknowns) take up any torques there,
+    /// as a model error near the base.
+    FewJointsForOne {
+        /// Sensed joints that feel that contact's link.
+        joints: usize,
+    },
+    /// The two contacts' torques per newton point the same way.
+    SameTorques,
+    /// Both on one link where contacts have friction: one contact
+    /// pushing sideways makes the same torques but for one number.
+    OneLinkWithFriction,
+    /// Where contacts have friction, a contact that its own joints (those
+    /// that do not feel the other contact's link) do not confirm: none of
+    /// them, or only one of several, reads it above the noise. Its
+    /// torques fall on the other contact's joints, where that contact's
+    /// friction frees two more unknowns: the pair is one contact pushing
+    /// sideways, or a model error, told apart by one reading or none.
+    Unconfirmed,
+    /// Where contacts have friction, one of the two alone, pushing
+    /// sideways at its place, explains the torques within the noise: the
+    /// other push is its friction (on the `../shared` two-contact example,
+    /// surface seed 1, a 4–5 N push on link 5 beside the link-7 probe
+    /// while that probe's force turned 12° as it drifted).
+    OneExplains,
+    /// Neither contact is on the link of the push that last explained a
+    /// frame alone, earlier in the same contact, and that push explains
+    /// this frame too with its force's direction kept
+    /// ([`crate::core::estimate::estimator::Estimator::held_push_explains`]):
+    /// a slide whose kinetic friction drags beyond the friction cone.
+    HeldExplains,
+}
+
+impl Unidentifiable {
+    /// In words, for a pair felt by `sensing_joints` joints.
+    #[must_use]
+    pub fn describe(self, sensing_joints: usize) -> String {
+        match self {
+            Self::FewJoints => format!("{sensing_joints} joints sense the pair"),
+            Self::FewJointsForOne { joints } => format!("one push is felt by {joints} joints only"),
+            Self::SameTorques => "its two pushes make the same torques".to_owned(),
+            Self::OneLinkWithFriction => "with friction, two on one link are one pushing sideways".to_owned(),
+            Self::Unconfirmed => "one push is not felt by the joints that only it moves".to_owned(),
+            Self::OneExplains => "one push alone, with friction, explains the torques".to_owned(),
+            Self::HeldExplains => "the push held before, its force's direction kept, explains the torques".to_owned(),
+        }
+    }
+}
+
+impl Search<'_> {
+    /// Why the pair `a`, `b`, felt by `sensing_joints` sensed joints,
+    /// cannot be told apart by the torques (see the module docs).
+    pub(super) fn unidentifiable(&self, sensing_joints: usize, a: &Placed, b: &Placed) -> Option<Unidentifiable> {
+        let friction = self.settings.friction > 0.0;
+        let fewest = sensing(self.posed, a.link, a.link).min(sensing(self.posed, b.link, b.link));
+        if sensing_joints < 6 {
+            Some(Unidentifiable::FewJoints)
+        } else if fewest < 3 {
+            Some(Unidentifiable::FewJointsForOne { joints: fewest })
+        } else if weighted_cosine(&a.torques, &b.torques, &self.weights).abs() >= COLLINEAR_COSINE {
+            Some(Unidentifiable::SameTorques)
+        } else if friction && a.link == b.link {
+            Some(Unidentifiable::OneLinkWithFriction)
+        } else if friction
+            && !(confirmed(self.posed, a, b, &self.weights) && confirmed(self.posed, b, a, &self.weights))
+        {
+            Some(Unidentifiable::Unconfirmed)
+        } else if friction && (self.explains_alone(a) || self.explains_alone(b)) {
+            Some(Unidentifiable::OneExplains)
+        } else {
+            None
+        }
+    }
+
+    /// Whether `one` alone, with the friction model's force at its place,
+    /// leaves a residual χ² no larger than the joints' count: what the
+    /// noise alone gives on average.
+    pub(super) fn explains_alone(&self, one: &Placed) -> bool {
+        self.friction_on(one, self.tau)
+            .is_some_and(|(torques, _)| self.chi2(&minus(self.tau, &torques)) <= self.tau.len() as f64)
+    }
+}
+
+/// A joint feels a contact when the contact's torque there is at least
+/// this many noise σ. The false second contacts of the `../shared`
+/// link-4 slide sat on link 6 where joints 5 and 6 read 0.1–0.2 σ of
+/// them: pairs that their own joints do not confirm.
+pub const FELT_SIGMAS: f64 = 1.0;
+
+/// Sensed joints that feel a push on either of two links.
+pub(super) fn sensing(posed: &PosedSurface<'_>, a: LinkId, b: LinkId) -> usize {
+    let mut felt = vec![false; posed.joints()];
+    for link in [a, b] {
+        for twist in posed.torque_model.twists(link) {
+            if let Some(slot) = felt.get_mut(twist.sensed_index) {
+                *slot = true;
+            }
+        }
+    }
+    felt.iter().filter(|&&f| f).count()
+}
+
+/// Whether `one`'s own joints (those that do not feel `other`'s link)
+/// confirm it: at least one, and all but one at most, read it above the
+/// noise ([`FELT_SIGMAS`], `weights` = 1/σ²). True where it has no such
+/// joint (a link nearer the base). Each own joint that reads nothing of
+/// it is a constraint it happens to meet: two of them leave it one free
+/// unknown, spent on the other contact's joints.
+pub(super) fn confirmed(posed: &PosedSurface<'_>, one: &Placed, other: &Placed, weights: &[f64]) -> bool {
+    let joints = |link: LinkId| -> Vec<usize> {
+        posed
+            .torque_model
+            .twists(link)
+            .iter()
+            .map(|twist| twist.sensed_index)
+            .collect()
+    };
+    let theirs = joints(other.link);
+    let own: Vec<usize> = joints(one.link).into_iter().filter(|j| !theirs.contains(j)).collect();
+    let felt = own
+        .iter()
+        .filter(|&&j| match (one.torques.get(j), weights.get(j)) {
+            (Some(t), Some(w)) => t.abs() * w.sqrt() >= FELT_SIGMAS,
+            _ => false,
+        })
+        .count();
+    own.is_empty() || (felt >= 1 && own.len() - felt <= 1)
+}
+
+/// `⟨x, y⟩ / (|x| |y|)` in the metric `Σ w x y` (0 for a zero vector).
+fn weighted_cosine(x: &[f64], y: &[f64], weights: &[f64]) -> f64 {
+    let norms = (weighted_dot(weights, x, x) * weighted_dot(weights, y, y)).sqrt();
+    if norms > 0.0 {
+        weighted_dot(weights, x, y) / norms
+    } else {
+        0.0
+    }
+}
