@@ -15,6 +15,7 @@ pub mod mcap_preview;
 mod menus;
 mod model;
 pub mod overlay;
+mod plots;
 pub mod recorder;
 mod robot_panel;
 mod session_panel;
