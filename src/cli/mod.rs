@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod bench_pairs;
 pub mod bench_recording;
+pub mod bench_sessions;
 pub mod calibrate;
 pub mod estimate;
 pub mod estimate_out;
