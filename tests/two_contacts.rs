@@ -205,6 +205,21 @@ fn a_generated_slide_is_seldom_called_two() {
     assert!(share <= 2.0, "{share} %\n{out}");
 }
 
+/// A generated link 4 slide (`--seed 3`) whose single contact hops to
+/// other places and back: those frames are not searched for a pair from
+/// where it left, as it comes back centimetres from there.
+#[test]
+fn a_slide_that_hops_away_and_back_is_not_called_two() {
+    let dir = common::temp_dir("two_contacts_hop");
+    let path = dir.join("link4.json");
+    common::synth_slide(&path, "lwr_4_link", "3");
+    let out = smoothed_pairs(&path, &dir.join("out.jsonl"));
+    let share = one_press_share(&out);
+    // Measured 0.0 %; 0.4 % (3 of 688 frames) when a return within 5 cm
+    // of where it left counted.
+    assert!(share <= 0.2, "{share} %\n{out}");
+}
+
 #[test]
 #[ignore = "needs ../shared"]
 fn one_push_on_the_shared_examples_is_seldom_called_two() {
@@ -357,8 +372,10 @@ fn a_pair_is_not_carried_into_a_press_that_one_contact_holds() {
     // Measured 0.0 % (none of the 195 frames where one presses); 17.9 %
     // (35) with the pair weighed against its other push alone only.
     assert!(one <= 2.0, "{out}");
-    // Measured 28.6 % of the frames where six or more joints feel both.
-    assert!(both >= 20.0, "{out}");
+    // Measured 55.6 % of the frames where six or more joints feel both
+    // (28.6 % before the frames where the single contact left the held
+    // press and came back were searched from it).
+    assert!(both >= 50.0, "{out}");
 }
 
 /// Beside an established pair, frames whose own search finds two more

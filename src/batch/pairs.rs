@@ -26,7 +26,9 @@ use crate::core::over_time::sequence::Temporal;
 use crate::core::robot::model::{LinkId, Robot};
 use crate::io::session::{ContactTruth, Frame};
 
+mod bracket;
 mod carry;
+use bracket::bracket_pairs;
 use carry::carry_pairs;
 
 /// What the pair pass needs of a frame's single-contact estimate.
@@ -296,6 +298,18 @@ pub fn session_pairs_timed(
             (&mut found, &mut search_ms),
             &called,
         )?;
+        let taken: Vec<bool> = called.iter().zip(&carried).map(|(&a, &b)| a || b).collect();
+        let bracketed = bracket_pairs(
+            estimator,
+            robot,
+            (frames, singles),
+            pair_settings,
+            (&mut found, &mut search_ms),
+            &taken,
+        )?;
+        for (c, b) in carried.iter_mut().zip(bracketed) {
+            *c |= b;
+        }
         if carried.contains(&true) {
             (probabilities, bridges) = chain_over(&found, frames, pair_settings, over);
         }

@@ -246,7 +246,7 @@ enum Beside<'a> {
 /// contact sat 7–24 mm off a held press that the single contact placed
 /// within 1 mm, and its extra 1–2 N on link 7 was carried into 35 of the
 /// 195 frames where one hand presses; with the anchors, none.
-fn held_pair_log_ratio(
+pub(super) fn held_pair_log_ratio(
     estimator: &Estimator,
     robot: &Robot,
     frame: &SequenceFrame<'_>,
@@ -275,12 +275,14 @@ fn held_pair_log_ratio(
 
 /// Where one contact stood beyond the edge of a run of frames called two.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Anchor {
+pub(super) struct Anchor {
     /// The single contact there ([`anchor_push`]).
-    push: HeldPush,
+    pub(super) push: HeldPush,
+    /// Its sample and magnitude, N.
+    pub(super) seen: (usize, f64),
     /// How far the single contacts there stood from it, m: four in five
     /// within this.
-    radius_m: f64,
+    pub(super) radius_m: f64,
 }
 
 /// How far beyond a run's edge, s, the frames that say where its staying
@@ -295,7 +297,7 @@ const ANCHOR_SECS: f64 = 0.5;
 /// contact that drifts while a second push rises, or stands off for a
 /// frame, is outvoted by the frames where it stood), and how far four in
 /// five of them stand from it; `None` where no such frame is.
-fn anchor_push(
+pub(super) fn anchor_push(
     frames: &[SequenceFrame<'_>],
     singles: &[Option<SingleSeen>],
     k: usize,
@@ -318,32 +320,36 @@ fn anchor_push(
         if single.explained
             && let Some(push) = single.push
         {
-            pushes.push(push);
+            pushes.push((push, (single.point, single.force_newtons)));
         }
         j = next;
     }
     let mut counts: BTreeMap<LinkId, usize> = BTreeMap::new();
-    for push in &pushes {
+    for (push, _) in &pushes {
         *counts.entry(push.link).or_default() += 1;
     }
     let link = counts.iter().max_by_key(|&(_, n)| *n).map(|(&link, _)| link)?;
-    pushes.retain(|p| p.link == link);
+    pushes.retain(|(p, _)| p.link == link);
     pushes
         .iter()
-        .map(|p| {
-            let spread: f64 = pushes.iter().map(|q| q.point_in_link.distance(p.point_in_link)).sum();
-            (spread, p)
+        .map(|(p, seen)| {
+            let spread: f64 = pushes
+                .iter()
+                .map(|(q, _)| q.point_in_link.distance(p.point_in_link))
+                .sum();
+            (spread, p, seen)
         })
         .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, p)| {
+        .map(|(_, p, &seen)| {
             let mut off: Vec<f64> = pushes
                 .iter()
-                .map(|q| q.point_in_link.distance(p.point_in_link))
+                .map(|(q, _)| q.point_in_link.distance(p.point_in_link))
                 .collect();
             off.sort_by(f64::total_cmp);
             let at = (off.len().saturating_sub(1) * 4 + 2) / 5;
             Anchor {
                 push: *p,
+                seen,
                 radius_m: off.get(at).copied().unwrap_or(0.0),
             }
         })
@@ -406,7 +412,7 @@ fn called_span_secs(frames: &[SequenceFrame<'_>], called: &[bool], k: usize) -> 
 
 /// How far `placed` is from `point_in_link` on `link`, m (infinite on
 /// another link).
-fn off_place(placed: &Placed, link: LinkId, point_in_link: DVec3) -> f64 {
+pub(super) fn off_place(placed: &Placed, link: LinkId, point_in_link: DVec3) -> f64 {
     if placed.link == link {
         placed.point_in_link.distance(point_in_link)
     } else {
@@ -424,7 +430,7 @@ fn same_places(account: &PairEstimate, held: &[Placed; 2], separation_m: f64) ->
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
     /// Frames at 200 Hz from 0 s, called two where `called` says.
@@ -461,7 +467,7 @@ mod tests {
     }
 
     /// Frames at 200 Hz from 0 s.
-    fn frames_at_200_hz(n: usize) -> Vec<SequenceFrame<'static>> {
+    pub(in crate::batch::pairs) fn frames_at_200_hz(n: usize) -> Vec<SequenceFrame<'static>> {
         (0..n)
             .map(|i| SequenceFrame {
                 t_secs: 0.005 * i as f64,
@@ -472,7 +478,7 @@ mod tests {
     }
 
     /// A single contact on `link` at `x` m along its x axis, explained.
-    fn seen_at(link: LinkId, x: f64) -> SingleSeen {
+    pub(in crate::batch::pairs) fn seen_at(link: LinkId, x: f64) -> SingleSeen {
         SingleSeen {
             point: 0,
             force_newtons: 10.0,

@@ -297,6 +297,57 @@ impl Estimator {
         chi2.is_finite().then_some(chi2)
     }
 
+    /// The residual χ² of a push at `point_in_link` on `link` whose force
+    /// is free (its three components fitted, any direction, friction or
+    /// not) on the torques `tau` at `joint_positions`: one contact that
+    /// stays where it stood, however its force turns. `None` where the
+    /// place's torques do not fix the three components, or the torques
+    /// are of the wrong length.
+    #[must_use]
+    pub fn free_push_chi2(
+        &self,
+        robot: &Robot,
+        joint_positions: &[f64],
+        tau: &[f64],
+        link: LinkId,
+        point_in_link: DVec3,
+    ) -> Option<f64> {
+        let pose = RobotPose::new(robot, joint_positions);
+        let torque_model = TorqueModel::new(robot, &pose, &self.links);
+        let weights = self.settings.weights();
+        let columns = [DVec3::X, DVec3::Y, DVec3::Z].map(|axis| torque_model.torques(link, point_in_link, axis));
+        if columns.iter().any(|c| c.len() != tau.len()) || weights.len() != tau.len() {
+            return None;
+        }
+        // The normal equations of the weighted least squares, 3 × 3.
+        let gram = glam::DMat3::from_cols_array_2d(
+            &columns
+                .each_ref()
+                .map(|a| columns.each_ref().map(|b| weighted_dot(&weights, a, b))),
+        );
+        let along = DVec3::from_array(columns.each_ref().map(|c| weighted_dot(&weights, c, tau)));
+        let scale = gram.x_axis.x + gram.y_axis.y + gram.z_axis.z;
+        // A place whose three force directions make nearly the same
+        // torques (a point on a joint's axis, say) leaves them unfixed.
+        if !(scale > 0.0 && gram.determinant() > 1e-12 * scale * scale * scale) {
+            return None;
+        }
+        let force = gram.inverse() * along;
+        let left: Vec<f64> = tau
+            .iter()
+            .enumerate()
+            .map(|(j, t)| {
+                t - columns
+                    .iter()
+                    .zip(force.to_array())
+                    .map(|(c, f)| f * c.get(j).copied().unwrap_or(0.0))
+                    .sum::<f64>()
+            })
+            .collect();
+        let chi2 = weighted_dot(&weights, &left, &left);
+        chi2.is_finite().then_some(chi2)
+    }
+
     /// A frame's summary from its own posterior: the contact refined
     /// unless the torques are within noise of zero (there is no contact
     /// to place; the summary reports the most probable sample); and the
