@@ -5,7 +5,7 @@
 //! Two pushes' torques are often those of one push at a third place:
 //! seven joints, five unknowns for one contact with friction. A frame
 //! alone then calls one contact, and the single contact's track leaves
-//! the place where the first push stood, for a place between the two,
+//! the place where the first push stood for a third place,
 //! and comes back to it when the second push lets go. One contact
 //! cannot do that by chance: it would land again, after centimetres,
 //! within millimetres of where it left. So where the frames before and
@@ -33,8 +33,9 @@ use crate::core::robot::model::Robot;
 /// millimetres (2.3 mm on a generated two-hand session, `synth
 /// --contacts 2 --avoid-covered --seed 1`), a slide's contact that hops
 /// to another place and back does not (7.8–47 mm on the generated slides
-/// of `tests/slides.rs`' kind, links 4, 5 and 7, where pairs were called
-/// in frames that one contact presses with 5 cm).
+/// of `tests/slides.rs`' kind, links 4, 5 and 7: with a return within
+/// 5 cm, 1–3 frames of three of them, where one contact presses, were
+/// called two).
 const RETURN_M: f64 = 0.005;
 
 /// A run of contact frames whose single contact stands away from where
@@ -147,7 +148,7 @@ pub(super) fn bracket_pairs(
 /// The pair of `frame`, inside a run whose single contact left where
 /// `anchor` stood, searched from that place: kept where one of its
 /// contacts is on the anchor's link within the separation of it and the
-/// other is not, the torques cannot tell it apart from nothing else
+/// other is not, the torques tell its six unknowns apart
 /// (identifiable), and it is more probable, with the prior odds of two,
 /// than one contact where it stood: the anchor's push with any force,
 /// or either push of the pair alone ([`held_pair_log_ratio`], the new

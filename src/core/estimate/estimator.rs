@@ -670,4 +670,53 @@ mod tests {
         };
         assert!(!estimator.held_push_explains(&robot, &q, &tau, &nan));
     }
+
+    #[test]
+    fn a_free_push_fits_any_force_at_its_place_and_no_second_push() {
+        let (robot, estimator, q, held, normal) = sliding_push();
+        // Any direction at the place, pulling too: within the noise
+        // (χ² with four degrees of freedom left; 30 is p < 10⁻⁵).
+        let (tangent, other) = normal.any_orthonormal_pair();
+        for force in [held.force_in_link, tangent * 9.0 - normal * 3.0, other * 15.0] {
+            let push = HeldPush {
+                force_in_link: force,
+                ..held
+            };
+            let tau = torques_of(&robot, &estimator, &q, &push, 1.0);
+            let chi2 = estimator
+                .free_push_chi2(&robot, &q, &tau, held.link, held.point_in_link)
+                .unwrap();
+            assert!(chi2 < 30.0, "{force}: {chi2}");
+            // Without noise, exactly.
+            let pose = RobotPose::new(&robot, &q);
+            let exact = TorqueModel::new(&robot, &pose, &estimator.links).torques(held.link, held.point_in_link, force);
+            let chi2 = estimator
+                .free_push_chi2(&robot, &q, &exact, held.link, held.point_in_link)
+                .unwrap();
+            assert!(chi2 < 1e-12, "{force}: {chi2}");
+        }
+        // A second push on link 4 beside it: not.
+        let tau = torques_of(&robot, &estimator, &q, &held, 1.0);
+        let link4 = robot.link_id("lwr_4_link").unwrap();
+        let surface = &estimator.surface;
+        let k = (0..surface.len()).find(|&k| surface.link[k] == link4).unwrap();
+        let pose = RobotPose::new(&robot, &q);
+        let second = TorqueModel::new(&robot, &pose, &estimator.links).torques(
+            link4,
+            surface.point_in_link[k],
+            surface.inward_normal_in_link[k] * 15.0,
+        );
+        let both: Vec<f64> = tau.iter().zip(&second).map(|(a, b)| a + b).collect();
+        let chi2 = estimator
+            .free_push_chi2(&robot, &q, &both, held.link, held.point_in_link)
+            .unwrap();
+        // Measured 238.7: p far below 10⁻⁴⁰ with four degrees of freedom.
+        assert!(chi2 > 100.0, "{chi2}");
+        // Torques of the wrong length: none.
+        assert!(
+            estimator
+                .free_push_chi2(&robot, &q, &tau[..6], held.link, held.point_in_link)
+                .is_none()
+        );
+    }
 }
