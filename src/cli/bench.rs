@@ -297,7 +297,14 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     let mut rows = Vec::new();
     let mut out = String::new();
     for path in &args.session {
-        out.push_str(&super::bench_sessions::session_table(path, args)?);
+        let sessions = super::bench_sessions::SessionBench {
+            package_paths: &args.package_paths,
+            session_points: &args.session_points,
+            seeds: &args.seeds,
+            noise: args.noise,
+            repeat: args.repeat,
+        };
+        out.push_str(&super::bench_sessions::session_table(path, &sessions)?);
         out.push('\n');
     }
     if args.sessions_only {

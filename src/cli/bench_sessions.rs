@@ -4,7 +4,7 @@
 //! per-frame p50 and p99 against the median position error.
 
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use glam::DVec3;
@@ -19,7 +19,20 @@ use proprioscope::core::over_time::temporal::{TemporalModel, TemporalSettings, i
 use proprioscope::core::robot::model::Robot;
 use proprioscope::core::surface::sampling::SurfaceRequest;
 
-use super::bench::BenchArgs;
+/// What `bench --session` takes of `bench`'s options.
+#[derive(Debug, Clone, Copy)]
+pub struct SessionBench<'a> {
+    /// Extra folders for `package://` URIs.
+    pub package_paths: &'a [PathBuf],
+    /// Coarser surfaces to add a refined row each for.
+    pub session_points: &'a [u64],
+    /// Surface seeds.
+    pub seeds: &'a [u64],
+    /// The σ the estimators take, N·m.
+    pub noise: f64,
+    /// Runs of each frame, the fastest kept.
+    pub repeat: u32,
+}
 
 /// One estimator on a session: per-frame times over all seeds, and the
 /// median position error at each seed.
@@ -52,11 +65,11 @@ struct SessionRun {
 /// Per-frame p50/p99 and the spread of the median error over surface
 /// seeds, on one recorded session, for the refined estimator and the
 /// grid of points it refines (at the same and at seven times the points).
-pub(super) fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
+pub(super) fn session_table(path: &Path, args: &SessionBench<'_>) -> Result<String> {
     use proprioscope::batch::session_robot;
     use proprioscope::io::session::Session;
     let session = Session::read(path)?;
-    let robot = session_robot(&session, None, &args.package_paths, &[])?;
+    let robot = session_robot(&session, None, args.package_paths, &[])?;
     let two_contacts = super::bench_pairs::has_two_contacts(&session);
     let mut runs = Vec::new();
     let coarser = args
@@ -115,7 +128,7 @@ pub(super) fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
             // Unrelated frames: nothing to connect over time.
             continue;
         }
-        for &seed in &args.seeds {
+        for &seed in args.seeds {
             log::info!("{}: {label}, {points} points, seed {seed} …", path.display());
             let how = How {
                 robot: &robot,
@@ -138,7 +151,7 @@ pub(super) fn session_table(path: &Path, args: &BenchArgs) -> Result<String> {
 fn session_text(
     path: &Path,
     session: &proprioscope::io::session::Session,
-    args: &BenchArgs,
+    args: &SessionBench<'_>,
     runs: &[SessionRun],
 ) -> String {
     use proprioscope::io::session::Truth;

@@ -35,8 +35,8 @@ use crate::core::estimate::contact::PosedSurface;
 use crate::core::estimate::friction::friction_fits;
 use crate::core::estimate::measurement::Measurement;
 use crate::core::estimate::pair_grid::coarse_pair;
-use crate::core::estimate::pair_identifiable::sensing;
 pub use crate::core::estimate::pair_identifiable::{COLLINEAR_COSINE, FELT_SIGMAS, Unidentifiable};
+use crate::core::estimate::pair_identifiable::{sensing, unidentifiable_by_joints};
 use crate::core::estimate::phases::PhaseHierarchy;
 use crate::core::estimate::posterior::{Posterior, estimate};
 use crate::core::estimate::refine::{RefinedContact, refine, refine_at};
@@ -301,7 +301,7 @@ impl Search<'_> {
         (self.settings.force_min_newtons, self.settings.force_max_newtons)
     }
 
-    pub(super) fn chi2(&self, left: &[f64]) -> f64 {
+    fn chi2(&self, left: &[f64]) -> f64 {
         weighted_dot(&self.weights, left, left)
     }
 
@@ -340,7 +340,7 @@ impl Search<'_> {
     /// torques) and how much it raises the likelihood over a push along
     /// the normal, in nats; `None` without friction or where it does not
     /// raise it.
-    pub(super) fn friction_on(&self, one: &Placed, left: &[f64]) -> Option<(Vec<f64>, f64)> {
+    fn friction_on(&self, one: &Placed, left: &[f64]) -> Option<(Vec<f64>, f64)> {
         let mu = self.settings.friction;
         if mu.is_nan() || mu <= 0.0 {
             return None;
@@ -401,6 +401,32 @@ impl Search<'_> {
                 peak - samples_peak
             });
         log_evidence(single, self.ln_prior_norm) + peak_from_samples
+    }
+
+    /// Why the pair `a`, `b`, felt by `sensing_joints` sensed joints,
+    /// cannot be told apart by the torques
+    /// ([`crate::core::estimate::pair_identifiable`]).
+    pub(super) fn unidentifiable(&self, sensing_joints: usize, a: &Placed, b: &Placed) -> Option<Unidentifiable> {
+        let friction = self.settings.friction > 0.0;
+        unidentifiable_by_joints(
+            self.posed,
+            &self.weights,
+            friction,
+            sensing_joints,
+            (a.link, &a.torques),
+            (b.link, &b.torques),
+        )
+        .or_else(|| {
+            (friction && (self.explains_alone(a) || self.explains_alone(b))).then_some(Unidentifiable::OneExplains)
+        })
+    }
+
+    /// Whether `one` alone, with the friction model's force at its place,
+    /// leaves a residual χ² no larger than the joints' count: what the
+    /// noise alone gives on average.
+    pub(super) fn explains_alone(&self, one: &Placed) -> bool {
+        self.friction_on(one, self.tau)
+            .is_some_and(|(torques, _)| self.chi2(&minus(self.tau, &torques)) <= self.tau.len() as f64)
     }
 
     /// Sample `k` pushed with `f` newtons.

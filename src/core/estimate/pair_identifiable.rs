@@ -26,7 +26,6 @@
 //! noise (the other is its friction, on whichever link).
 
 use crate::core::estimate::contact::{PosedSurface, UnitTorqueSource};
-use crate::core::estimate::pair::{Placed, Search, minus};
 use crate::core::robot::model::LinkId;
 use crate::core::robot::torque::weighted_dot;
 
@@ -88,37 +87,35 @@ impl Unidentifiable {
     }
 }
 
-impl Search<'_> {
-    /// Why the pair `a`, `b`, felt by `sensing_joints` sensed joints,
-    /// cannot be told apart by the torques (see the module docs).
-    pub(super) fn unidentifiable(&self, sensing_joints: usize, a: &Placed, b: &Placed) -> Option<Unidentifiable> {
-        let friction = self.settings.friction > 0.0;
-        let fewest = sensing(self.posed, a.link, a.link).min(sensing(self.posed, b.link, b.link));
-        if sensing_joints < 6 {
-            Some(Unidentifiable::FewJoints)
-        } else if fewest < 3 {
-            Some(Unidentifiable::FewJointsForOne { joints: fewest })
-        } else if weighted_cosine(&a.torques, &b.torques, &self.weights).abs() >= COLLINEAR_COSINE {
-            Some(Unidentifiable::SameTorques)
-        } else if friction && a.link == b.link {
-            Some(Unidentifiable::OneLinkWithFriction)
-        } else if friction
-            && !(confirmed(self.posed, a, b, &self.weights) && confirmed(self.posed, b, a, &self.weights))
-        {
-            Some(Unidentifiable::Unconfirmed)
-        } else if friction && (self.explains_alone(a) || self.explains_alone(b)) {
-            Some(Unidentifiable::OneExplains)
-        } else {
-            None
-        }
-    }
-
-    /// Whether `one` alone, with the friction model's force at its place,
-    /// leaves a residual χ² no larger than the joints' count: what the
-    /// noise alone gives on average.
-    pub(super) fn explains_alone(&self, one: &Placed) -> bool {
-        self.friction_on(one, self.tau)
-            .is_some_and(|(torques, _)| self.chi2(&minus(self.tau, &torques)) <= self.tau.len() as f64)
+/// Why the pair of pushes on links `a` and `b`, making `torques_a` and
+/// `torques_b`, felt by `sensing_joints` sensed joints, cannot be told
+/// apart by the torques, `friction` whether contacts have it (see the
+/// module docs); all but the rule that one push alone explains the
+/// torques, which needs the frame's torques and friction model
+/// ([`Unidentifiable::OneExplains`]).
+pub(super) fn unidentifiable_by_joints(
+    posed: &PosedSurface<'_>,
+    weights: &[f64],
+    friction: bool,
+    sensing_joints: usize,
+    (a, torques_a): (LinkId, &[f64]),
+    (b, torques_b): (LinkId, &[f64]),
+) -> Option<Unidentifiable> {
+    let fewest = sensing(posed, a, a).min(sensing(posed, b, b));
+    if sensing_joints < 6 {
+        Some(Unidentifiable::FewJoints)
+    } else if fewest < 3 {
+        Some(Unidentifiable::FewJointsForOne { joints: fewest })
+    } else if weighted_cosine(torques_a, torques_b, weights).abs() >= COLLINEAR_COSINE {
+        Some(Unidentifiable::SameTorques)
+    } else if friction && a == b {
+        Some(Unidentifiable::OneLinkWithFriction)
+    } else if friction
+        && !(confirmed(posed, (a, torques_a), b, weights) && confirmed(posed, (b, torques_b), a, weights))
+    {
+        Some(Unidentifiable::Unconfirmed)
+    } else {
+        None
     }
 }
 
@@ -141,13 +138,18 @@ pub(super) fn sensing(posed: &PosedSurface<'_>, a: LinkId, b: LinkId) -> usize {
     felt.iter().filter(|&&f| f).count()
 }
 
-/// Whether `one`'s own joints (those that do not feel `other`'s link)
-/// confirm it: at least one, and all but one at most, read it above the
+/// Whether the push `one` (its link and torques) is confirmed by its own
+/// joints (those that do not feel `other`, the other push's link): at least one, and all but one at most, read it above the
 /// noise ([`FELT_SIGMAS`], `weights` = 1/σ²). True where it has no such
 /// joint (a link nearer the base). Each own joint that reads nothing of
 /// it is a constraint it happens to meet: two of them leave it one free
 /// unknown, spent on the other contact's joints.
-pub(super) fn confirmed(posed: &PosedSurface<'_>, one: &Placed, other: &Placed, weights: &[f64]) -> bool {
+pub(super) fn confirmed(
+    posed: &PosedSurface<'_>,
+    (link, torques): (LinkId, &[f64]),
+    other: LinkId,
+    weights: &[f64],
+) -> bool {
     let joints = |link: LinkId| -> Vec<usize> {
         posed
             .torque_model
@@ -156,11 +158,11 @@ pub(super) fn confirmed(posed: &PosedSurface<'_>, one: &Placed, other: &Placed, 
             .map(|twist| twist.sensed_index)
             .collect()
     };
-    let theirs = joints(other.link);
-    let own: Vec<usize> = joints(one.link).into_iter().filter(|j| !theirs.contains(j)).collect();
+    let theirs = joints(other);
+    let own: Vec<usize> = joints(link).into_iter().filter(|j| !theirs.contains(j)).collect();
     let felt = own
         .iter()
-        .filter(|&&j| match (one.torques.get(j), weights.get(j)) {
+        .filter(|&&j| match (torques.get(j), weights.get(j)) {
             (Some(t), Some(w)) => t.abs() * w.sqrt() >= FELT_SIGMAS,
             _ => false,
         })

@@ -428,7 +428,7 @@ fn a_push_its_own_joints_do_not_feel_is_unconfirmed() {
     let s = scene();
     let posed = s.posed();
     let weights = EstimatorSettings::exact(vec![SIGMA; 7]).weights();
-    let check = |one: &Placed, other: &Placed| confirmed(&posed, one, other, &weights);
+    let check = |one: &Placed, other: &Placed| confirmed(&posed, (one.link, &one.torques), other.link, &weights);
     let near = placed_with(&s, "lwr_4_link", [20.0, 90.0, 8.0, 3.0, 0.0, 0.0, 0.0]);
     // Link 6 beyond link 4: joints 5 and 6 are its own. The false pairs
     // of the shared link-4 slide read 0.1–0.2 σ there.
