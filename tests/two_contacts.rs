@@ -191,15 +191,22 @@ fn one_press_share(out: &str) -> f64 {
     numbers[2]
 }
 
+/// A generated slide on `link` (`common::synth_slide`, `--seed SEED`),
+/// smoothed with two contacts: the share of its one-press frames called
+/// two (%), and the standard output.
+fn slide_called_two(link: &str, seed: &str) -> (f64, String) {
+    let dir = common::temp_dir(&format!("two_contacts_slide_{link}_{seed}"));
+    let path = dir.join("slide.json");
+    common::synth_slide(&path, link, seed);
+    let out = smoothed_pairs(&path, &dir.join("out.jsonl"));
+    (one_press_share(&out), out)
+}
+
 /// A generated link 6 slide (`--seed 2`): its one contact is seldom
 /// called two.
 #[test]
 fn a_generated_slide_is_seldom_called_two() {
-    let dir = common::temp_dir("two_contacts_slide");
-    let path = dir.join("link6.json");
-    common::synth_slide(&path, "lwr_6_link", "2");
-    let out = smoothed_pairs(&path, &dir.join("out.jsonl"));
-    let share = one_press_share(&out);
+    let (share, out) = slide_called_two("lwr_6_link", "2");
     // Measured 0.0 %; before its presses were fitted across the frames the
     // smoother puts on another link, 3.1 % (20 of 635 frames).
     assert!(share <= 2.0, "{share} %\n{out}");
@@ -210,11 +217,7 @@ fn a_generated_slide_is_seldom_called_two() {
 /// where it left, as it comes back centimetres from there.
 #[test]
 fn a_slide_that_hops_away_and_back_is_not_called_two() {
-    let dir = common::temp_dir("two_contacts_hop");
-    let path = dir.join("link4.json");
-    common::synth_slide(&path, "lwr_4_link", "3");
-    let out = smoothed_pairs(&path, &dir.join("out.jsonl"));
-    let share = one_press_share(&out);
+    let (share, out) = slide_called_two("lwr_4_link", "3");
     // Measured 0.0 %; 0.4 % (3 of 688 frames) when a return within 5 cm
     // of where it left counted.
     assert!(share <= 0.2, "{share} %\n{out}");

@@ -116,8 +116,11 @@ pub(super) fn bracket_pairs(
         for order in [forward.clone(), forward.into_iter().rev().collect()] {
             let mut last: Option<[Placed; 2]> = None;
             for k in order {
-                if let Some(Some(kept)) = marked.get(k).copied().unwrap_or(false).then(|| found.get(k)).flatten() {
-                    last = Some(kept.contacts.clone().map(|c| c.placed));
+                if marked.get(k) == Some(&true) {
+                    last = found
+                        .get(k)
+                        .and_then(Option::as_ref)
+                        .map(|kept| kept.contacts.clone().map(|c| c.placed));
                     continue;
                 }
                 if taken.get(k).copied().unwrap_or(true) {
