@@ -3,7 +3,9 @@
 //! frames before left the contacts), then the chain of two states over
 //! the frames' evidence, smoothed over the whole session (each run of
 //! frames called two then carried into the frames beside it that one
-//! contact explains, the arriving push's place held) or filtered
+//! contact explains, the arriving push's place held; each contact whose
+//! single contact leaves a place and comes back to it, or begins on one
+//! link and ends on another, searched from those places) or filtered
 //! ([`crate::core::over_time::pairs`]); live, a frame at a time with the
 //! chain filtered ([`LivePairs`]); frames alone, each searched on its own
 //! ([`PairsOver`]).
@@ -28,8 +30,10 @@ use crate::io::session::{ContactTruth, Frame};
 
 mod bracket;
 mod carry;
+mod handover;
 use bracket::bracket_pairs;
 use carry::carry_pairs;
+use handover::handover_pairs;
 
 /// What the pair pass needs of a frame's single-contact estimate.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -83,7 +87,10 @@ pub struct FramePair {
     /// Whether the pair is the one of the run of frames called two next
     /// to this frame, carried into it where one contact explains the
     /// frame, the arriving or leaving push's place held near where the
-    /// frame beside has it (`carry_pairs`; smoothed sessions only).
+    /// frame beside has it (`carry_pairs`), or the pair searched from
+    /// where one contact stood beside a run it left and came back to
+    /// (`bracket_pairs`) or from where it stood as a contact began and
+    /// ended on two links (`handover_pairs`); smoothed sessions only.
     pub carried: bool,
 }
 
@@ -309,6 +316,18 @@ pub fn session_pairs_timed(
         )?;
         for (c, b) in carried.iter_mut().zip(bracketed) {
             *c |= b;
+        }
+        let taken: Vec<bool> = called.iter().zip(&carried).map(|(&a, &b)| a || b).collect();
+        let handed = handover_pairs(
+            estimator,
+            robot,
+            (frames, singles),
+            pair_settings,
+            (&mut found, &mut search_ms),
+            &taken,
+        )?;
+        for (c, h) in carried.iter_mut().zip(handed) {
+            *c |= h;
         }
         if carried.contains(&true) {
             (probabilities, bridges) = chain_over(&found, frames, pair_settings, over);

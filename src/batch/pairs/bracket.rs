@@ -21,7 +21,7 @@ use std::time::Instant;
 use super::carry::{Anchor, anchor_push, held_pair_log_ratio, off_place};
 use super::{SingleSeen, summary_only};
 use crate::core::estimate::estimator::{Estimator, elapsed_ms};
-use crate::core::estimate::pair::{PairEstimate, PairSettings, PairStart, Placed};
+use crate::core::estimate::pair::{HeldPush, PairEstimate, PairSettings, PairStart, Placed, Unidentifiable};
 use crate::core::estimate::pair_held::HeldPair;
 use crate::core::estimate::settings::EstimateError;
 use crate::core::numerics::special::logistic;
@@ -130,8 +130,13 @@ pub(super) fn bracket_pairs(
                     continue;
                 };
                 let t0 = Instant::now();
-                let step = bracket_step(estimator, robot, frame, pair_settings, &bracket.anchor, last.as_ref())
-                    .map_err(|e| (k, e))?;
+                let stood = Stood {
+                    before: &bracket.anchor,
+                    after: None,
+                    own: None,
+                };
+                let step =
+                    bracket_step(estimator, robot, frame, pair_settings, stood, last.as_ref()).map_err(|e| (k, e))?;
                 if let Some(ms) = search_ms.get_mut(k) {
                     *ms += elapsed_ms(t0);
                 }
@@ -148,46 +153,90 @@ pub(super) fn bracket_pairs(
     Ok(marked)
 }
 
+/// What a bracketed frame's pair is weighed against: where one contact
+/// stood beside the run, and the frame's own single contact.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Stood<'a> {
+    /// Where one contact stood before the run (and after it, where it
+    /// came back).
+    pub(super) before: &'a Anchor,
+    /// Where the other contact stood alone after the run, where the first
+    /// let go during it ([`super::handover`]): the pair must have a
+    /// contact near each, and is weighed against either alone.
+    pub(super) after: Option<&'a Anchor>,
+    /// The frame's own single contact, weighed against with any force
+    /// where the run's single contact may be one that moved.
+    pub(super) own: Option<HeldPush>,
+}
+
+impl Stood<'_> {
+    /// Whether a pair that a frame's torques alone leave `unidentifiable`
+    /// is told apart here. Where both places are known from the frames
+    /// on either side ([`Stood::after`]), the frame need not tell its six
+    /// unknowns apart, only the pushes' forces: a pair felt by five
+    /// joints, or whose push its own joints do not confirm, or one of
+    /// whose pushes alone explains the torques, is weighed by its
+    /// evidence against each place alone with any force. A push felt by
+    /// fewer than three joints, two pushes of the same torques, and two
+    /// on one link are not told apart by any evidence of one frame.
+    fn tells_apart(&self, unidentifiable: Option<Unidentifiable>) -> bool {
+        match unidentifiable {
+            None => true,
+            Some(Unidentifiable::FewJoints | Unidentifiable::Unconfirmed | Unidentifiable::OneExplains) => {
+                self.after.is_some()
+            }
+            Some(_) => false,
+        }
+    }
+}
+
 /// The pair of `frame`, inside a run whose single contact left where
-/// `anchor` stood, searched from that place: kept where one of its
-/// contacts is on the anchor's link within the separation of it and the
-/// other is not, the torques tell its six unknowns apart
+/// `stood.before` stood, searched from that place (and from where
+/// `stood.after` stood): kept where one of its contacts is on that link
+/// within the separation of it and the other is not (near
+/// `stood.after`, where given), the torques tell its six unknowns apart
 /// (identifiable), and it is more probable, with the prior odds of two,
-/// than one contact where it stood: the anchor's push with any force,
-/// or either push of the pair alone ([`held_pair_log_ratio`], the new
-/// contact paying its Occam factor near where the search found it).
-fn bracket_step(
+/// than one contact where it stood: each anchor's push with any force,
+/// the frame's own single contact with any force, or either push of the
+/// pair alone ([`held_pair_log_ratio`], the new contact paying its Occam
+/// factor near where the search found it).
+pub(super) fn bracket_step(
     estimator: &Estimator,
     robot: &Robot,
     frame: &SequenceFrame<'_>,
     pair_settings: &PairSettings,
-    anchor: &Anchor,
+    stood: Stood<'_>,
     last: Option<&[Placed; 2]>,
 ) -> Result<Option<PairEstimate>, EstimateError> {
     let (q, tau) = (frame.joint_positions, frame.tau);
-    let (point, force_newtons) = anchor.seen;
+    let anchor = stood.before;
     // The last pair kept first: the search stops at the first start
     // whose pair explains the torques within the noise.
     let mut starts: Vec<PairStart> = last
         .map(|both| PairStart::Both(Box::new(both.clone())))
         .into_iter()
         .collect();
-    starts.push(PairStart::One { point, force_newtons });
+    for a in [Some(anchor), stood.after].into_iter().flatten() {
+        let (point, force_newtons) = a.seen;
+        starts.push(PairStart::One { point, force_newtons });
+    }
     let Some(found) = estimator.pair_at(robot, q, tau, pair_settings, &starts)? else {
         return Ok(None);
     };
-    if found.unidentifiable.is_some() {
+    if !stood.tells_apart(found.unidentifiable) {
         return Ok(None);
     }
-    let off = found
+    let separation = pair_settings.separation_m;
+    let near = |placed: &Placed, a: &Anchor| off_place(placed, a.push.link, a.push.point_in_link) <= separation;
+    let arrived = |placed: &Placed| stood.after.map_or(!near(placed, anchor), |after| near(placed, after));
+    // The contact that stood, and the one that came.
+    let [a, b] = found
         .contacts
         .each_ref()
-        .map(|c| off_place(&c.placed, anchor.push.link, anchor.push.point_in_link));
-    let separation = pair_settings.separation_m;
-    // The contact that stood, and the one that came.
-    let new = match off {
-        [a, b] if a <= separation && b > separation => 1,
-        [a, b] if b <= separation && a > separation => 0,
+        .map(|c| (near(&c.placed, anchor), arrived(&c.placed)));
+    let new = match (a, b) {
+        ((true, false), (false, true)) => 1,
+        ((false, true), (true, false)) => 0,
         _ => return Ok(None),
     };
     let both = found.contacts.clone().map(|c| c.placed);
@@ -198,11 +247,9 @@ fn bracket_step(
     else {
         return Ok(None);
     };
-    let stood = account
-        .contacts
-        .get(1 - new)
-        .is_some_and(|c| off_place(&c.placed, anchor.push.link, anchor.push.point_in_link) <= separation);
-    if account.unidentifiable.is_some() || !stood {
+    let kept = account.contacts.get(1 - new).is_some_and(|c| near(&c.placed, anchor))
+        && account.contacts.get(new).is_some_and(|c| arrived(&c.placed));
+    if !stood.tells_apart(account.unidentifiable) || !kept {
         return Ok(None);
     }
     let Some(pair_log_ratio) = held_pair_log_ratio(
@@ -211,16 +258,19 @@ fn bracket_step(
         frame,
         &account,
         new_log_occam,
-        [Some(&anchor.push), None],
+        [Some(&anchor.push), stood.after.map(|a| &a.push)],
     ) else {
         return Ok(None);
     };
-    // One contact where it stood, its force free.
-    let log_ratio = estimator
-        .free_push_chi2(robot, q, tau, anchor.push.link, anchor.push.point_in_link)
-        .map_or(pair_log_ratio, |chi2| {
-            pair_log_ratio.min(0.5 * (chi2 - account.residual_chi2) + new_log_occam)
-        });
+    // One contact where it stood, or where the frame has it, its force
+    // free.
+    let free_places = [Some(anchor.push), stood.after.map(|a| a.push), stood.own];
+    let log_ratio = free_places
+        .into_iter()
+        .flatten()
+        .filter_map(|p| estimator.free_push_chi2(robot, q, tau, p.link, p.point_in_link))
+        .map(|chi2| 0.5 * (chi2 - account.residual_chi2) + new_log_occam)
+        .fold(pair_log_ratio, f64::min);
     let prior_log_odds = pair_settings.prior_two.ln() - (-pair_settings.prior_two).ln_1p();
     account.log_evidence_one = account.log_evidence_two - log_ratio;
     account.probability_two = logistic(log_ratio + prior_log_odds);
