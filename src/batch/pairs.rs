@@ -17,6 +17,7 @@ use glam::DVec3;
 
 use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms};
 use crate::core::estimate::pair::{HeldPush, PairEstimate, PairSettings, Unidentifiable};
+use crate::core::estimate::pair_identifiable::FREE_PUSH_MARGIN_CHI2;
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Verdict;
 use crate::core::eval::metrics::percentile;
@@ -190,6 +191,22 @@ impl PairFollower {
             && estimator.held_push_explains(robot, frame.joint_positions, frame.tau, &held)
         {
             pair.unidentifiable = Some(Unidentifiable::HeldExplains);
+        }
+        // A pair that does not beat the frame's single contact pushing
+        // any way at its place, by more than three spare unknowns fit
+        // by chance, is that contact's friction: a slide's kinetic
+        // friction drags at up to 0.6 of its push, beyond the cone a
+        // frame is fitted with, and a pair with a few newtons on
+        // another link takes up the rest (`docs/decisions.md`, session
+        // 82).
+        if let Some(pair) = pair.as_mut()
+            && pair.unidentifiable.is_none()
+            && let Some(push) = single.push
+            && estimator
+                .free_push_chi2(robot, frame.joint_positions, frame.tau, push.link, push.point_in_link)
+                .is_some_and(|chi2| chi2 - pair.residual_chi2 <= FREE_PUSH_MARGIN_CHI2)
+        {
+            pair.unidentifiable = Some(Unidentifiable::FreeExplains);
         }
         if let Some(pair) = pair.as_mut() {
             summary_only(pair);

@@ -295,7 +295,13 @@ pub fn two_push_session() -> String {
 /// `link` slide at 2–10 cm/s with kinetic friction (the sliding sessions
 /// of `docs/validation.md`, *Sliding contacts*).
 pub fn synth_slide(path: &std::path::Path, link: &str, seed: &str) {
-    let (ok, _, err) = run_out(&[
+    synth_slide_with(path, link, seed, &[]);
+}
+
+/// [`synth_slide`] with `more` options after its own (`--avoid-covered`,
+/// say).
+pub fn synth_slide_with(path: &std::path::Path, link: &str, seed: &str, more: &[&str]) {
+    let mut args = vec![
         "synth",
         path.to_str().unwrap_or_default(),
         "--seed",
@@ -308,6 +314,8 @@ pub fn synth_slide(path: &std::path::Path, link: &str, seed: &str) {
         "0.02",
         "--kinetic-friction",
         "0.3,0.6",
-    ]);
+    ];
+    args.extend_from_slice(more);
+    let (ok, _, err) = run_out(&args);
     assert!(ok, "{err}");
 }
