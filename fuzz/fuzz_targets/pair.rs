@@ -3,11 +3,15 @@
 //! probability of two is a probability, or an error; never a panic; so
 //! does that pair carried into the next frame's torques. Any
 //! times and evidence ratios give the chain's probabilities in [0, 1].
+//! Any torques and place give one contact's χ² with its force free
+//! (what a pair must beat) that is finite and not negative, or none.
 #![no_main]
 
 use std::sync::OnceLock;
 
+use glam::DVec3;
 use proprioscope::core::estimate::contact::PosedSurface;
+use proprioscope::core::estimate::estimator::Estimator;
 use proprioscope::core::estimate::pair::{PairSettings, PairStart, estimate_pair};
 use proprioscope::core::estimate::pair_held::estimate_pair_held;
 use proprioscope::core::estimate::posterior::estimate;
@@ -39,6 +43,23 @@ fn scene() -> &'static (Robot, Surface, RobotPose) {
         };
         let pose = RobotPose::new(&robot, &q);
         (robot, surface, pose)
+    })
+}
+
+/// An estimator over the scene's robot (80 samples).
+fn estimator() -> &'static Estimator {
+    static ESTIMATOR: OnceLock<Estimator> = OnceLock::new();
+    ESTIMATOR.get_or_init(|| {
+        let (robot, _, _) = scene();
+        let request = SurfaceRequest {
+            links: robot.default_candidate_links(),
+            total_points: 80,
+            seed: 0,
+        };
+        let Ok(estimator) = Estimator::new(robot, &request, EstimatorSettings::exact(vec![0.05; 7]), None) else {
+            std::process::abort()
+        };
+        estimator
     })
 }
 
@@ -110,6 +131,19 @@ libfuzzer_sys::fuzz_target!(|data: &[u8]| {
                     }
                 }
             }
+        }
+    }
+    // One contact with its force free, at any place on any link.
+    if let (Some(&link), Some(place)) = (numbers.get(4), rest.get(7..10)) {
+        let (robot, _, _) = scene();
+        let link = if link.is_finite() { (link.abs() as usize) % 9 } else { 0 };
+        let at = |i: usize| place.get(i).copied().unwrap_or(0.0);
+        let point_in_link = DVec3::new(at(0), at(1), at(2));
+        let tau: Vec<f64> = rest.iter().copied().take(7).collect();
+        if let Ok(q) = robot.joint_positions(&[1.2, 0.3, 0.8, -1.6, -1.0, -0.5, 0.9], &[])
+            && let Some(chi2) = estimator().free_push_chi2(robot, &q, &tau, link, point_in_link)
+        {
+            assert!(chi2.is_finite() && chi2 >= -1e-9, "{chi2}");
         }
     }
     // The chain: times and ratios from what is left.
