@@ -9,18 +9,24 @@ mod common;
 
 use glam::DVec3;
 
-/// The figures of the `two contacts:` line: frames called two where both
-/// press and six or more joints feel them (%), median error (mm; NaN where
-/// none is called two), frames called two where one presses (%).
-fn two_contact_figures(out: &str) -> (f64, f64, f64) {
+/// The `two contacts:` line of `out`, and its numbers in order.
+fn two_contact_line(out: &str) -> (&str, Vec<f64>) {
     let line = out
         .lines()
         .find(|l| l.starts_with("two contacts:"))
         .unwrap_or_else(|| panic!("no two-contact line in:\n{out}"));
-    let numbers: Vec<f64> = line
+    let numbers = line
         .split(|c: char| !(c.is_ascii_digit() || c == '.'))
         .filter_map(|w| w.parse().ok())
         .collect();
+    (line, numbers)
+}
+
+/// The figures of the `two contacts:` line: frames called two where both
+/// press and six or more joints feel them (%), median error (mm; NaN where
+/// none is called two), frames called two where one presses (%).
+fn two_contact_figures(out: &str) -> (f64, f64, f64) {
+    let (line, numbers) = two_contact_line(out);
     // called, of, share (all; then where six or more joints feel the
     // pair: called, of, share), error (none where no frame is called
     // two); called, of, share.
@@ -140,9 +146,9 @@ fn a_session_written_to_mcap_is_scored_as_to_json_lines() {
     assert_eq!(run("mcap"), json);
 }
 
-#[test]
-#[ignore = "needs ../shared"]
-fn the_shared_two_contact_example() {
+/// `estimate` of the shared two-contact example with two contacts,
+/// smoothed, at surface seed `seed`: its standard output.
+fn shared_two_contact_example(seed: &str) -> String {
     let (ok, out, err) = common::run_out(&[
         "estimate",
         "../shared/sessions/lwr4plus_two_contacts_example.session.json",
@@ -150,8 +156,17 @@ fn the_shared_two_contact_example() {
         "2",
         "--temporal",
         "smooth",
+        "--seed",
+        seed,
     ]);
     assert!(ok, "{err}");
+    out
+}
+
+#[test]
+#[ignore = "needs ../shared"]
+fn the_shared_two_contact_example() {
+    let out = shared_two_contact_example("0");
     let (both, error_mm, one) = two_contact_figures(&out);
     // Measured: 94.0 %, 21.1 mm, 0.0 % (docs/validation.md, *Two
     // contacts*); before a pair established over 0.1 s was weighed against
@@ -183,17 +198,7 @@ fn the_shared_two_contact_example() {
 #[test]
 #[ignore = "needs ../shared"]
 fn the_shared_two_contact_example_at_a_seed_that_hands_over() {
-    let (ok, out, err) = common::run_out(&[
-        "estimate",
-        "../shared/sessions/lwr4plus_two_contacts_example.session.json",
-        "--contacts",
-        "2",
-        "--temporal",
-        "smooth",
-        "--seed",
-        "1",
-    ]);
-    assert!(ok, "{err}");
+    let out = shared_two_contact_example("1");
     let (both, _, one) = two_contact_figures(&out);
     // Measured 72.3 % (60 of 83) and none of the 170 one-probe frames;
     // 8.4 % (7) before the handover was searched.
@@ -447,15 +452,7 @@ fn a_pair_is_carried_into_frames_its_own_search_finds_two_in() {
 /// The share of frames where both press that are called two, %, over
 /// all of them (however many joints feel the pair).
 fn both_press_share(out: &str) -> f64 {
-    let line = out
-        .lines()
-        .find(|l| l.starts_with("two contacts:"))
-        .unwrap_or_else(|| panic!("no two-contact line in:\n{out}"));
-    let numbers: Vec<f64> = line
-        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
-        .filter_map(|w| w.parse().ok())
-        .collect();
-    numbers[2]
+    two_contact_line(out).1[2]
 }
 
 /// A contact handed over from one hand to the other (one holds, the

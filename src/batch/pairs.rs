@@ -322,29 +322,22 @@ pub fn session_pairs_timed(
             (&mut found, &mut search_ms),
             &called,
         )?;
-        let taken: Vec<bool> = called.iter().zip(&carried).map(|(&a, &b)| a || b).collect();
-        let bracketed = bracket_pairs(
-            estimator,
-            robot,
-            (frames, singles),
-            pair_settings,
-            (&mut found, &mut search_ms),
-            &taken,
-        )?;
-        for (c, b) in carried.iter_mut().zip(bracketed) {
-            *c |= b;
-        }
-        let taken: Vec<bool> = called.iter().zip(&carried).map(|(&a, &b)| a || b).collect();
-        let handed = handover_pairs(
-            estimator,
-            robot,
-            (frames, singles),
-            pair_settings,
-            (&mut found, &mut search_ms),
-            &taken,
-        )?;
-        for (c, h) in carried.iter_mut().zip(handed) {
-            *c |= h;
+        // A contact that leaves a place and comes back to it, then one
+        // handed over from link to link: each pass searches the frames not
+        // called or carried yet.
+        for pass in [bracket_pairs, handover_pairs] {
+            let taken: Vec<bool> = called.iter().zip(&carried).map(|(&a, &b)| a || b).collect();
+            let marked = pass(
+                estimator,
+                robot,
+                (frames, singles),
+                pair_settings,
+                (&mut found, &mut search_ms),
+                &taken,
+            )?;
+            for (c, m) in carried.iter_mut().zip(marked) {
+                *c |= m;
+            }
         }
         if carried.contains(&true) {
             (probabilities, bridges) = chain_over(&found, frames, pair_settings, over);

@@ -108,49 +108,77 @@ pub(super) fn bracket_pairs(
             first += 1;
             continue;
         };
-        // Each frame's search also starts where the nearest pair kept
-        // before it left the contacts; then, for the frames still without
-        // one, where the nearest pair kept after it did (the frames where
-        // the second push arrives come before any pair is kept).
-        let forward: Vec<usize> = (bracket.first..=bracket.last).collect();
-        for order in [forward.clone(), forward.into_iter().rev().collect()] {
-            let mut last: Option<[Placed; 2]> = None;
-            for k in order {
-                if marked.get(k) == Some(&true) {
-                    last = found
-                        .get(k)
-                        .and_then(Option::as_ref)
-                        .map(|kept| kept.contacts.clone().map(|c| c.placed));
-                    continue;
-                }
-                if taken.get(k).copied().unwrap_or(true) {
-                    continue;
-                }
-                let Some(frame) = frames.get(k) else {
-                    continue;
-                };
-                let t0 = Instant::now();
-                let stood = Stood {
-                    before: &bracket.anchor,
-                    after: None,
-                    own: None,
-                };
-                let step =
-                    bracket_step(estimator, robot, frame, pair_settings, stood, last.as_ref()).map_err(|e| (k, e))?;
-                if let Some(ms) = search_ms.get_mut(k) {
-                    *ms += elapsed_ms(t0);
-                }
-                if let (Some(mut account), Some(slot), Some(m)) = (step, found.get_mut(k), marked.get_mut(k)) {
-                    last = Some(account.contacts.clone().map(|c| c.placed));
-                    summary_only(&mut account);
-                    *slot = Some(account);
-                    *m = true;
-                }
-            }
-        }
+        let stood = Stood {
+            before: &bracket.anchor,
+            after: None,
+            own: None,
+        };
+        search_run(
+            estimator,
+            robot,
+            frames,
+            pair_settings,
+            (found, search_ms, &mut marked),
+            taken,
+            (bracket.first, bracket.last),
+            |_| stood,
+        )?;
         first = bracket.last + 1;
     }
     Ok(marked)
+}
+
+/// The frames `first..=last` not `taken`, each searched for a pair as
+/// `stood_at(k)` says ([`bracket_step`]): where the pair is kept, its
+/// account goes in `found` and the frame is `marked`; each search's time
+/// is added to its frame's in `search_ms`. Each frame's search also
+/// starts where the nearest pair kept before it left the contacts; then,
+/// for the frames still without one, where the nearest pair kept after
+/// it did (the frames where the second push arrives come before any
+/// pair is kept).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn search_run<'a>(
+    estimator: &Estimator,
+    robot: &Robot,
+    frames: &[SequenceFrame<'_>],
+    pair_settings: &PairSettings,
+    (found, search_ms, marked): (&mut [Option<PairEstimate>], &mut [f64], &mut [bool]),
+    taken: &[bool],
+    (first, last): (usize, usize),
+    stood_at: impl Fn(usize) -> Stood<'a>,
+) -> Result<(), (usize, EstimateError)> {
+    let forward: Vec<usize> = (first..=last).collect();
+    for order in [forward.clone(), forward.into_iter().rev().collect()] {
+        let mut kept_last: Option<[Placed; 2]> = None;
+        for k in order {
+            if marked.get(k) == Some(&true) {
+                kept_last = found
+                    .get(k)
+                    .and_then(Option::as_ref)
+                    .map(|kept| kept.contacts.clone().map(|c| c.placed));
+                continue;
+            }
+            if taken.get(k).copied().unwrap_or(true) {
+                continue;
+            }
+            let Some(frame) = frames.get(k) else {
+                continue;
+            };
+            let t0 = Instant::now();
+            let step = bracket_step(estimator, robot, frame, pair_settings, stood_at(k), kept_last.as_ref())
+                .map_err(|e| (k, e))?;
+            if let Some(ms) = search_ms.get_mut(k) {
+                *ms += elapsed_ms(t0);
+            }
+            if let (Some(mut account), Some(slot), Some(m)) = (step, found.get_mut(k), marked.get_mut(k)) {
+                kept_last = Some(account.contacts.clone().map(|c| c.placed));
+                summary_only(&mut account);
+                *slot = Some(account);
+                *m = true;
+            }
+        }
+    }
+    Ok(())
 }
 
 /// What a bracketed frame's pair is weighed against: where one contact

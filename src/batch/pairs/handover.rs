@@ -13,13 +13,11 @@
 //! contact near each, against one contact at either place, or where the
 //! frame has it, with any force.
 
-use std::time::Instant;
-
-use super::bracket::{Stood, bracket_step};
+use super::SingleSeen;
+use super::bracket::{Stood, search_run};
 use super::carry::{Anchor, anchor_push};
-use super::{SingleSeen, summary_only};
-use crate::core::estimate::estimator::{Estimator, elapsed_ms};
-use crate::core::estimate::pair::{PairEstimate, PairSettings, Placed};
+use crate::core::estimate::estimator::Estimator;
+use crate::core::estimate::pair::{PairEstimate, PairSettings};
 use crate::core::estimate::settings::EstimateError;
 use crate::core::over_time::frame::SequenceFrame;
 use crate::core::robot::model::Robot;
@@ -62,9 +60,9 @@ fn handover_at(frames: &[SequenceFrame<'_>], singles: &[Option<SingleSeen>], fir
 /// Each contact handed over from one link to another ([`handover_at`]),
 /// its frames searched for a pair from the two places: the frames not
 /// `taken` (called two or carried already) where the pair is kept
-/// ([`bracket_step`] with both places and the frame's own single
-/// contact) get its account in `found`, and each search's time is added
-/// to its frame's in `search_ms`. Which frames got one.
+/// ([`search_run`], weighed against both places and the frame's own
+/// single contact) get its account in `found`, and each search's time is
+/// added to its frame's in `search_ms`. Which frames got one.
 pub(super) fn handover_pairs(
     estimator: &Estimator,
     robot: &Robot,
@@ -81,44 +79,20 @@ pub(super) fn handover_pairs(
             first += 1;
             continue;
         };
-        // As the bracket: from the nearest pair kept before each frame,
-        // then, for the frames still without one, after it.
-        let forward: Vec<usize> = (handover.first..=handover.last).collect();
-        for order in [forward.clone(), forward.into_iter().rev().collect()] {
-            let mut last: Option<[Placed; 2]> = None;
-            for k in order {
-                if marked.get(k) == Some(&true) {
-                    last = found
-                        .get(k)
-                        .and_then(Option::as_ref)
-                        .map(|kept| kept.contacts.clone().map(|c| c.placed));
-                    continue;
-                }
-                if taken.get(k).copied().unwrap_or(true) {
-                    continue;
-                }
-                let Some(frame) = frames.get(k) else {
-                    continue;
-                };
-                let t0 = Instant::now();
-                let stood = Stood {
-                    before: &handover.before,
-                    after: Some(&handover.after),
-                    own: singles.get(k).copied().flatten().and_then(|s| s.push),
-                };
-                let step =
-                    bracket_step(estimator, robot, frame, pair_settings, stood, last.as_ref()).map_err(|e| (k, e))?;
-                if let Some(ms) = search_ms.get_mut(k) {
-                    *ms += elapsed_ms(t0);
-                }
-                if let (Some(mut account), Some(slot), Some(m)) = (step, found.get_mut(k), marked.get_mut(k)) {
-                    last = Some(account.contacts.clone().map(|c| c.placed));
-                    summary_only(&mut account);
-                    *slot = Some(account);
-                    *m = true;
-                }
-            }
-        }
+        search_run(
+            estimator,
+            robot,
+            frames,
+            pair_settings,
+            (found, search_ms, &mut marked),
+            taken,
+            (handover.first, handover.last),
+            |k| Stood {
+                before: &handover.before,
+                after: Some(&handover.after),
+                own: singles.get(k).copied().flatten().and_then(|s| s.push),
+            },
+        )?;
         first = handover.last + 1;
     }
     Ok(marked)

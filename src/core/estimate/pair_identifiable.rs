@@ -71,7 +71,8 @@ pub enum Unidentifiable {
     HeldExplains,
     /// The frame's single contact, its force free at its place (any
     /// direction: a slide's kinetic friction beyond the cone), leaves the
-    /// torques within [`FREE_PUSH_MARGIN_CHI2`] of the pair's residual: the pair is that contact's friction.
+    /// torques within [`FREE_PUSH_MARGIN_CHI2`] of the pair's residual:
+    /// the pair is that contact's friction.
     FreeExplains,
 }
 
