@@ -4,7 +4,8 @@
 //! does that pair carried into the next frame's torques. Any
 //! times and evidence ratios give the chain's probabilities in [0, 1].
 //! Any torques and place give one contact's χ² with its force free
-//! (what a pair must beat) that is finite and not negative, or none.
+//! (what a pair must beat) that is finite and not negative, or none,
+//! at the place alone or searched within any radius of it.
 #![no_main]
 
 use std::sync::OnceLock;
@@ -142,6 +143,13 @@ libfuzzer_sys::fuzz_target!(|data: &[u8]| {
         let tau: Vec<f64> = rest.iter().copied().take(7).collect();
         if let Ok(q) = robot.joint_positions(&[1.2, 0.3, 0.8, -1.6, -1.0, -0.5, 0.9], &[])
             && let Some(chi2) = estimator().free_push_chi2(robot, &q, &tau, link, point_in_link)
+        {
+            assert!(chi2.is_finite() && chi2 >= -1e-9, "{chi2}");
+        }
+        // The same searched within any radius (NaN, negative, infinite).
+        let radius_m = numbers.get(5).copied().unwrap_or(0.03);
+        if let Ok(q) = robot.joint_positions(&[1.2, 0.3, 0.8, -1.6, -1.0, -0.5, 0.9], &[])
+            && let Some(chi2) = estimator().free_push_chi2_near(robot, (&q, &tau), link, point_in_link, radius_m)
         {
             assert!(chi2.is_finite() && chi2 >= -1e-9, "{chi2}");
         }

@@ -17,7 +17,9 @@ use glam::DVec3;
 
 use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms};
 use crate::core::estimate::pair::{HeldPush, PairEstimate, PairSettings, Unidentifiable};
-use crate::core::estimate::pair_identifiable::FREE_PUSH_MARGIN_CHI2;
+use crate::core::estimate::pair_identifiable::{
+    FREE_PUSH_MARGIN_CHI2, NEAR_FREE_PUSH_MARGIN_CHI2, NEAR_FREE_PUSH_RADIUS_M,
+};
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Verdict;
 use crate::core::eval::metrics::percentile;
@@ -130,6 +132,9 @@ pub struct PairFollower {
     /// The last single contact that explained its frame, while contact
     /// lasts.
     held: Option<HeldPush>,
+    /// Whether each frame is called from the frames before it only
+    /// (filtered, live).
+    causal: bool,
 }
 
 impl PairFollower {
@@ -137,6 +142,16 @@ impl PairFollower {
     #[must_use]
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// A follower whose frames are called from the frames before them
+    /// only (filtered, live).
+    #[must_use]
+    pub fn causal() -> Self {
+        Self {
+            causal: true,
+            ..Self::default()
+        }
     }
 
     /// The next frame's two-contact account, given its single contact
@@ -207,6 +222,43 @@ impl PairFollower {
                 .is_some_and(|chi2| chi2 - pair.residual_chi2 <= FREE_PUSH_MARGIN_CHI2)
         {
             pair.unidentifiable = Some(Unidentifiable::FreeExplains);
+        }
+        // Frames called from the frames before them only: the single
+        // contact of a slide lags it by 15–24 mm or sits across the joint,
+        // so its own place's free push misses what a free push a little
+        // ahead explains. A pair must beat one contact pushing any way
+        // within `NEAR_FREE_PUSH_RADIUS_M` of the single contact, and of
+        // the last single contact that explained its frame where the pair
+        // has left that contact's link, by more than one spare unknown fit
+        // by chance. Smoothed sessions settle such frames from both sides
+        // instead (`docs/decisions.md`, session 83).
+        if self.causal
+            && let Some(pair) = pair.as_mut()
+            && pair.unidentifiable.is_none()
+        {
+            let torques = (frame.joint_positions, frame.tau);
+            let near_single = single.push.and_then(|push| {
+                estimator.free_push_chi2_near(robot, torques, push.link, push.point_in_link, NEAR_FREE_PUSH_RADIUS_M)
+            });
+            let near_held = self
+                .held
+                .filter(|held| pair.contacts.iter().all(|c| c.placed.link != held.link))
+                .and_then(|held| {
+                    estimator.free_push_chi2_near(
+                        robot,
+                        torques,
+                        held.link,
+                        held.point_in_link,
+                        NEAR_FREE_PUSH_RADIUS_M,
+                    )
+                });
+            if [near_single, near_held]
+                .into_iter()
+                .flatten()
+                .any(|chi2| chi2 - pair.residual_chi2 <= NEAR_FREE_PUSH_MARGIN_CHI2)
+            {
+                pair.unidentifiable = Some(Unidentifiable::FreeExplains);
+            }
         }
         if let Some(pair) = pair.as_mut() {
             summary_only(pair);
@@ -286,7 +338,11 @@ pub fn session_pairs_timed(
     over: PairsOver,
     keep_going: impl Fn() -> bool,
 ) -> Result<Option<TimedPairs>, (usize, EstimateError)> {
-    let mut follower = PairFollower::new();
+    let mut follower = if matches!(over, PairsOver::Filtered(_)) {
+        PairFollower::causal()
+    } else {
+        PairFollower::new()
+    };
     let mut found = Vec::with_capacity(frames.len());
     let mut search_ms = Vec::with_capacity(frames.len());
     for (i, (frame, &single)) in frames.iter().zip(singles).enumerate() {
@@ -435,7 +491,7 @@ impl LivePairs {
     #[must_use]
     pub fn new(settings: PairSettings, chain: SecondContactChain) -> Self {
         Self {
-            follower: PairFollower::new(),
+            follower: PairFollower::causal(),
             filter: ChainFilter::new(chain, settings.prior_two),
             settings,
         }
@@ -475,7 +531,7 @@ impl LivePairs {
 
     /// Forgets every frame (a new sender, a new stream).
     pub fn reset(&mut self) {
-        self.follower = PairFollower::new();
+        self.follower = PairFollower::causal();
         self.filter.reset();
     }
 }

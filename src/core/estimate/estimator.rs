@@ -314,6 +314,52 @@ impl Estimator {
     ) -> Option<f64> {
         let pose = RobotPose::new(robot, joint_positions);
         let torque_model = TorqueModel::new(robot, &pose, &self.links);
+        self.free_push_chi2_with(&torque_model, tau, link, point_in_link)
+    }
+
+    /// The least [`Self::free_push_chi2`] over `point_in_link` on `link`
+    /// and the surface samples within `radius_m` of it, on any link: one
+    /// contact that pushes any way near where it stood (a place that lags
+    /// a slide by centimetres, or sits across the joint from it). `None`
+    /// where no such place fixes its force.
+    #[must_use]
+    pub fn free_push_chi2_near(
+        &self,
+        robot: &Robot,
+        (joint_positions, tau): (&[f64], &[f64]),
+        link: LinkId,
+        point_in_link: DVec3,
+        radius_m: f64,
+    ) -> Option<f64> {
+        let pose = RobotPose::new(robot, joint_positions);
+        let torque_model = TorqueModel::new(robot, &pose, &self.links);
+        let centre_world = pose.world_from_link.get(link)?.transform_point3(point_in_link);
+        let radius_sq = radius_m * radius_m;
+        let near = self
+            .surface
+            .link
+            .iter()
+            .zip(&self.surface.point_in_link)
+            .filter(|&(&l, &p)| {
+                pose.world_from_link
+                    .get(l)
+                    .is_some_and(|w| w.transform_point3(p).distance_squared(centre_world) <= radius_sq)
+            })
+            .map(|(&l, &p)| (l, p));
+        std::iter::once((link, point_in_link))
+            .chain(near)
+            .filter_map(|(l, p)| self.free_push_chi2_with(&torque_model, tau, l, p))
+            .reduce(f64::min)
+    }
+
+    /// [`Self::free_push_chi2`] with the pose's torque model built.
+    fn free_push_chi2_with(
+        &self,
+        torque_model: &TorqueModel,
+        tau: &[f64],
+        link: LinkId,
+        point_in_link: DVec3,
+    ) -> Option<f64> {
         let weights = self.settings.weights();
         let columns = [DVec3::X, DVec3::Y, DVec3::Z].map(|axis| torque_model.torques(link, point_in_link, axis));
         if columns.iter().any(|c| c.len() != tau.len()) || weights.len() != tau.len() {
@@ -718,5 +764,40 @@ mod tests {
                 .free_push_chi2(&robot, &q, &tau[..6], held.link, held.point_in_link)
                 .is_none()
         );
+    }
+
+    #[test]
+    fn a_free_push_searched_near_a_place_finds_the_push_beside_it() {
+        let (robot, estimator, q, held, _) = sliding_push();
+        let pose = RobotPose::new(&robot, &q);
+        let exact = TorqueModel::new(&robot, &pose, &estimator.links).torques(
+            held.link,
+            held.point_in_link,
+            held.force_in_link,
+        );
+        // The nearest other sample on the link: its own free push misses
+        // the torques; the search reaching just past the push's sample
+        // finds it, exactly, and one reaching half as far does not.
+        let surface = &estimator.surface;
+        let beside = (0..surface.len())
+            .filter(|&k| surface.link[k] == held.link)
+            .map(|k| surface.point_in_link[k])
+            .filter(|p| p.distance(held.point_in_link) > 1e-6)
+            .min_by(|a, b| {
+                a.distance(held.point_in_link)
+                    .total_cmp(&b.distance(held.point_in_link))
+            })
+            .unwrap();
+        let apart_m = beside.distance(held.point_in_link);
+        let there = estimator.free_push_chi2(&robot, &q, &exact, held.link, beside).unwrap();
+        assert!(there > 1.0, "{apart_m} m: {there}");
+        let near = estimator
+            .free_push_chi2_near(&robot, (&q, &exact), held.link, beside, apart_m * 1.01)
+            .unwrap();
+        assert!(near < 1e-12, "{near}");
+        let close = estimator
+            .free_push_chi2_near(&robot, (&q, &exact), held.link, beside, apart_m * 0.5)
+            .unwrap();
+        assert!(close > 1.0, "{close}");
     }
 }

@@ -71,8 +71,12 @@ pub enum Unidentifiable {
     HeldExplains,
     /// The frame's single contact, its force free at its place (any
     /// direction: a slide's kinetic friction beyond the cone), leaves the
-    /// torques within [`FREE_PUSH_MARGIN_CHI2`] of the pair's residual:
-    /// the pair is that contact's friction.
+    /// torques within [`FREE_PUSH_MARGIN_CHI2`] of the pair's residual
+    /// (or, where frames are called from the frames before them only, a
+    /// free push within [`NEAR_FREE_PUSH_RADIUS_M`] of it, or of the last
+    /// single contact to explain its frame where the pair left that
+    /// contact's link, within [`NEAR_FREE_PUSH_MARGIN_CHI2`]): the pair is
+    /// that contact's friction.
     FreeExplains,
 }
 
@@ -104,6 +108,20 @@ impl Unidentifiable {
 /// from 78 lower to 10.9 higher than that; on two generated two-hand
 /// sessions the 73 found where both hands press, 17.7 to 345 higher.
 pub const FREE_PUSH_MARGIN_CHI2: f64 = 11.34;
+
+/// How far from a filtered single contact, m, the free push that a pair
+/// must beat is also searched (any link): a filtered slide's single
+/// contact lags the slide by 15–24 mm, or sits across the joint from it,
+/// on the generated links 6–7 slides. 6 cm also took the shared
+/// two-contact example's pairs (0–1 of 83 frames called two, filtered),
+/// whose two probes a push on link 6 between them explains.
+pub const NEAR_FREE_PUSH_RADIUS_M: f64 = 0.03;
+
+/// How much lower, χ², a filtered frame's pair must leave the torques
+/// than the best free push within [`NEAR_FREE_PUSH_RADIUS_M`]: the 99th
+/// percentile of χ² with one degree of freedom, as that push's place is
+/// searched too (five unknowns against the pair's six).
+pub const NEAR_FREE_PUSH_MARGIN_CHI2: f64 = 6.63;
 
 /// Why the pair of pushes on links `a` and `b`, making `torques_a` and
 /// `torques_b`, felt by `sensing_joints` sensed joints, cannot be told
