@@ -5,7 +5,9 @@
 //! times and evidence ratios give the chain's probabilities in [0, 1].
 //! Any torques and place give one contact's χ² with its force free
 //! (what a pair must beat) that is finite and not negative, or none,
-//! at the place alone or searched within any radius of it.
+//! at the place alone or searched within any radius of it. Any two
+//! pushes (places, forces, noise) are judged by the joints' rules
+//! without a panic.
 #![no_main]
 
 use std::sync::OnceLock;
@@ -15,6 +17,7 @@ use proprioscope::core::estimate::contact::PosedSurface;
 use proprioscope::core::estimate::estimator::Estimator;
 use proprioscope::core::estimate::pair::{PairSettings, PairStart, estimate_pair};
 use proprioscope::core::estimate::pair_held::estimate_pair_held;
+use proprioscope::core::estimate::pair_identifiable::pushes_unidentifiable;
 use proprioscope::core::estimate::posterior::estimate;
 use proprioscope::core::estimate::settings::EstimatorSettings;
 use proprioscope::core::over_time::pairs::SecondContactChain;
@@ -152,6 +155,24 @@ libfuzzer_sys::fuzz_target!(|data: &[u8]| {
             && let Some(chi2) = estimator().free_push_chi2_near(robot, (&q, &tau), link, point_in_link, radius_m)
         {
             assert!(chi2.is_finite() && chi2 >= -1e-9, "{chi2}");
+        }
+    }
+    // Two true pushes at any places, with any forces and noise, judged
+    // by the joints' rules: a reason or none, never a panic.
+    if let Some(values) = rest.get(0..12) {
+        let (robot, _, pose) = scene();
+        let links = robot.default_candidate_links();
+        let link = |x: f64| {
+            let k = if x.is_finite() { (x.abs() as usize) % links.len().max(1) } else { 0 };
+            links.get(k).copied()
+        };
+        let v = |i: usize| values.get(i).copied().unwrap_or(0.0);
+        let push = |i: usize| {
+            link(v(i)).map(|l| (l, DVec3::new(v(i + 1), v(i + 2), v(i + 3)), DVec3::new(v(i + 4), v(i + 5), 0.0)))
+        };
+        let weights = vec![1.0 / (sigma * sigma); 7];
+        if let (Some(a), Some(b)) = (push(0), push(6)) {
+            let _ = pushes_unidentifiable(robot, pose, (&weights, friction > 0.0), [a, b]);
         }
     }
     // The chain: times and ratios from what is left.

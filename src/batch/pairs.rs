@@ -18,7 +18,7 @@ use glam::DVec3;
 use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms};
 use crate::core::estimate::pair::{HeldPush, PairEstimate, PairSettings, Unidentifiable};
 use crate::core::estimate::pair_identifiable::{
-    FREE_PUSH_MARGIN_CHI2, NEAR_FREE_PUSH_MARGIN_CHI2, NEAR_FREE_PUSH_RADIUS_M,
+    FREE_PUSH_MARGIN_CHI2, NEAR_FREE_PUSH_MARGIN_CHI2, NEAR_FREE_PUSH_RADIUS_M, pushes_unidentifiable,
 };
 use crate::core::estimate::settings::EstimateError;
 use crate::core::estimate::summary::Verdict;
@@ -28,6 +28,7 @@ use crate::core::over_time::pairs::{
     ChainFilter, NO_PAIR_LOG_RATIO, PairSketch, PairTracker, SecondContactChain, bridged,
 };
 use crate::core::over_time::sequence::Temporal;
+use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::{LinkId, Robot};
 use crate::io::session::{ContactTruth, Frame};
 
@@ -549,6 +550,13 @@ pub struct PairScore {
     pub both_identifiable: usize,
     /// Of these, frames called two.
     pub both_identifiable_called_two: usize,
+    /// Frames where two contacts press whose true pair the joints can
+    /// tell apart ([`pushes_unidentifiable`] finds no reason: each push
+    /// read by the joints only it moves, and so on): where a pair can be
+    /// called at all.
+    pub both_separable: usize,
+    /// Of these, frames called two.
+    pub both_separable_called_two: usize,
     /// Frames where one contact presses.
     pub one_frames: usize,
     /// Of these, frames called two.
@@ -583,10 +591,10 @@ impl LinkErrors {
 }
 
 impl PairScore {
-    /// Adds a frame: its true contacts (world points), how many sensed
-    /// joints feel them, and the world points of its two estimates where
-    /// it is called two.
-    pub fn add(&mut self, truths: &[ContactTruth], sensing_joints: usize, two: Option<[DVec3; 2]>) {
+    /// Adds a frame: its true contacts (world points), what the joints
+    /// make of them, and the world points of its two estimates where it
+    /// is called two.
+    pub fn add(&mut self, truths: &[ContactTruth], felt: TruthFelt, two: Option<[DVec3; 2]>) {
         match truths {
             [one] => {
                 let _ = one;
@@ -596,11 +604,13 @@ impl PairScore {
             [a, b] => {
                 let both_truths = [a, b];
                 self.both_frames += 1;
-                let identifiable = sensing_joints >= 6;
+                let identifiable = felt.joints >= 6;
                 self.both_identifiable += usize::from(identifiable);
+                self.both_separable += usize::from(felt.separable);
                 if let Some([e0, e1]) = two {
                     self.both_called_two += 1;
                     self.both_identifiable_called_two += usize::from(identifiable);
+                    self.both_separable_called_two += usize::from(felt.separable);
                     let (a, b) = (DVec3::from_array(a.point), DVec3::from_array(b.point));
                     let straight = [a.distance(e0), b.distance(e1)];
                     let crossed = [a.distance(e1), b.distance(e0)];
@@ -623,23 +633,30 @@ impl PairScore {
         }
     }
 
-    /// Adds a frame: its true contacts, its two-contact account (`None`
-    /// where it was not searched) and its single contact's world point
-    /// (`None` where no contact is called).
+    /// Adds a frame: its true contacts (from `frame`), its two-contact
+    /// account (`None` where it was not searched) and its single
+    /// contact's world point (`None` where no contact is called);
+    /// `rules` are the noise's weights (1/σ²) and whether contacts have
+    /// friction, with which the true pair is judged.
     pub fn add_frame(
         &mut self,
         robot: &Robot,
-        truths: &[ContactTruth],
+        (frame, rules): (&Frame, (&[f64], bool)),
         pair: Option<&FramePair>,
         single: Option<DVec3>,
     ) {
+        let truths = frame.true_contacts();
         let two = pair.filter(|p| p.has_two());
+        let felt = TruthFelt {
+            joints: sensing_joints(robot, &truths),
+            separable: true_pair_separable(robot, frame, &truths, rules),
+        };
         self.add(
-            truths,
-            sensing_joints(robot, truths),
+            &truths,
+            felt,
             two.map(|p| p.pair.contacts.each_ref().map(|c| c.point_world)),
         );
-        self.add_single(truths, single);
+        self.add_single(&truths, single);
     }
 
     /// Adds a frame's single contact (its world point, `None` where no
@@ -661,6 +678,37 @@ impl PairScore {
             percentile(&self.both_errors_m, 0.5)
         }
     }
+}
+
+/// What the joints make of a frame's true contacts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct TruthFelt {
+    /// Sensed joints on the path of any of them ([`sensing_joints`]).
+    pub joints: usize,
+    /// Whether they are two that the joints can tell apart
+    /// ([`pushes_unidentifiable`] finds no reason).
+    pub separable: bool,
+}
+
+/// Whether `truths` are two pushes that the joints can tell apart at
+/// `frame`'s joint positions, with `rules` (1/σ², friction); false for
+/// any other count, an unknown link or joint positions the robot does
+/// not take.
+fn true_pair_separable(robot: &Robot, frame: &Frame, truths: &[ContactTruth], rules: (&[f64], bool)) -> bool {
+    let push = |t: &ContactTruth| {
+        robot
+            .link_id(&t.link)
+            .ok()
+            .map(|link| (link, DVec3::from_array(t.point), DVec3::from_array(t.force)))
+    };
+    let ([a, b], Ok(joint_positions)) = (truths, robot.joint_positions(&frame.q, &[])) else {
+        return false;
+    };
+    let (Some(a), Some(b)) = (push(a), push(b)) else {
+        return false;
+    };
+    let pose = RobotPose::new(robot, &joint_positions);
+    pushes_unidentifiable(robot, &pose, rules, [a, b]).is_none()
 }
 
 /// Sensed joints that feel any of `truths` (links unknown to the robot

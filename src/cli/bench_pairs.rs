@@ -60,11 +60,13 @@ pub fn score_smoothed(
     let over = PairsOver::Smoothed(config.second_contact_chain());
     let pairs = session_pairs(estimator, robot, sequence, &singles.seen, &config.pair, over)
         .map_err(|(frame, e)| anyhow!("frame {frame}: two-contact search: {e}"))?;
+    let weights = estimator.settings.weights();
+    let rules = (weights.as_slice(), estimator.settings.friction > 0.0);
     let mut score = PairScore::default();
     for (n, frame) in session.frames.iter().enumerate() {
         score.add_frame(
             robot,
-            &frame.true_contacts(),
+            (frame, rules),
             pairs.get(n).and_then(Option::as_ref),
             singles.points_world.get(n).copied().flatten(),
         );
@@ -80,15 +82,15 @@ pub fn pairs_text(scores: &[(u64, PairScore)]) -> String {
         return String::new();
     }
     let mut out = String::from(
-        "\nTwo contacts, smoothed (`estimate --contacts 2 --temporal smooth`), at each surface seed: frames where both press called two, the median error of both contacts there, frames where one presses called two, and each true contact's median error where both press and two are called / where it presses alone.\n\n",
+        "\nTwo contacts, smoothed (`estimate --contacts 2 --temporal smooth`), at each surface seed: frames where both press called two, the median error of both contacts there, frames where one presses called two, each true contact's median error where both press and two are called / where it presses alone, and the frames where both press whose true pair the joints can tell apart (the rules for a pair applied to the truth) called two.\n\n",
     );
-    out.push_str("| surface seed | both press: called two | median error [mm] | one presses: called two | each contact, with the other / alone [mm] |\n");
-    out.push_str("|---:|---:|---:|---:|---|\n");
+    out.push_str("| surface seed | both press: called two | median error [mm] | one presses: called two | each contact, with the other / alone [mm] | both press, the joints can tell apart: called two |\n");
+    out.push_str("|---:|---:|---:|---:|---|---:|\n");
     let share = |k: usize, n: usize| if n > 0 { 100.0 * k as f64 / n as f64 } else { f64::NAN };
     for (seed, score) in scores {
         let _ = writeln!(
             out,
-            "| {seed} | {} of {} ({:.1} %) | {} | {} of {} ({:.1} %) | {} |",
+            "| {seed} | {} of {} ({:.1} %) | {} | {} of {} ({:.1} %) | {} | {} of {} ({:.1} %) |",
             score.both_called_two,
             score.both_frames,
             share(score.both_called_two, score.both_frames),
@@ -96,7 +98,10 @@ pub fn pairs_text(scores: &[(u64, PairScore)]) -> String {
             score.one_called_two,
             score.one_frames,
             share(score.one_called_two, score.one_frames),
-            each_contact_text(score, "")
+            each_contact_text(score, ""),
+            score.both_separable_called_two,
+            score.both_separable,
+            share(score.both_separable_called_two, score.both_separable),
         );
     }
     let median = |values: Vec<f64>| {
@@ -120,9 +125,15 @@ pub fn pairs_text(scores: &[(u64, PairScore)]) -> String {
             .map(|(_, s)| share(s.one_called_two, s.one_frames))
             .collect(),
     );
+    let separable = median(
+        scores
+            .iter()
+            .map(|(_, s)| share(s.both_separable_called_two, s.both_separable))
+            .collect(),
+    );
     let _ = writeln!(
         out,
-        "| median over seeds | {called:.1} % | {} | {false_two:.1} % | |",
+        "| median over seeds | {called:.1} % | {} | {false_two:.1} % | | {separable:.1} % |",
         mm(error)
     );
     out

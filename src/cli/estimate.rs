@@ -386,8 +386,9 @@ fn run_session(args: &EstimateArgs, path: &std::path::Path) -> Result<()> {
                 line["update_ms"] = serde_json::json!(update_ms + search);
             }
         }
+        let weights = estimator.settings.weights();
         write_with_second_contacts(
-            &robot,
+            (&robot, (&weights, estimator.settings.friction > 0.0)),
             &session,
             (&pairs, &single_points),
             (&mut pending, &mut messages),
@@ -503,13 +504,13 @@ fn frame_sequence<'a>(session: &Session, positions: &'a [Vec<f64>], taus: &'a [V
 
 /// The lines with their second contacts written, and their score printed.
 fn write_with_second_contacts(
-    robot: &Robot,
+    (robot, rules): (&Robot, (&[f64], bool)),
     session: &Session,
     (pairs, singles): (&[Option<FramePair>], &[Option<DVec3>]),
     (lines, messages): (&mut [serde_json::Value], &mut [EstimateMessage]),
     out: Option<&mut Out>,
 ) -> Result<()> {
-    let score = add_second_contacts(robot, session, (pairs, singles), lines);
+    let score = add_second_contacts((robot, rules), session, (pairs, singles), lines);
     // An MCAP frame called two carries both contacts of the pair.
     let named = |c: &proprioscope::core::estimate::pair::PairContact| {
         (
@@ -564,9 +565,9 @@ fn write_with_second_contacts(
 }
 
 /// Each line's `contacts` where two are called, and the score of every
-/// true contact.
+/// true contact (its true pairs judged with `rules`: 1/σ², friction).
 fn add_second_contacts(
-    robot: &Robot,
+    (robot, rules): (&Robot, (&[f64], bool)),
     session: &Session,
     (pairs, singles): (&[Option<FramePair>], &[Option<DVec3>]),
     lines: &mut [serde_json::Value],
@@ -579,12 +580,7 @@ fn add_second_contacts(
                 line["contacts"] = pair_contacts_json(robot, found, line["contact_probability"].as_f64());
             }
         }
-        score.add_frame(
-            robot,
-            &frame.true_contacts(),
-            pair.as_ref(),
-            singles.get(n).copied().flatten(),
-        );
+        score.add_frame(robot, (frame, rules), pair.as_ref(), singles.get(n).copied().flatten());
     }
     score
 }
@@ -660,6 +656,16 @@ fn report_pairs(score: &PairScore) -> Result<()> {
         score.both_identifiable_called_two,
         score.both_identifiable,
         share(score.both_identifiable_called_two, score.both_identifiable),
+    )?;
+    // The frames where a pair can be called at all: the true pair passes
+    // the rules an estimated pair must (its pushes' own joints read them,
+    // and so on).
+    writeln!(
+        out,
+        "two contacts the joints can tell apart (the true pair under the rules for a pair): called in {} of {} frames where both press ({:.1} %)",
+        score.both_separable_called_two,
+        score.both_separable,
+        share(score.both_separable_called_two, score.both_separable),
     )?;
     // Each true contact's error beside the other against alone: what the
     // second contact costs the first.

@@ -409,7 +409,7 @@ impl Search<'_> {
     pub(super) fn unidentifiable(&self, sensing_joints: usize, a: &Placed, b: &Placed) -> Option<Unidentifiable> {
         let friction = self.settings.friction > 0.0;
         unidentifiable_by_joints(
-            self.posed,
+            self.posed.torque_model,
             &self.weights,
             friction,
             sensing_joints,
@@ -750,7 +750,9 @@ pub fn estimate_pair(
     let split = best.as_ref().is_some_and(|(_, _, [a, b])| {
         let (a, b) = (&a.placed, &b.placed);
         apart.too_near(a.link, a.point_in_link, b)
-            && search.unidentifiable(sensing(posed, a.link, b.link), a, b).is_none()
+            && search
+                .unidentifiable(sensing(posed.torque_model, a.link, b.link), a, b)
+                .is_none()
     });
     if split {
         let mut starts = starts_given.to_vec();
@@ -807,7 +809,7 @@ impl Search<'_> {
         let surface = posed.surface;
         let first = single.map_point;
         let odds = (pair.prior_two / (1.0 - pair.prior_two)).ln() + log_evidence_two - log_evidence_one;
-        let sensing_joints = sensing(posed, a.placed.link, b.placed.link);
+        let sensing_joints = sensing(posed.torque_model, a.placed.link, b.placed.link);
         let unidentifiable = self.unidentifiable(sensing_joints, &a.placed, &b.placed);
         let world = |k: usize| -> DVec3 {
             match (surface.link.get(k), surface.point_in_link.get(k)) {

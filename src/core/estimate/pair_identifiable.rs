@@ -25,9 +25,11 @@
 //! alone, pushing sideways at its place, explains the torques within the
 //! noise (the other is its friction, on whichever link).
 
-use crate::core::estimate::contact::{PosedSurface, UnitTorqueSource};
-use crate::core::robot::model::LinkId;
-use crate::core::robot::torque::weighted_dot;
+use glam::DVec3;
+
+use crate::core::robot::kinematics::RobotPose;
+use crate::core::robot::model::{LinkId, Robot};
+use crate::core::robot::torque::{TorqueModel, joint_torques, weighted_dot};
 
 /// Two torques per newton whose cosine (in the noise's metric) is above
 /// this trade their magnitudes: the pair is not identifiable.
@@ -130,14 +132,14 @@ pub const NEAR_FREE_PUSH_MARGIN_CHI2: f64 = 6.63;
 /// torques, which needs the frame's torques and friction model
 /// ([`Unidentifiable::OneExplains`]).
 pub(super) fn unidentifiable_by_joints(
-    posed: &PosedSurface<'_>,
+    torque_model: &TorqueModel,
     weights: &[f64],
     friction: bool,
     sensing_joints: usize,
     (a, torques_a): (LinkId, &[f64]),
     (b, torques_b): (LinkId, &[f64]),
 ) -> Option<Unidentifiable> {
-    let fewest = sensing(posed, a, a).min(sensing(posed, b, b));
+    let fewest = sensing(torque_model, a, a).min(sensing(torque_model, b, b));
     if sensing_joints < 6 {
         Some(Unidentifiable::FewJoints)
     } else if fewest < 3 {
@@ -147,12 +149,38 @@ pub(super) fn unidentifiable_by_joints(
     } else if friction && a == b {
         Some(Unidentifiable::OneLinkWithFriction)
     } else if friction
-        && !(confirmed(posed, (a, torques_a), b, weights) && confirmed(posed, (b, torques_b), a, weights))
+        && !(confirmed(torque_model, (a, torques_a), b, weights) && confirmed(torque_model, (b, torques_b), a, weights))
     {
         Some(Unidentifiable::Unconfirmed)
     } else {
         None
     }
+}
+
+/// Why two pushes known in full (each its link, world place, m, and the
+/// world force on the robot, N), at `pose`, could not be told apart by
+/// the joints' rules of [`unidentifiable_by_joints`], with `weights`
+/// (1/σ²) and `friction` whether contacts have it: what a session's true
+/// pair must pass for any estimate to call it. `None`: the joints can
+/// tell them apart.
+#[must_use]
+pub fn pushes_unidentifiable(
+    robot: &Robot,
+    pose: &RobotPose,
+    (weights, friction): (&[f64], bool),
+    [(a, point_a, force_a), (b, point_b, force_b)]: [(LinkId, DVec3, DVec3); 2],
+) -> Option<Unidentifiable> {
+    let torque_model = TorqueModel::new(robot, pose, &[a, b]);
+    let torques_a = joint_torques(robot, pose, a, point_a, force_a);
+    let torques_b = joint_torques(robot, pose, b, point_b, force_b);
+    unidentifiable_by_joints(
+        &torque_model,
+        weights,
+        friction,
+        sensing(&torque_model, a, b),
+        (a, &torques_a),
+        (b, &torques_b),
+    )
 }
 
 /// A joint feels a contact when the contact's torque there is at least
@@ -162,10 +190,10 @@ pub(super) fn unidentifiable_by_joints(
 pub const FELT_SIGMAS: f64 = 1.0;
 
 /// Sensed joints that feel a push on either of two links.
-pub(super) fn sensing(posed: &PosedSurface<'_>, a: LinkId, b: LinkId) -> usize {
-    let mut felt = vec![false; posed.joints()];
+pub(super) fn sensing(torque_model: &TorqueModel, a: LinkId, b: LinkId) -> usize {
+    let mut felt = vec![false; torque_model.sensed_count()];
     for link in [a, b] {
-        for twist in posed.torque_model.twists(link) {
+        for twist in torque_model.twists(link) {
             if let Some(slot) = felt.get_mut(twist.sensed_index) {
                 *slot = true;
             }
@@ -181,14 +209,13 @@ pub(super) fn sensing(posed: &PosedSurface<'_>, a: LinkId, b: LinkId) -> usize {
 /// it is a constraint it happens to meet: two of them leave it one free
 /// unknown, spent on the other contact's joints.
 pub(super) fn confirmed(
-    posed: &PosedSurface<'_>,
+    torque_model: &TorqueModel,
     (link, torques): (LinkId, &[f64]),
     other: LinkId,
     weights: &[f64],
 ) -> bool {
     let joints = |link: LinkId| -> Vec<usize> {
-        posed
-            .torque_model
+        torque_model
             .twists(link)
             .iter()
             .map(|twist| twist.sensed_index)

@@ -428,7 +428,8 @@ fn a_push_its_own_joints_do_not_feel_is_unconfirmed() {
     let s = scene();
     let posed = s.posed();
     let weights = EstimatorSettings::exact(vec![SIGMA; 7]).weights();
-    let check = |one: &Placed, other: &Placed| confirmed(&posed, (one.link, &one.torques), other.link, &weights);
+    let check =
+        |one: &Placed, other: &Placed| confirmed(posed.torque_model, (one.link, &one.torques), other.link, &weights);
     let near = placed_with(&s, "lwr_4_link", [20.0, 90.0, 8.0, 3.0, 0.0, 0.0, 0.0]);
     // Link 6 beyond link 4: joints 5 and 6 are its own. The false pairs
     // of the shared link-4 slide read 0.1–0.2 σ there.
@@ -513,7 +514,7 @@ fn a_push_on_a_link_two_joints_feel_is_not_placed_in_a_pair() {
     let pair_settings = PairSettings::default();
     let tau = vec![0.0; 7];
     let search = search_of(&posed, &s.pose, &tau, &settings, &pair_settings);
-    let why = |a: &Placed, b: &Placed| search.unidentifiable(sensing(&posed, a.link, b.link), a, b);
+    let why = |a: &Placed, b: &Placed| search.unidentifiable(sensing(posed.torque_model, a.link, b.link), a, b);
     // The false pairs of the shared observer link-side example, filtered:
     // a push on link 2 taking up the model error of joints 1 and 2 beside
     // the probe on link 6.
@@ -571,14 +572,14 @@ fn a_push_beside_one_that_explains_alone_with_friction_is_not_a_pair() {
     let alone = at_truth_exactly(&s, probe, 11.0);
     let ghost = at_truth_exactly(&s, s.truth_on("lwr_5_link", 0), 4.5);
     assert!(search.explains_alone(&alone));
-    let why = search.unidentifiable(sensing(&posed, alone.link, ghost.link), &alone, &ghost);
+    let why = search.unidentifiable(sensing(posed.torque_model, alone.link, ghost.link), &alone, &ghost);
     assert_eq!(why, Some(Unidentifiable::OneExplains));
     // Two firm pushes along their normals: neither alone explains them.
     for (a, b, tau) in two_push_frames(&s).into_iter().take(3) {
         let search = search_of(&posed, &s.pose, &tau, &settings, &pair_settings);
         let (a, b) = (at_truth_exactly(&s, a, 25.0), at_truth_exactly(&s, b, 20.0));
         assert!(!search.explains_alone(&a) && !search.explains_alone(&b));
-        let why = search.unidentifiable(sensing(&posed, a.link, b.link), &a, &b);
+        let why = search.unidentifiable(sensing(posed.torque_model, a.link, b.link), &a, &b);
         assert_ne!(why, Some(Unidentifiable::OneExplains));
     }
 }
@@ -682,4 +683,67 @@ fn a_pair_held_near_its_place_pays_less_for_it() {
         assert!(nearest <= pair_settings.separation_m, "push {nth}: {nearest} m");
         assert!(held(2).is_none());
     }
+}
+
+#[test]
+fn true_pushes_that_their_own_joints_do_not_read_cannot_be_told_apart() {
+    use crate::core::estimate::pair_identifiable::pushes_unidentifiable;
+    let s = scene();
+    let weights = EstimatorSettings::exact(vec![SIGMA; 7]).weights();
+    let link = |name: &str| s.robot.link_id(name).unwrap();
+    let joint = |name: &str| s.robot.joint_id(name).unwrap();
+    let (l4, l6) = (link("lwr_4_link"), link("lwr_6_link"));
+    let on = |l: LinkId| {
+        let k = (0..s.truths.len()).find(|&k| s.truths.link[k] == l).unwrap();
+        s.pose.point_to_world(l, s.truths.point_in_link[k])
+    };
+    let (p4, p6) = (on(l4), on(l6));
+    let (j5, j6) = (joint("lwr_joint_5"), joint("lwr_joint_6"));
+    let (o5, o6) = (s.pose.joint_origin_world(j5), s.pose.joint_origin_world(j6));
+    let (a5, a6) = (
+        s.pose.joint_axis_world(&s.robot, j5),
+        s.pose.joint_axis_world(&s.robot, j6),
+    );
+    // A push on link 6 through the point where the axes of joints 5 and 6
+    // cross (the wrist's): neither joint that only it moves reads it.
+    let centre = o6 + a6 * a6.dot(o5 - o6);
+    let through = (centre - p6).normalize() * 10.0;
+    let read = |p: DVec3, f: DVec3| {
+        let tau = joint_torques(&s.robot, &s.pose, l6, p, f);
+        [tau[4] / SIGMA, tau[5] / SIGMA]
+    };
+    let silent = read(p6, through);
+    assert!(
+        silent.iter().all(|x| x.abs() < 0.1),
+        "{silent:?} σ, axes {}",
+        a5.cross(a6).dot(o5 - o6)
+    );
+    let push4 = (l4, p4, DVec3::new(3.0, -12.0, 5.0));
+    assert_eq!(
+        pushes_unidentifiable(&s.robot, &s.pose, (&weights, true), [push4, (l6, p6, through)]),
+        Some(Unidentifiable::Unconfirmed)
+    );
+    // That rule holds only where contacts have friction.
+    assert_eq!(
+        pushes_unidentifiable(&s.robot, &s.pose, (&weights, false), [push4, (l6, p6, through)]),
+        None
+    );
+    // Pushed about joint 6's axis instead, both read it: told apart.
+    let about = a6.cross(p6 - o6).normalize() * 10.0;
+    let heard = read(p6, about);
+    assert!(heard.iter().all(|x| x.abs() > 1.0), "{heard:?} σ");
+    assert_eq!(
+        pushes_unidentifiable(&s.robot, &s.pose, (&weights, true), [push4, (l6, p6, about)]),
+        None
+    );
+    // Two on one link, with friction, are one pushing sideways.
+    assert_eq!(
+        pushes_unidentifiable(
+            &s.robot,
+            &s.pose,
+            (&weights, true),
+            [(l6, p6, about), (l6, p6, through)]
+        ),
+        Some(Unidentifiable::OneLinkWithFriction)
+    );
 }
