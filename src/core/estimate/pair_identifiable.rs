@@ -159,10 +159,10 @@ pub(super) fn unidentifiable_by_joints(
 
 /// Why two pushes known in full (each its link, world place, m, and the
 /// world force on the robot, N), at `pose`, could not be told apart by
-/// the joints' rules of [`unidentifiable_by_joints`], with `weights`
-/// (1/σ²) and `friction` whether contacts have it: what a session's true
-/// pair must pass for any estimate to call it. `None`: the joints can
-/// tell them apart.
+/// the joints' rules of a pair ([`Unidentifiable`] but for the rules
+/// that need a frame's torques), with `weights` (1/σ²) and `friction`
+/// whether contacts have it: what a session's true pair must pass for
+/// any estimate to call it. `None`: the joints can tell them apart.
 #[must_use]
 pub fn pushes_unidentifiable(
     robot: &Robot,
