@@ -56,6 +56,14 @@ fn separable_figures(out: &str) -> (usize, usize) {
     (numbers[0], numbers[1])
 }
 
+/// `estimate SESSION --contacts 2 --temporal TEMPORAL`: its standard
+/// output.
+fn two_contact_run(session: &str, temporal: &str) -> String {
+    let (ok, out, err) = common::run_out(&["estimate", session, "--contacts", "2", "--temporal", temporal]);
+    assert!(ok, "{session}, {temporal}: {err}");
+    out
+}
+
 /// `estimate SESSION --contacts 2 --temporal smooth --out OUT`: its
 /// standard output.
 fn smoothed_pairs(session: &std::path::Path, out: &std::path::Path) -> String {
@@ -308,15 +316,7 @@ fn a_filtered_slide_whose_single_contact_lags_is_not_called_two() {
     let dir = common::temp_dir("two_contacts_filtered_slide_lwr_6_link_1");
     let path = dir.join("slide.json");
     common::synth_slide_with(&path, "lwr_6_link", "1", &["--avoid-covered"]);
-    let (ok, out, err) = common::run_out(&[
-        "estimate",
-        path.to_str().unwrap(),
-        "--contacts",
-        "2",
-        "--temporal",
-        "filter",
-    ]);
-    assert!(ok, "{err}");
+    let out = two_contact_run(path.to_str().unwrap(), "filter");
     let share = one_press_share(&out);
     // Measured 1.0 % (6 of 630 frames); 19.5 % (123) before a filtered
     // pair had to beat a free push near the single contact.
@@ -339,8 +339,7 @@ fn one_push_on_the_shared_examples_is_seldom_called_two() {
         ("lwr4plus_observer_example_link", "filter"),
     ] {
         let session = format!("../shared/sessions/{name}.session.json");
-        let (ok, out, err) = common::run_out(&["estimate", &session, "--contacts", "2", "--temporal", temporal]);
-        assert!(ok, "{name}: {err}");
+        let out = two_contact_run(&session, temporal);
         let share = one_press_share(&out);
         assert!(share <= 2.0, "{name}, {temporal}: {share} %\n{out}");
     }
@@ -426,8 +425,7 @@ fn a_synthesized_two_hand_session_is_estimated_and_scored() {
         .filter(|f| f["truth_all"].as_array().is_some_and(|a| a.len() == 2))
         .count();
     assert!(both > 100, "{both} frames where both press");
-    let (ok, out, err) = common::run_out(&["estimate", path, "--contacts", "2", "--temporal", "smooth"]);
-    assert!(ok, "{err}");
+    let out = two_contact_run(path, "smooth");
     let line = out.lines().find(|l| l.starts_with("two contacts:")).unwrap();
     assert!(line.contains(&format!("of {both} frames where both press")), "{line}");
     let (_, _, one) = two_contact_figures(&out);

@@ -152,7 +152,7 @@ libfuzzer_sys::fuzz_target!(|data: &[u8]| {
         // The same searched within any radius (NaN, negative, infinite).
         let radius_m = numbers.get(5).copied().unwrap_or(0.03);
         if let Ok(q) = robot.joint_positions(&[1.2, 0.3, 0.8, -1.6, -1.0, -0.5, 0.9], &[])
-            && let Some(chi2) = estimator().free_push_chi2_near(robot, (&q, &tau), link, point_in_link, radius_m)
+            && let Some(chi2) = estimator().free_push_chi2_near(robot, (&q, &tau), &[(link, point_in_link)], radius_m)
         {
             assert!(chi2.is_finite() && chi2 >= -1e-9, "{chi2}");
         }

@@ -237,26 +237,21 @@ impl PairFollower {
             && let Some(pair) = pair.as_mut()
             && pair.unidentifiable.is_none()
         {
-            let torques = (frame.joint_positions, frame.tau);
-            let near_single = single.push.and_then(|push| {
-                estimator.free_push_chi2_near(robot, torques, push.link, push.point_in_link, NEAR_FREE_PUSH_RADIUS_M)
-            });
-            let near_held = self
+            let single_place = single.push.map(|push| (push.link, push.point_in_link));
+            let held_place = self
                 .held
                 .filter(|held| pair.contacts.iter().all(|c| c.placed.link != held.link))
-                .and_then(|held| {
-                    estimator.free_push_chi2_near(
+                .map(|held| (held.link, held.point_in_link));
+            let places: Vec<(LinkId, DVec3)> = single_place.into_iter().chain(held_place).collect();
+            if !places.is_empty()
+                && estimator
+                    .free_push_chi2_near(
                         robot,
-                        torques,
-                        held.link,
-                        held.point_in_link,
+                        (frame.joint_positions, frame.tau),
+                        &places,
                         NEAR_FREE_PUSH_RADIUS_M,
                     )
-                });
-            if [near_single, near_held]
-                .into_iter()
-                .flatten()
-                .any(|chi2| chi2 - pair.residual_chi2 <= NEAR_FREE_PUSH_MARGIN_CHI2)
+                    .is_some_and(|chi2| chi2 - pair.residual_chi2 <= NEAR_FREE_PUSH_MARGIN_CHI2)
             {
                 pair.unidentifiable = Some(Unidentifiable::FreeExplains);
             }

@@ -314,53 +314,58 @@ impl Estimator {
     ) -> Option<f64> {
         let pose = RobotPose::new(robot, joint_positions);
         let torque_model = TorqueModel::new(robot, &pose, &self.links);
-        self.free_push_chi2_with(&torque_model, tau, link, point_in_link)
+        Self::free_push_chi2_with((&torque_model, &self.settings.weights()), tau, link, point_in_link)
     }
 
-    /// The least [`Self::free_push_chi2`] over `point_in_link` on `link`
-    /// and the surface samples within `radius_m` of it, on any link: one
-    /// contact that pushes any way near where it stood (a place that lags
-    /// a slide by centimetres, or sits across the joint from it). `None`
-    /// where no such place fixes its force.
+    /// The least [`Self::free_push_chi2`] over each of `places` (a link
+    /// and a point in it) and the surface samples within `radius_m` of
+    /// it, on any link: one contact that pushes any way near where it
+    /// stood (a place that lags a slide by centimetres, or sits across
+    /// the joint from it). `None` where no such place fixes its force.
     #[must_use]
     pub fn free_push_chi2_near(
         &self,
         robot: &Robot,
         (joint_positions, tau): (&[f64], &[f64]),
-        link: LinkId,
-        point_in_link: DVec3,
+        places: &[(LinkId, DVec3)],
         radius_m: f64,
     ) -> Option<f64> {
         let pose = RobotPose::new(robot, joint_positions);
         let torque_model = TorqueModel::new(robot, &pose, &self.links);
-        let centre_world = pose.world_from_link.get(link)?.transform_point3(point_in_link);
+        let weights = self.settings.weights();
         let radius_sq = radius_m * radius_m;
+        let centres: Vec<DVec3> = places
+            .iter()
+            .filter_map(|&(link, point)| Some(pose.world_from_link.get(link)?.transform_point3(point)))
+            .collect();
         let near = self
             .surface
             .link
             .iter()
             .zip(&self.surface.point_in_link)
             .filter(|&(&l, &p)| {
-                pose.world_from_link
-                    .get(l)
-                    .is_some_and(|w| w.transform_point3(p).distance_squared(centre_world) <= radius_sq)
+                pose.world_from_link.get(l).is_some_and(|w| {
+                    let world = w.transform_point3(p);
+                    centres.iter().any(|c| world.distance_squared(*c) <= radius_sq)
+                })
             })
             .map(|(&l, &p)| (l, p));
-        std::iter::once((link, point_in_link))
+        places
+            .iter()
+            .copied()
             .chain(near)
-            .filter_map(|(l, p)| self.free_push_chi2_with(&torque_model, tau, l, p))
+            .filter_map(|(l, p)| Self::free_push_chi2_with((&torque_model, &weights), tau, l, p))
             .reduce(f64::min)
     }
 
-    /// [`Self::free_push_chi2`] with the pose's torque model built.
+    /// [`Self::free_push_chi2`] with the pose's torque model built and
+    /// the noise's weights (1/σ²) taken.
     fn free_push_chi2_with(
-        &self,
-        torque_model: &TorqueModel,
+        (torque_model, weights): (&TorqueModel, &[f64]),
         tau: &[f64],
         link: LinkId,
         point_in_link: DVec3,
     ) -> Option<f64> {
-        let weights = self.settings.weights();
         let columns = [DVec3::X, DVec3::Y, DVec3::Z].map(|axis| torque_model.torques(link, point_in_link, axis));
         if columns.iter().any(|c| c.len() != tau.len()) || weights.len() != tau.len() {
             return None;
@@ -369,9 +374,9 @@ impl Estimator {
         let gram = glam::DMat3::from_cols_array_2d(
             &columns
                 .each_ref()
-                .map(|a| columns.each_ref().map(|b| weighted_dot(&weights, a, b))),
+                .map(|a| columns.each_ref().map(|b| weighted_dot(weights, a, b))),
         );
-        let along = DVec3::from_array(columns.each_ref().map(|c| weighted_dot(&weights, c, tau)));
+        let along = DVec3::from_array(columns.each_ref().map(|c| weighted_dot(weights, c, tau)));
         let scale = gram.x_axis.x + gram.y_axis.y + gram.z_axis.z;
         // A place whose three force directions make nearly the same
         // torques (a point on a joint's axis, say) leaves them unfixed.
@@ -390,7 +395,7 @@ impl Estimator {
                     .sum::<f64>()
             })
             .collect();
-        let chi2 = weighted_dot(&weights, &left, &left);
+        let chi2 = weighted_dot(weights, &left, &left);
         chi2.is_finite().then_some(chi2)
     }
 
@@ -792,12 +797,22 @@ mod tests {
         let there = estimator.free_push_chi2(&robot, &q, &exact, held.link, beside).unwrap();
         assert!(there > 1.0, "{apart_m} m: {there}");
         let near = estimator
-            .free_push_chi2_near(&robot, (&q, &exact), held.link, beside, apart_m * 1.01)
+            .free_push_chi2_near(&robot, (&q, &exact), &[(held.link, beside)], apart_m * 1.01)
             .unwrap();
         assert!(near < 1e-12, "{near}");
         let close = estimator
-            .free_push_chi2_near(&robot, (&q, &exact), held.link, beside, apart_m * 0.5)
+            .free_push_chi2_near(&robot, (&q, &exact), &[(held.link, beside)], apart_m * 0.5)
             .unwrap();
         assert!(close > 1.0, "{close}");
+        // Of several places, the one that reaches the push is enough.
+        let either = estimator
+            .free_push_chi2_near(
+                &robot,
+                (&q, &exact),
+                &[(held.link, beside), (held.link, held.point_in_link)],
+                apart_m * 0.5,
+            )
+            .unwrap();
+        assert!(either < 1e-12, "{either}");
     }
 }
