@@ -230,12 +230,19 @@ fn the_shared_two_contact_example() {
 fn the_shared_two_contact_example_at_a_seed_that_hands_over() {
     let out = shared_two_contact_example("1");
     let (both, _, one) = two_contact_figures(&out);
-    // Measured 72.3 % (60 of 83) and none of the 170 one-probe frames;
-    // 8.4 % (7) before the handover was searched.
-    assert!(both >= 65.0, "{out}");
+    // Measured 94.0 % (78 of 83) and none of the 170 one-probe frames;
+    // 72.3 % (60) before the runs that the bracket and handover searches
+    // join were carried again, 8.4 % (7) before the handover was
+    // searched.
+    assert!(both >= 88.0, "{out}");
     assert!(one <= 2.0, "{out}");
-    // Each probe's median error called two (11.0 and 36.6 mm; 44.5 and
-    // 62.2 mm before): the link 5 probe within 20 mm.
+    // Of the 76 frames whose true pair the joints can tell apart, 76 are
+    // called two (60 before the runs were carried again).
+    let (called, of) = separable_figures(&out);
+    assert!(of >= 70 && called * 10 >= of * 9, "{called} of {of}\n{out}");
+    // Each probe's median error called two (11.7 and 37.2 mm; 11.0 and
+    // 36.6 mm before the runs were carried again, 44.5 and 62.2 mm before
+    // the handover was searched): the link 5 probe within 20 mm.
     let link5 = common::figure_after(&out, "each contact's median error", "lwr_5_link ");
     assert!(link5 <= 20.0, "{out}");
 }
@@ -486,9 +493,10 @@ fn a_pair_is_not_carried_into_a_press_that_one_contact_holds() {
     assert!(both >= 50.0, "{out}");
     // Of the 145 frames where both press, the joints can tell the true
     // pair apart in 72 (each push read by the joints only it moves, and
-    // so on): 70 of them are called two.
+    // so on): all 72 are called two (70 before the runs that the bracket
+    // and handover searches join were carried again).
     let (called, of) = separable_figures(&out);
-    assert!(of >= 60 && called * 10 >= of * 9, "{called} of {of}\n{out}");
+    assert!(of >= 60 && called * 100 >= of * 98, "{called} of {of}\n{out}");
 }
 
 /// Beside an established pair, frames whose own search finds two more
@@ -525,17 +533,20 @@ fn both_press_share(out: &str) -> f64 {
 fn a_contact_handed_over_is_two_while_both_hands_hold() {
     let out = two_hands_smoothed("2");
     let (six, _, one) = two_contact_figures(&out);
-    // Measured 51.0 % of the 151 frames where both press (27.8 % before
-    // the handover was searched), 56.5 % of those six or more joints
-    // feel (38.9 %), and none of the 233 frames where one presses.
+    // Measured 54.3 % of the 151 frames where both press (51.0 % before
+    // the runs that the bracket and handover searches join were carried
+    // again, 27.8 % before the handover was searched), 61.1 % of those
+    // six or more joints feel (56.5 %, 38.9 %), and none of the 233
+    // frames where one presses.
     assert!(both_press_share(&out) >= 45.0, "{out}");
     assert!(six >= 50.0, "{out}");
     assert!(one <= 2.0, "{out}");
     // Of the frames whose true pair the joints can tell apart, measured
-    // 59 of 71 (83.1 %): in the overlap on links 5 and 6 one contact
-    // explains each frame within the noise.
+    // 64 of 71 (90.1 %; 59 before the runs were carried again): in the
+    // rest of the overlap on links 5 and 6 one contact explains each
+    // frame within the noise.
     let (called, of) = separable_figures(&out);
-    assert!(of >= 60 && called * 4 >= of * 3, "{called} of {of}\n{out}");
+    assert!(of >= 60 && called * 100 >= of * 87, "{called} of {of}\n{out}");
 }
 
 /// Each line's frame number and `contacts` in an `estimate` output file.

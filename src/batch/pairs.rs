@@ -376,8 +376,16 @@ pub fn session_pairs_timed(
         )?;
         // A contact that leaves a place and comes back to it, then one
         // handed over from link to link: each pass searches the frames not
-        // called or carried yet.
-        for pass in [bracket_pairs, handover_pairs] {
+        // called or carried yet. Last, the runs that the frames called and
+        // carried now make are carried again into the frames beside them:
+        // a run the passes before joined can be long enough to be
+        // established where its called frames alone were not, or can
+        // begin at a frame carried by a pass after the first carry (the
+        // `../shared` two-contact example at surface seeds 1 and 5: the
+        // link 7 probe's rise, carried from the frames that a bracket
+        // search found two in, 60 → 76 and 63 → 75 of the 76 frames whose
+        // true pair the joints can tell apart).
+        for pass in [bracket_pairs, handover_pairs, carry_pairs] {
             let taken: Vec<bool> = called.iter().zip(&carried).map(|(&a, &b)| a || b).collect();
             let marked = pass(
                 estimator,

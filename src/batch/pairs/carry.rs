@@ -17,7 +17,8 @@ use crate::core::over_time::frame::SequenceFrame;
 use crate::core::robot::kinematics::RobotPose;
 use crate::core::robot::model::{LinkId, Robot};
 
-/// Each run of frames called two (`called`) carried into the frames
+/// Each run of frames called two (`called`: by their own searches, or,
+/// once the other passes are done, by them or carried) carried into the frames
 /// before and after it that one contact explains (which were not
 /// searched), a frame at a time while the pair stays the better account
 /// there ([`carry_step`]); the frames it reaches get that account in
