@@ -402,6 +402,16 @@ fn each_contact_is_scored_beside_the_other_and_alone() {
         },
         Some([DVec3::new(1.03, 0.0, 0.0), DVec3::new(0.01, 0.0, 0.0)]),
     );
+    // A frame whose true pair the joints cannot tell apart counts beside
+    // the other, but not where they can.
+    score.add(
+        &[truth("a", 0.0), truth("b", 1.0)],
+        TruthFelt {
+            joints: 7,
+            separable: false,
+        },
+        Some([DVec3::new(0.5, 0.0, 0.0), DVec3::new(1.5, 0.0, 0.0)]),
+    );
     // Each alone, its single contact 2 and 5 cm off; a frame without a
     // single contact and one where both press are not scored alone.
     score.add_single(&[truth("a", 0.0)], Some(DVec3::new(0.02, 0.0, 0.0)));
@@ -410,9 +420,14 @@ fn each_contact_is_scored_beside_the_other_and_alone() {
     score.add_single(&[truth("a", 0.0), truth("b", 1.0)], Some(DVec3::ZERO));
     let medians = |link: &str| score.by_link[link].medians_m();
     let close = |(x, y): (f64, f64), (u, v): (f64, f64)| (x - u).abs() < 1e-12 && (y - v).abs() < 1e-12;
+    // Beside the other: 0.01 and 0.5 m for a, 0.03 and 0.5 m for b; the
+    // median is the nearest rank's, the lower of two.
     assert!(close(medians("a"), (0.01, 0.02)), "{:?}", score.by_link);
     assert!(close(medians("b"), (0.03, 0.05)), "{:?}", score.by_link);
     assert_eq!(score.by_link["b"].alone_m.len(), 1);
+    assert_eq!(score.by_link["a"].with_other_m.len(), 2);
+    assert_eq!(score.by_link["a"].separable_m, vec![0.01]);
+    assert!((score.by_link["b"].separable_median_m() - 0.03).abs() < 1e-12);
 }
 
 /// `synth --contacts 2` writes a session where a second hand presses with
@@ -497,6 +512,12 @@ fn a_pair_is_not_carried_into_a_press_that_one_contact_holds() {
     // and handover searches join were carried again).
     let (called, of) = separable_figures(&out);
     assert!(of >= 60 && called * 100 >= of * 98, "{called} of {of}\n{out}");
+    // There each hand's median error (links 5 and 7: 13.5 and 9.9 mm) is
+    // within the 20 mm.
+    for link in ["lwr_5_link ", "lwr_7_link "] {
+        let error_mm = common::figure_after(&out, "each contact's median error, called two where the joints", link);
+        assert!(error_mm <= 20.0, "{link}{error_mm}\n{out}");
+    }
 }
 
 /// Beside an established pair, frames whose own search finds two more

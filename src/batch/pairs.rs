@@ -581,6 +581,9 @@ pub struct LinkErrors {
     pub with_other_m: Vec<f64>,
     /// Where it presses alone: its distance from the single contact.
     pub alone_m: Vec<f64>,
+    /// Of [`LinkErrors::with_other_m`], those of the frames whose true
+    /// pair the joints can tell apart ([`TruthFelt::separable`]).
+    pub separable_m: Vec<f64>,
 }
 
 impl LinkErrors {
@@ -590,6 +593,16 @@ impl LinkErrors {
     pub fn medians_m(&self) -> (f64, f64) {
         let median = |v: &[f64]| if v.is_empty() { f64::NAN } else { percentile(v, 0.5) };
         (median(&self.with_other_m), median(&self.alone_m))
+    }
+
+    /// The median of [`LinkErrors::separable_m`], m (NaN without any).
+    #[must_use]
+    pub fn separable_median_m(&self) -> f64 {
+        if self.separable_m.is_empty() {
+            f64::NAN
+        } else {
+            percentile(&self.separable_m, 0.5)
+        }
     }
 }
 
@@ -624,11 +637,11 @@ impl PairScore {
                     };
                     self.both_errors_m.extend(pick);
                     for (truth, error) in both_truths.into_iter().zip(pick) {
-                        self.by_link
-                            .entry(truth.link.clone())
-                            .or_default()
-                            .with_other_m
-                            .push(error);
+                        let errors = self.by_link.entry(truth.link.clone()).or_default();
+                        errors.with_other_m.push(error);
+                        if felt.separable {
+                            errors.separable_m.push(error);
+                        }
                     }
                 }
             }

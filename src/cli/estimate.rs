@@ -674,6 +674,19 @@ fn report_pairs(score: &PairScore) -> Result<()> {
         "each contact's median error, called two where both press / alone: {}",
         each_contact_text(score, " mm")
     )?;
+    // The same where a pair can be placed at all: elsewhere one of the
+    // true pushes is not read by its own joints, and no estimate can
+    // place it.
+    let separable: Vec<String> = score
+        .by_link
+        .iter()
+        .map(|(link, errors)| format!("{link} {} mm", mm(errors.separable_median_m())))
+        .collect();
+    writeln!(
+        out,
+        "each contact's median error, called two where the joints can tell the true pair apart: {}",
+        separable.join(", ")
+    )?;
     Ok(())
 }
 
