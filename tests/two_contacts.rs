@@ -168,7 +168,7 @@ fn a_session_written_to_mcap_is_scored_as_to_json_lines() {
             .collect::<Vec<_>>()
     };
     let json = run("jsonl");
-    assert_eq!(json.len(), 2, "{json:?}");
+    assert_eq!(json.len(), 3, "{json:?}");
     assert_eq!(run("mcap"), json);
 }
 
