@@ -591,18 +591,22 @@ impl LinkErrors {
     /// [`LinkErrors::alone_m`], m (NaN without any).
     #[must_use]
     pub fn medians_m(&self) -> (f64, f64) {
-        let median = |v: &[f64]| if v.is_empty() { f64::NAN } else { percentile(v, 0.5) };
-        (median(&self.with_other_m), median(&self.alone_m))
+        (median_or_nan(&self.with_other_m), median_or_nan(&self.alone_m))
     }
 
     /// The median of [`LinkErrors::separable_m`], m (NaN without any).
     #[must_use]
     pub fn separable_median_m(&self) -> f64 {
-        if self.separable_m.is_empty() {
-            f64::NAN
-        } else {
-            percentile(&self.separable_m, 0.5)
-        }
+        median_or_nan(&self.separable_m)
+    }
+}
+
+/// The median of `values` (NaN without any: none measured).
+fn median_or_nan(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        f64::NAN
+    } else {
+        percentile(values, 0.5)
     }
 }
 
@@ -688,11 +692,7 @@ impl PairScore {
     /// The median of [`PairScore::both_errors_m`], m (NaN without any).
     #[must_use]
     pub fn median_error_m(&self) -> f64 {
-        if self.both_errors_m.is_empty() {
-            f64::NAN
-        } else {
-            percentile(&self.both_errors_m, 0.5)
-        }
+        median_or_nan(&self.both_errors_m)
     }
 }
 
