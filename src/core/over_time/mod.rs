@@ -9,6 +9,7 @@ mod combine;
 pub mod frame;
 pub mod graph;
 mod in_order;
+mod jumps;
 pub mod observer;
 pub mod offsets;
 pub mod pairs;

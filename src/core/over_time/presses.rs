@@ -17,6 +17,7 @@ use crate::core::estimate::press::{FRICTION_GAIN, PressFrame, PressSettings, loc
 use crate::core::estimate::summary::{ContactEstimate, PlacedContact, Summary};
 use crate::core::geometry::shell::MeshPoint;
 use crate::core::over_time::frame::SequenceFrame;
+use crate::core::over_time::jumps::jumps;
 use crate::core::over_time::starts::{Between, Start, in_link_frame, other_starts};
 use crate::core::robot::model::{LinkId, Robot};
 use crate::core::robot::torque::TorqueModel;
@@ -618,7 +619,70 @@ impl PressJob<'_> {
     }
 
     /// Fits the press: its frames in order, each with its update and
-    /// milliseconds (its share of the fit included). A press that bridged
+    /// milliseconds (its share of the fit included). Where its frames'
+    /// own places jump ([`jumps`]), the press is also fitted side by side
+    /// (each side a press of its own), and the sides are kept where the
+    /// whole's fit misses some side's frames by more than
+    /// [`JUMP_MISFIT_PER_FRAME`] a frame (plus [`PRESS_MISFIT_MARGIN`])
+    /// beyond that side's own fit. Where a second push joins or leaves,
+    /// one fit across the jump bridges the two places by a slide that
+    /// drags the frames on either side off (`synth --contacts 2 --seed 2`,
+    /// the link 4 hand alone 26–80 mm off whole, 0 mm cut). Not the
+    /// sides' summed cost against the whole's, as a hop's pieces are
+    /// weighed: where the second push joins, the frames after the jump
+    /// explain neither one place nor a slide, and their cost says nothing
+    /// of the cut (`synth --contacts 2 --seed 4`: a 4-frame side at
+    /// 64,000). Nor the cut at every jump: a slip's frames alone jump too
+    /// (the drag outside their friction cone), and its whole fit is the
+    /// better one (generated link 5 slides, seed 1: 2.1 → 10.4 mm cut).
+    pub(crate) fn fit(mut self) -> Vec<(usize, Update, f64)> {
+        let cuts = self
+            .held
+            .first()
+            .map(|(_, first, _)| jumps(&self.held, &self.alone, self.context.frames, first.summary.map.link))
+            .unwrap_or_default();
+        if cuts.is_empty() {
+            return self.fit_side();
+        }
+        let whole = PressJob {
+            context: self.context,
+            held: self.held.clone(),
+            alone: self.alone.clone(),
+        };
+        let mut sides = Vec::with_capacity(cuts.len() + 1);
+        for &cut in cuts.iter().rev() {
+            sides.push(PressJob {
+                context: self.context,
+                held: self.held.split_off(cut),
+                alone: self.alone.split_off(cut.min(self.alone.len())),
+            });
+        }
+        sides.push(self);
+        sides.reverse();
+        let (whole, sides) = rayon::join(
+            || whole.fit_side(),
+            || sides.into_par_iter().map(PressJob::fit_side).collect::<Vec<_>>(),
+        );
+        // The cut is kept where the whole's fit misses one side's frames
+        // by far more than that side's own fit does.
+        let chi2 =
+            |frames: &[FrameOut]| -> f64 { frames.iter().map(|(_, u, _)| u.summary.fit.best_residual_chi2).sum() };
+        let mut start = 0;
+        let mut cut = false;
+        for side in &sides {
+            let n = side.len();
+            let excess = whole.get(start..start + n).map_or(0.0, chi2) - chi2(side);
+            cut |= excess > JUMP_MISFIT_PER_FRAME * n as f64 + PRESS_MISFIT_MARGIN;
+            start += n;
+        }
+        if cut {
+            sides.into_iter().flatten().collect()
+        } else {
+            whole
+        }
+    }
+
+    /// [`PressJob::fit`] for a press without a jump. A press that bridged
     /// a hop to another link ([`PRESS_BRIDGE_SECS`]) is also fitted piece
     /// by piece (each run of frames on one link on its own, as without
     /// the bridge), and kept whole where its fit stays on the press's link
@@ -629,7 +693,7 @@ impl PressJob<'_> {
     /// link 6 are the truth, and the whole press they bridge on link 7
     /// moves to link 5, 130 mm off (`docs/decisions.md`, *A press across
     /// a hop*).
-    pub(crate) fn fit(self) -> Vec<(usize, Update, f64)> {
+    fn fit_side(self) -> Vec<(usize, Update, f64)> {
         let pieces = self.pieces();
         if pieces.len() < 2 {
             return self.fit_whole().0;
@@ -840,6 +904,16 @@ pub const PRESS_MISFIT_PER_FRAME: f64 = 300.0;
 /// examples (surface seeds 0–2) and 20 on generated slides, but for one
 /// link 4 press at 199, now each frame's own.
 pub const SLIDE_MISFIT_PER_FRAME: f64 = 50.0;
+
+/// How much worse a press's whole fit must explain one side of a jump
+/// than that side's own fit does, per frame of the side, for
+/// [`PressJob::fit`] to cut the press there (χ², plus
+/// [`PRESS_MISFIT_MARGIN`]). Measured per frame, at surface seed 0:
+/// where a second push joins or leaves (`synth --contacts 2`, seeds 1–4,
+/// links 4–7, `--avoid-covered`) the worse side 12–68; on generated
+/// slides on links 4 and 5 (`--slide 0.1 --slide-min 0.02
+/// --kinetic-friction 0.3,0.6`, seeds 1–3) at most 5.9.
+pub const JUMP_MISFIT_PER_FRAME: f64 = 8.0;
 
 /// See [`PRESS_MISFIT_PER_FRAME`]: a short press must still miss by this
 /// much in all.
