@@ -608,14 +608,27 @@ struct PressContext<'a> {
 
 impl PressJob<'_> {
     /// Bytes its frames' posteriors hold while it is fitted: twice over
-    /// for a press that bridged a hop (its whole fit works on a copy).
+    /// for a press that bridged a hop (its whole fit works on a copy),
+    /// and twice that again for a press that jumps (fitted whole and side
+    /// by side).
     pub(crate) fn bytes(&self) -> usize {
         let once: usize = self
             .held
             .iter()
             .map(|(_, update, _)| size_of::<Update>() + update.posterior.bytes())
             .sum();
-        if self.pieces().len() > 1 { 2 * once } else { once }
+        let bridged = if self.pieces().len() > 1 { 2 } else { 1 };
+        let jumped = if self.cuts().is_empty() { 1 } else { 2 };
+        bridged * jumped * once
+    }
+
+    /// Where the press's frames' own places jump ([`jumps`]), on the
+    /// press's link.
+    fn cuts(&self) -> Vec<usize> {
+        self.held
+            .first()
+            .map(|(_, first, _)| jumps(&self.held, &self.alone, self.context.frames, first.summary.map.link))
+            .unwrap_or_default()
     }
 
     /// Fits the press: its frames in order, each with its update and
@@ -636,11 +649,7 @@ impl PressJob<'_> {
     /// (the drag outside their friction cone), and its whole fit is the
     /// better one (generated link 5 slides, seed 1: 2.1 → 10.4 mm cut).
     pub(crate) fn fit(mut self) -> Vec<(usize, Update, f64)> {
-        let cuts = self
-            .held
-            .first()
-            .map(|(_, first, _)| jumps(&self.held, &self.alone, self.context.frames, first.summary.map.link))
-            .unwrap_or_default();
+        let cuts = self.cuts();
         if cuts.is_empty() {
             return self.fit_side();
         }
