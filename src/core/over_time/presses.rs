@@ -668,9 +668,17 @@ impl PressJob<'_> {
         }
         sides.push(self);
         sides.reverse();
-        let (whole, sides) = rayon::join(
-            || whole.fit_side(),
-            || sides.into_par_iter().map(PressJob::fit_side).collect::<Vec<_>>(),
+        let ((whole, whole_ms), (sides, sides_ms)) = rayon::join(
+            || {
+                let t0 = Instant::now();
+                let fitted = whole.fit_side();
+                (fitted, elapsed_ms(t0))
+            },
+            || {
+                let t0 = Instant::now();
+                let fitted: Vec<_> = sides.into_par_iter().map(PressJob::fit_side).collect();
+                (fitted, elapsed_ms(t0))
+            },
         );
         // The cut is kept where the whole's fit misses one side's frames
         // by far more than that side's own fit does.
@@ -684,11 +692,17 @@ impl PressJob<'_> {
             cut |= excess > JUMP_MISFIT_PER_FRAME * n as f64 + PRESS_MISFIT_MARGIN;
             start += n;
         }
-        if cut {
-            sides.into_iter().flatten().collect()
+        let (mut out, other_ms): (Vec<FrameOut>, f64) = if cut {
+            (sides.into_iter().flatten().collect(), whole_ms)
         } else {
-            whole
+            (whole, sides_ms)
+        };
+        // Both fits ran: each frame also carries its share of the other.
+        let share_ms = other_ms / out.len().max(1) as f64;
+        for (_, _, ms) in &mut out {
+            *ms += share_ms;
         }
+        out
     }
 
     /// [`PressJob::fit`] for a press without a jump. A press that bridged
