@@ -930,7 +930,7 @@ pub const SLIDE_MISFIT_PER_FRAME: f64 = 50.0;
 
 /// How much worse a press's whole fit must explain one side of a jump
 /// than that side's own fit does, per frame of the side, for
-/// [`PressJob::fit`] to cut the press there (χ², plus
+/// `PressJob::fit` to cut the press there (χ², plus
 /// [`PRESS_MISFIT_MARGIN`]). Measured per frame, at surface seed 0:
 /// where a second push joins or leaves (`synth --contacts 2`, seeds 1–4,
 /// links 4–7, `--avoid-covered`) the worse side 12–68; on generated
