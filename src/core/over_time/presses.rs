@@ -648,37 +648,16 @@ impl PressJob<'_> {
     /// 64,000). Nor the cut at every jump: a slip's frames alone jump too
     /// (the drag outside their friction cone), and its whole fit is the
     /// better one (generated link 5 slides, seed 1: 2.1 → 10.4 mm cut).
-    pub(crate) fn fit(mut self) -> Vec<(usize, Update, f64)> {
+    pub(crate) fn fit(self) -> Vec<(usize, Update, f64)> {
         let cuts = self.cuts();
         if cuts.is_empty() {
             return self.fit_side();
         }
-        let whole = PressJob {
-            context: self.context,
-            held: self.held.clone(),
-            alone: self.alone.clone(),
-        };
-        let mut sides = Vec::with_capacity(cuts.len() + 1);
-        for &cut in cuts.iter().rev() {
-            sides.push(PressJob {
-                context: self.context,
-                held: self.held.split_off(cut),
-                alone: self.alone.split_off(cut.min(self.alone.len())),
-            });
-        }
-        sides.push(self);
-        sides.reverse();
-        let ((whole, whole_ms), (sides, sides_ms)) = rayon::join(
-            || {
-                let t0 = Instant::now();
-                let fitted = whole.fit_side();
-                (fitted, elapsed_ms(t0))
-            },
-            || {
-                let t0 = Instant::now();
-                let fitted: Vec<_> = sides.into_par_iter().map(PressJob::fit_side).collect();
-                (fitted, elapsed_ms(t0))
-            },
+        let whole = self.clone_job();
+        let sides = self.split_at(&cuts);
+        let ((whole, whole_ms), (sides, sides_ms)) = timed_join(
+            || whole.fit_side(),
+            || sides.into_par_iter().map(PressJob::fit_side).collect::<Vec<_>>(),
         );
         // The cut is kept where the whole's fit misses one side's frames
         // by far more than that side's own fit does.
@@ -692,17 +671,11 @@ impl PressJob<'_> {
             cut |= excess > JUMP_MISFIT_PER_FRAME * n as f64 + PRESS_MISFIT_MARGIN;
             start += n;
         }
-        let (mut out, other_ms): (Vec<FrameOut>, f64) = if cut {
-            (sides.into_iter().flatten().collect(), whole_ms)
+        if cut {
+            with_share(sides.into_iter().flatten().collect(), whole_ms)
         } else {
-            (whole, sides_ms)
-        };
-        // Both fits ran: each frame also carries its share of the other.
-        let share_ms = other_ms / out.len().max(1) as f64;
-        for (_, _, ms) in &mut out {
-            *ms += share_ms;
+            with_share(whole, sides_ms)
         }
-        out
     }
 
     /// [`PressJob::fit`] for a press without a jump. A press that bridged
@@ -721,35 +694,17 @@ impl PressJob<'_> {
         if pieces.len() < 2 {
             return self.fit_whole().0;
         }
-        let c = self.context;
         let press_link = self.held.first().map(|(_, u, _)| u.summary.map.link);
-        let whole = PressJob {
-            context: c,
-            held: self.held.clone(),
-            alone: self.alone.clone(),
-        };
-        let (mut held, mut alone) = (self.held, self.alone);
+        let whole = self.clone_job();
+        let apart = self.split_at(pieces.get(1..).unwrap_or_default());
         // The two fits do not depend on each other.
-        let ((whole, whole_ms), (apart, apart_ms)) = rayon::join(
+        let ((whole, whole_ms), (apart, apart_ms)) = timed_join(
+            || whole.fit_whole(),
             || {
-                let t0 = Instant::now();
-                let fitted = whole.fit_whole();
-                (fitted, elapsed_ms(t0))
-            },
-            || {
-                let t0 = Instant::now();
-                let mut apart = (Vec::with_capacity(held.len()), Some(0.0));
-                for &start in pieces.iter().rev() {
-                    let piece = PressJob {
-                        context: c,
-                        held: held.split_off(start),
-                        alone: alone.split_off(start.min(alone.len())),
-                    };
-                    let (frames, cost) = piece.fit_whole();
-                    apart.0.splice(0..0, frames);
-                    apart.1 = apart.1.zip(cost).map(|(a, (b, _))| a + b);
-                }
-                (apart, elapsed_ms(t0))
+                let fits: Vec<_> = apart.into_iter().map(PressJob::fit_whole).collect();
+                let cost: Option<f64> = fits.iter().map(|(_, cost)| cost.map(|(c, _)| c)).sum();
+                let frames: Vec<FrameOut> = fits.into_iter().flat_map(|(frames, _)| frames).collect();
+                (frames, cost)
             },
         );
         let extra = (pieces.len() - 1) as f64 * FRICTION_GAIN;
@@ -758,17 +713,36 @@ impl PressJob<'_> {
             (Some((whole_cost, _)), Some(apart_cost)) => whole_cost <= apart_cost + extra,
             (whole_cost, _) => whole_cost.is_some(),
         };
-        let (mut out, other_ms) = if keep_whole {
-            (whole.0, apart_ms)
+        if keep_whole {
+            with_share(whole.0, apart_ms)
         } else {
-            (apart.0, whole_ms)
-        };
-        // Both fits ran: each frame also carries its share of the other.
-        let share_ms = other_ms / out.len().max(1) as f64;
-        for (_, _, ms) in &mut out {
-            *ms += share_ms;
+            with_share(apart.0, whole_ms)
         }
-        out
+    }
+
+    /// A copy of the press, to fit beside itself.
+    fn clone_job(&self) -> Self {
+        PressJob {
+            context: self.context,
+            held: self.held.clone(),
+            alone: self.alone.clone(),
+        }
+    }
+
+    /// The press cut before each frame of `starts` (increasing, each past
+    /// the first frame): its pieces in order.
+    fn split_at(mut self, starts: &[usize]) -> Vec<Self> {
+        let mut jobs = Vec::with_capacity(starts.len() + 1);
+        for &start in starts.iter().rev() {
+            jobs.push(PressJob {
+                context: self.context,
+                held: self.held.split_off(start),
+                alone: self.alone.split_off(start.min(self.alone.len())),
+            });
+        }
+        jobs.push(self);
+        jobs.reverse();
+        jobs
     }
 
     /// Where each run of frames on one link starts (the first at 0).
@@ -800,6 +774,32 @@ impl PressJob<'_> {
         );
         (out, cost)
     }
+}
+
+/// `a` and `b` run side by side, each with its milliseconds.
+fn timed_join<A: Send, B: Send>(a: impl FnOnce() -> A + Send, b: impl FnOnce() -> B + Send) -> ((A, f64), (B, f64)) {
+    rayon::join(
+        || {
+            let t0 = Instant::now();
+            let out = a();
+            (out, elapsed_ms(t0))
+        },
+        || {
+            let t0 = Instant::now();
+            let out = b();
+            (out, elapsed_ms(t0))
+        },
+    )
+}
+
+/// `out`, the frames of the fit kept where two ran, each also carrying its
+/// share of the other fit's `other_ms`.
+fn with_share(mut out: Vec<FrameOut>, other_ms: f64) -> Vec<FrameOut> {
+    let share_ms = other_ms / out.len().max(1) as f64;
+    for (_, _, ms) in &mut out {
+        *ms += share_ms;
+    }
+    out
 }
 
 /// A press that drags (its fit keeps friction) is also fitted from each
