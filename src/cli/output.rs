@@ -98,8 +98,9 @@ fn link_shares_json(robot: &Robot, s: &Summary) -> serde_json::Value {
 /// its places over the last [`SLIDE_WINDOW_SECS`] (this line's and the
 /// one before at least), where those lines have a contact on the same
 /// link and no hop between two of them ([`is_hop`]) and span half the
-/// window at least; null otherwise (the arm's own motion is not in it). Lines are marked in time order, so
-/// live output reads the same as a file's.
+/// window at least; null otherwise (the arm's own motion is not in it).
+/// Lines are marked in time order, so live output reads the same as a
+/// file's.
 ///
 /// Not the step from the line before: a smoothed place strays by a
 /// millimetre or so from frame to frame, which at 1 kHz reads as a metre
@@ -115,7 +116,7 @@ pub struct SlideVelocity {
     /// The link of the places in `run`.
     link: serde_json::Value,
     /// The places (time, point in the link's frame) of the lines within
-    /// the window, on one link with no jump between, oldest first.
+    /// the window, on one link with no hop between, oldest first.
     run: std::collections::VecDeque<(f64, glam::DVec3)>,
 }
 
