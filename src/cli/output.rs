@@ -185,11 +185,8 @@ impl SlideVelocity {
 }
 
 /// The least-squares slope of `points` (time, place) over time, m/s:
-/// `None` with fewer than two or all at one time.
+/// `None` with fewer than two or all at one time (no spread in time).
 fn slope(points: &std::collections::VecDeque<(f64, glam::DVec3)>) -> Option<glam::DVec3> {
-    if points.len() < 2 {
-        return None;
-    }
     let n = points.len() as f64;
     let t_mean = points.iter().map(|(t, _)| t).sum::<f64>() / n;
     let p_mean = points.iter().map(|(_, p)| *p).sum::<glam::DVec3>() / n;
