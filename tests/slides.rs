@@ -134,9 +134,10 @@ fn a_slide_between_two_rests_is_fitted_from_the_rests() {
 }
 
 /// A generated link 7 session (`--seed 3`) whose second press slides,
-/// then sticks at 2.54–2.80 s on the flange's side: the smoother holds
-/// a place 11° round the flange from the true one, at χ² about 11,000 a
-/// frame, and the press check rejects it. The press's
+/// then sticks at 2.54–2.80 s on the flange's side, 1 mm below its end
+/// face: the smoother's place lies on the edge between them, 1.8 mm off,
+/// where a frictionless push misses each frame at χ² about 11,000, and
+/// the press check rejects it. The press's
 /// frictionless fit from there lands on the true place, explaining the
 /// frames within a few a frame of their own contacts, and replaces the
 /// recording rather than each frame taking its own contact.

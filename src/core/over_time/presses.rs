@@ -972,9 +972,10 @@ pub const JUMP_MISFIT_PER_FRAME: f64 = 8.0;
 /// (see [`PRESS_MISFIT_PER_FRAME`]). Where a slide stops and the contact
 /// sticks on the LWR's flange (`synth --seed 3 --links lwr_7_link --slide
 /// 0.1 --slide-min 0.02 --kinetic-friction 0.3,0.6`, surface seed 0, 2.54–
-/// 2.80 s), the smoother holds a place 11° round the flange from the true
-/// one, at χ² about 11,000 a frame, while the fit from there lands on
-/// the true place at 2.5 a frame beyond the frames' own; taken one by one,
+/// 2.80 s), the smoother's place lies on the edge between the flange's
+/// side and its end face, 1.8 mm from the true one on the side, where a
+/// frictionless push misses each frame at χ² about 11,000; the fit from
+/// there lands on the true place at 2.5 a frame beyond the frames' own; taken one by one,
 /// their own contacts hop 1–10 mm from frame to frame and onto link 5 in
 /// 8 of the 53 frames. Where model error rather than the place sets the
 /// misfit (the `../shared` observer link-side example, surface seed 1: a
