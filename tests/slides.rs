@@ -15,16 +15,23 @@ use common::run_out;
 /// `folder`) estimated smoothed at surface seed `surface_seed`: the
 /// summary's all-frames row, and the whole output.
 fn smoothed_slide(folder: &str, link: &str, seed: &str, surface_seed: &str) -> (Vec<f64>, String) {
+    smoothed_slide_with(folder, link, seed, surface_seed, &[])
+}
+
+/// [`smoothed_slide`] with `more` options after its own (`--out`, say).
+fn smoothed_slide_with(folder: &str, link: &str, seed: &str, surface_seed: &str, more: &[&str]) -> (Vec<f64>, String) {
     let path = common::temp_dir(folder).join("slide.json");
     common::synth_slide(&path, link, seed);
-    let (ok, out, err) = run_out(&[
+    let mut args = vec![
         "estimate",
         path.to_str().unwrap(),
         "--temporal",
         "smooth",
         "--seed",
         surface_seed,
-    ]);
+    ];
+    args.extend_from_slice(more);
+    let (ok, out, err) = run_out(&args);
     assert!(ok, "{err}");
     (common::all_row(&out), out)
 }
@@ -137,26 +144,20 @@ fn a_slide_between_two_rests_is_fitted_from_the_rests() {
 /// then sticks at 2.54–2.80 s on the flange's side, 1 mm below its end
 /// face: the smoother's place lies on the edge between them, 1.8 mm off,
 /// where a frictionless push misses each frame at χ² about 11,000, and
-/// the press check rejects it. The press's
-/// frictionless fit from there lands on the true place, explaining the
-/// frames within a few a frame of their own contacts, and replaces the
-/// recording rather than each frame taking its own contact.
+/// the press check rejects it. The press's frictionless fit from there
+/// lands on the true place, explaining the frames within a few a frame of
+/// their own contacts, and replaces the recording rather than each frame
+/// taking its own contact.
 #[test]
 fn a_rest_the_recording_walks_off_takes_its_press_fit() {
-    let dir = common::temp_dir("slides_flange_rest");
-    let (path, json) = (dir.join("slide.json"), dir.join("est.jsonl"));
-    common::synth_slide(&path, "lwr_7_link", "3");
-    let (ok, out, err) = run_out(&[
-        "estimate",
-        path.to_str().unwrap(),
-        "--temporal",
-        "smooth",
-        "--seed",
+    let json = common::temp_dir("slides_flange_rest_out").join("est.jsonl");
+    let (_, out) = smoothed_slide_with(
+        "slides_flange_rest",
+        "lwr_7_link",
+        "3",
         "0",
-        "--out",
-        json.to_str().unwrap(),
-    ]);
-    assert!(ok, "{err}");
+        &["--out", json.to_str().unwrap()],
+    );
     let rest: Vec<(String, f64)> = common::json_lines(&json)
         .iter()
         .filter(|line| (2.55..=2.75).contains(&line["t"].as_f64().unwrap()))

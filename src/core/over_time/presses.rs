@@ -911,8 +911,7 @@ fn check_press(press: &mut [(usize, Update, f64)], alone: &mut Vec<Option<Summar
 /// Whether contacts leaving a press's frames the residuals `residuals`
 /// (χ², one a frame) explain them worse than each frame's own contact
 /// (`alone`) by more than `limit_per_frame` a frame plus `margin`; false
-/// unless every frame has its own refined
-/// contact to compare with.
+/// unless every frame has its own refined contact to compare with.
 fn misses_alone(
     residuals: impl ExactSizeIterator<Item = f64>,
     alone: &[Option<Summary>],
@@ -975,9 +974,9 @@ pub const JUMP_MISFIT_PER_FRAME: f64 = 8.0;
 /// 2.80 s), the smoother's place lies on the edge between the flange's
 /// side and its end face, 1.8 mm from the true one on the side, where a
 /// frictionless push misses each frame at χ² about 11,000; the fit from
-/// there lands on the true place at 2.5 a frame beyond the frames' own; taken one by one,
-/// their own contacts hop 1–10 mm from frame to frame and onto link 5 in
-/// 8 of the 53 frames. Where model error rather than the place sets the
+/// there lands on the true place at 2.5 a frame beyond the frames' own.
+/// Taken one by one, their own contacts hop 1–10 mm from frame to frame
+/// and onto link 5 in 8 of the 53 frames. Where model error rather than the place sets the
 /// misfit (the `../shared` observer link-side example, surface seed 1: a
 /// 318-frame press at 23 a frame beyond its own), each frame's own contact
 /// is the nearer (3.4 mm at the median, 5.1 with the fit).
