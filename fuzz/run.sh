@@ -5,7 +5,9 @@
 # (over 2 GiB) stops the run and leaves the input in fuzz/artifacts/.
 # No sanitizer (`-s none`): the crate forbids unsafe code, so what the
 # fuzzers look for is a panic, a hang or a runaway allocation, which
-# libFuzzer catches alone; AddressSanitizer would only slow the build.
+# libFuzzer catches alone. AddressSanitizer would check only the C
+# libraries the readers link, at twice the build time and fewer inputs
+# a second (docs/decisions.md, "CI on a fresh machine").
 set -euo pipefail
 cd "$(dirname "$0")"
 seconds=${1:-20}
