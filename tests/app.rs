@@ -4,8 +4,7 @@
 // Test helpers may unwrap: a panic is a failed test with its message.
 #![allow(clippy::unwrap_used)]
 
-#[path = "common/app.rs"]
-mod app_common;
+use crate::common::app as app_common;
 
 use std::path::Path;
 

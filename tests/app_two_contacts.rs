@@ -5,9 +5,8 @@
 // Test helpers may unwrap: a panic is a failed test with its message.
 #![allow(clippy::unwrap_used)]
 
-#[path = "common/app.rs"]
-mod app_common;
-mod common;
+use crate::common;
+use crate::common::app as app_common;
 
 use app_common::{app_harness, open_and_wait, settle};
 use eframe::egui;

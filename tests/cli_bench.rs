@@ -3,7 +3,7 @@
 // Test helpers may unwrap: a panic is a failed test with its message.
 #![allow(clippy::unwrap_used)]
 
-mod common;
+use crate::common;
 
 use common::{THESIS_SESSION, run_out, temp_file};
 

@@ -5,7 +5,7 @@
 // Test helpers may unwrap: a panic is a failed test with its message.
 #![allow(clippy::unwrap_used)]
 
-mod common;
+use crate::common;
 
 use proprioscope::core::estimate::estimator::Estimator;
 use proprioscope::core::estimate::friction::frictional_force;

@@ -7,7 +7,7 @@
 // Test helpers may unwrap: a panic is a failed test with its message.
 #![allow(clippy::unwrap_used)]
 
-mod common;
+use crate::common;
 
 use common::{estimate_figures, run, temp_dir};
 use proprioscope::core::eval::synth::{ObserverSim, SynthSettings, synthesize_with_plant};

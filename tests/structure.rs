@@ -2,7 +2,7 @@
 //! `core` import only the rooms below them, `core` imports no UI, GPU or
 //! file code, the layers import only the layers below, no two files import
 //! each other (through any chain), and no file holds more than about 800
-//! lines of code.
+//! lines of code; and every integration test file is built.
 
 // Test helpers may unwrap: a panic is a failed test with its message.
 #![allow(clippy::unwrap_used)]
@@ -239,4 +239,32 @@ fn every_core_room_says_what_it_owns() {
             path.display()
         );
     }
+}
+
+/// With `autotests = false`, a file under `tests/` that `tests/main.rs`
+/// does not declare would never be built: every one is declared.
+#[test]
+fn every_integration_test_file_is_built() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests");
+    let main = std::fs::read_to_string(dir.join("main.rs")).unwrap();
+    let declared: BTreeSet<&str> = main
+        .lines()
+        .filter_map(|line| line.strip_prefix("mod ")?.strip_suffix(';'))
+        .collect();
+    let mut missing = Vec::new();
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let Some(stem) = path.file_stem().and_then(|s| s.to_str()) else {
+            continue;
+        };
+        let is_module = if path.is_dir() {
+            path.join("mod.rs").exists()
+        } else {
+            path.extension().is_some_and(|e| e == "rs") && stem != "main"
+        };
+        if is_module && !declared.contains(stem) {
+            missing.push(stem.to_owned());
+        }
+    }
+    assert!(missing.is_empty(), "tests/main.rs does not declare: {missing:?}");
 }

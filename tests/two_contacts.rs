@@ -5,7 +5,7 @@
 // Test helpers may unwrap: a panic is a failed test with its message.
 #![allow(clippy::unwrap_used)]
 
-mod common;
+use crate::common;
 
 use glam::DVec3;
 use proprioscope::batch::pairs::TruthFelt;

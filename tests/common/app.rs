@@ -1,5 +1,5 @@
-//! Helpers of the app's tests (a module of its own: the other tests do
-//! not build the app's harness).
+//! Helpers of the app's tests: the harness on a scene, opening a target
+//! and waiting for its estimate.
 
 // Not every test file uses every helper.
 #![allow(dead_code, clippy::unwrap_used)]

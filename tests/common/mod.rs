@@ -4,6 +4,8 @@
 // Not every test file uses every helper.
 #![allow(dead_code, clippy::unwrap_used)]
 
+pub mod app;
+
 use std::path::PathBuf;
 use std::process::Command;
 

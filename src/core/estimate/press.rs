@@ -721,29 +721,28 @@ impl Problem<'_> {
             normal.cost += chi2;
             *normal.residuals.get_mut(t)? = chi2;
             *normal.magnitudes.get_mut(t)? = f;
-            let metric = |x: &[f64], y: &[f64]| {
-                let plain = inner(w, x, y);
-                if profiled {
-                    plain - inner(w, x, &pushed) * inner(w, &pushed, y) / lever
-                } else {
-                    plain
-                }
+            let metric = Metric {
+                w,
+                pushed: &pushed,
+                lever,
+                profiled,
             };
-            let places = [d0, d1];
+            let (p0, p1) = (metric.column(d0), metric.column(d1));
             let f2 = f * f;
             let block = normal.diagonal.get_mut(t)?;
             *block += DMat2::from_cols(
-                DVec2::new(metric(d0, d0), metric(d1, d0)),
-                DVec2::new(metric(d0, d1), metric(d1, d1)),
+                DVec2::new(metric.between(p0, p0), metric.between(p1, p0)),
+                DVec2::new(metric.between(p0, p1), metric.between(p1, p1)),
             ) * f2;
             *normal.rhs_places.get_mut(t)? += DVec2::new(inner(w, d0, &residual), inner(w, d1, &residual)) * f;
             if ratio_free {
+                let axes = axes.map(|axis| metric.column(axis));
                 let border = normal.border.get_mut(t)?;
-                for (k, axis) in axes.iter().enumerate() {
-                    border[k] += DVec2::new(metric(places[0], axis), metric(places[1], axis)) * f2;
+                for (k, &axis) in axes.iter().enumerate() {
+                    border[k] += DVec2::new(metric.between(p0, axis), metric.between(p1, axis)) * f2;
                 }
                 normal.corner += DMat3::from_cols_array_2d(&std::array::from_fn(|k| {
-                    std::array::from_fn(|l| metric(axes[k], axes[l]) * f2)
+                    std::array::from_fn(|l| metric.between(axes[k], axes[l]) * f2)
                 }));
                 normal.rhs_ratio += DVec3::new(
                     inner(w, c0, &residual),
@@ -758,6 +757,53 @@ impl Problem<'_> {
             }
         }
         normal.cost.is_finite().then_some(normal)
+    }
+}
+
+/// The weighted inner product of a frame's columns, with the push's
+/// direction projected out where its magnitude is profiled (inside the
+/// force range, the best magnitude moves with the place).
+struct Metric<'a> {
+    w: &'a [f64],
+    pushed: &'a [f64],
+    lever: f64,
+    profiled: bool,
+}
+
+/// A column with its products with the push, both ways round.
+#[derive(Clone, Copy)]
+struct Column<'c> {
+    values: &'c [f64],
+    toward_push: f64,
+    from_push: f64,
+}
+
+impl Metric<'_> {
+    /// `values` with its products with the push: computed once a frame
+    /// and reused by every [`Metric::between`], in the same order of
+    /// operations as each product alone (so the same bits).
+    fn column<'c>(&self, values: &'c [f64]) -> Column<'c> {
+        let (toward_push, from_push) = if self.profiled {
+            (inner(self.w, values, self.pushed), inner(self.w, self.pushed, values))
+        } else {
+            (0.0, 0.0)
+        };
+        Column {
+            values,
+            toward_push,
+            from_push,
+        }
+    }
+
+    /// ⟨x, y⟩ under the weights, less the part along the push where it
+    /// is profiled.
+    fn between(&self, x: Column<'_>, y: Column<'_>) -> f64 {
+        let plain = inner(self.w, x.values, y.values);
+        if self.profiled {
+            plain - x.toward_push * y.from_push / self.lever
+        } else {
+            plain
+        }
     }
 }
 
