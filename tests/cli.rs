@@ -788,3 +788,39 @@ fn estimate_scores_slides_paths_only_where_presses_slide() {
     assert!(!out.contains("slides:"), "{out}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `synth --press-secs LO,HI` draws each press that long (ramps
+/// included), so slides as long as a real one can be drawn; an interval
+/// the wrong way round is refused by name.
+#[test]
+fn synth_draws_presses_as_long_as_asked() {
+    let session = temp_file("press-secs.session.json", "");
+    let path = session.to_str().unwrap();
+    let args = ["synth", path, "--seconds", "12", "--rate", "50", "--seed", "2"];
+    let (ok, _, err) = run_out(&[&args[..], &["--links", "lwr_6_link", "--press-secs", "2,2.5"]].concat());
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(&session).unwrap();
+    let frames = serde_json::from_str::<serde_json::Value>(&text).unwrap()["frames"].clone();
+    let frames = frames.as_array().unwrap();
+    // Each run of frames with a true contact, as (first, last) frame times.
+    let mut runs: Vec<(f64, f64)> = Vec::new();
+    let mut pressed_before = false;
+    for f in frames {
+        let t = f["t"].as_f64().unwrap();
+        let pressed = !f["truth"].is_null();
+        match (pressed, pressed_before, runs.last_mut()) {
+            (true, true, Some(run)) => run.1 = t,
+            (true, _, _) => runs.push((t, t)),
+            _ => {}
+        }
+        pressed_before = pressed;
+    }
+    let end = frames.last().unwrap()["t"].as_f64().unwrap();
+    let whole: Vec<f64> = runs.iter().filter(|r| r.1 < end).map(|r| r.1 - r.0).collect();
+    assert!(whole.len() >= 2, "{runs:?}");
+    // A press's first and last frames may fall inside its ramps with no
+    // push yet: up to a frame less at either end.
+    assert!(whole.iter().all(|&d| (1.9..=2.5).contains(&d)), "{runs:?}");
+    let (ok, _, err) = run_out(&[&args[..], &["--press-secs", "2,1"]].concat());
+    assert!(!ok && err.contains("--press-secs") && err.contains("LO ≤ HI"), "{err}");
+}

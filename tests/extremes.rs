@@ -78,7 +78,7 @@ fn overflowing_pushes_are_refused_naming_the_argument_and_its_range() {
 /// value outside refused with the option and the range named.
 #[test]
 fn every_numeric_option_documents_its_range_and_refuses_values_outside() {
-    let cases: [(&[&str], &str, Range, &str); 17] = [
+    let cases: [(&[&str], &str, Range, &str); 18] = [
         (&["estimate", "x.json"], "--sigma", limits::SIGMA, "1e-9"),
         (&["estimate", "x.json"], "--fmin", limits::FORCE_MIN, "1e308"),
         (&["estimate", "x.json"], "--fmax", limits::FORCE_MAX, "0"),
@@ -95,6 +95,7 @@ fn every_numeric_option_documents_its_range_and_refuses_values_outside() {
         (&["synth", "x.json"], "--bias", limits::BIAS, "1e300"),
         (&["synth", "x.json"], "--slide", limits::SLIDE_SPEED, "2"),
         (&["synth", "x.json"], "--noise", limits::NOISE, "-1"),
+        (&["synth", "x.json"], "--press-secs", limits::SECONDS, "0,1"),
         (&["bench"], "--noise", limits::NOISE, "1e200"),
     ];
     for (command, flag, range, bad) in cases {

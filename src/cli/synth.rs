@@ -71,6 +71,13 @@ pub struct SynthArgs {
     /// along the slide with `μ_k` times its push (valid: [0, 2] each).
     #[arg(long, value_delimiter = ',', value_name = "LO,HI", value_parser = within(&limits::FRICTION))]
     pub kinetic_friction: Option<Vec<f64>>,
+    /// Each press lasts a time drawn uniformly in `LO,HI`, s, its 50 ms
+    /// ramps included (default 0.3,1.2). A press with kinetic friction
+    /// slides for the middle half of it, so its slide is half the press
+    /// times its speed: presses of 1.5–3 s at 2–10 cm/s slide 1.5–15 cm
+    /// (valid: (0, 3600] s each).
+    #[arg(long, value_delimiter = ',', value_name = "LO,HI", value_parser = within(&limits::SECONDS))]
+    pub press_secs: Option<Vec<f64>>,
     /// Contacts that may press at once, 1 or 2. With 2, a second hand
     /// presses during each press on another link, coming while the first
     /// holds and staying a while after it lets go; every true contact is
@@ -93,6 +100,16 @@ pub enum Sensing {
     Motor,
 }
 
+/// An option given as `LO,HI` (each value already checked against its
+/// range): `None` where it is not given.
+fn interval(option: &str, values: Option<&[f64]>) -> Result<Option<(f64, f64)>> {
+    match values {
+        None => Ok(None),
+        Some(&[lo, hi]) if lo <= hi => Ok(Some((lo, hi))),
+        Some(other) => anyhow::bail!("{option} {other:?}: give LO,HI with LO ≤ HI"),
+    }
+}
+
 /// Runs the command.
 pub fn run(args: &SynthArgs) -> Result<()> {
     let robot = builtin::lwr4plus_generated().context("the built-in LWR")?;
@@ -104,11 +121,9 @@ pub fn run(args: &SynthArgs) -> Result<()> {
             .map(|name| robot.link_id(name).with_context(|| format!("--links {name}")))
             .collect::<Result<Vec<_>>>()?
     };
-    let kinetic_friction = match args.kinetic_friction.as_deref() {
-        None => None,
-        Some(&[lo, hi]) if lo <= hi => Some((lo, hi)),
-        Some(other) => anyhow::bail!("--kinetic-friction {other:?}: give LO,HI with LO ≤ HI"),
-    };
+    let kinetic_friction = interval("--kinetic-friction", args.kinetic_friction.as_deref())?;
+    let defaults = SynthSettings::default();
+    let press_secs = interval("--press-secs", args.press_secs.as_deref())?.unwrap_or(defaults.press_secs);
     let settings = SynthSettings {
         duration_secs: args.seconds,
         rate_hz: args.rate,
@@ -127,7 +142,8 @@ pub fn run(args: &SynthArgs) -> Result<()> {
         contacts_at_once: usize::from(args.contacts),
         avoid_covered: args.avoid_covered,
         kinetic_friction,
-        ..SynthSettings::default()
+        press_secs,
+        ..defaults
     };
     let frames = synthesize(&robot, &links, &settings, args.seed)?;
     let joints: Vec<String> = robot.sensed_names().iter().map(|s| (*s).to_owned()).collect();
