@@ -144,28 +144,9 @@ fn estimate_with_its_defaults_keeps_generated_free_motion_free() {
 fn a_recording_pressed_most_of_the_time_keeps_its_free_frames_free() {
     let dir = temp_dir("crowded");
     let path = dir.join("crowded.session.json");
+    let more = ["--seconds", "12", "--rate", "50", "--press-secs", "1.5,3"];
+    common::synth_slide_with(&path, "lwr_6_link", "2", &more);
     let path = path.to_str().unwrap();
-    let made = run(&[
-        "synth",
-        path,
-        "--seconds",
-        "12",
-        "--rate",
-        "50",
-        "--seed",
-        "2",
-        "--links",
-        "lwr_6_link",
-        "--slide",
-        "0.1",
-        "--slide-min",
-        "0.02",
-        "--kinetic-friction",
-        "0.3,0.6",
-        "--press-secs",
-        "1.5,3",
-    ]);
-    assert!(made.ok, "{}", made.err);
     let estimated = run(&["estimate", path, "--points", "1000"]);
     assert!(estimated.ok, "{}", estimated.err);
     let (detected, false_alarms, median_mm) = estimate_figures(&estimated.out);
