@@ -154,3 +154,32 @@ fn a_recording_pressed_most_of_the_time_keeps_its_free_frames_free() {
     assert!(false_alarms <= 2.0, "{}", estimated.out);
     assert!(median_mm <= 10.0, "{}", estimated.out);
 }
+
+/// A session pressed four fifths of the time on link 4, where the fit
+/// finds no model error: the gate's free frames read 6.3 times wider on
+/// joint 1 than the frames the readings themselves call free, which
+/// then set σ (0.048–0.052 N·m, 5–7 ms). From the gate's 586 free frames
+/// (453 are), joint 1 read 0.31 N·m where the noise is 0.05, correlated
+/// over 958 ms: σ 4.3 N·m once widened for it.
+#[test]
+fn a_crowded_recording_without_model_error_reads_sigma_from_its_free_frames() {
+    let dir = temp_dir("crowded-sigma");
+    let path = dir.join("crowded.session.json");
+    common::synth_slide_with(&path, "lwr_4_link", "3", &["--seconds", "12", "--press-secs", "1.5,3"]);
+    let learned = run(&[
+        "calibrate",
+        path.to_str().unwrap(),
+        "--out",
+        dir.join("c.json").to_str().unwrap(),
+    ]);
+    assert!(learned.ok, "{}", learned.err);
+    assert!(learned.out.contains("no model error found"), "{}", learned.out);
+    let rows: Vec<&str> = learned.out.lines().filter(|l| l.starts_with("| lwr_joint_")).collect();
+    assert_eq!(rows.len(), 7, "{}", learned.out);
+    for row in rows {
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        let rms: f64 = cells[2].parse().unwrap();
+        let correlation_ms: f64 = cells[5].parse().unwrap();
+        assert!(rms < 0.07 && correlation_ms < 20.0, "{row}\n{}", learned.out);
+    }
+}
