@@ -839,11 +839,11 @@ const CROWDED_FREE_RATIO: f64 = 1.5;
 /// Rounds of [`free_readings`]' gate.
 const READING_ROUNDS: usize = 4;
 
-/// The frames free of contact by the `torques` as read, from the gate's
-/// `free` frames: [`READING_ROUNDS`] rounds of each joint's σ over the
-/// free frames ([`trimmed_sigma`]) and the gate at `threshold` (χ²) under
-/// it, the quietest `share` always free. `None` where fewer than
-/// [`MIN_FREE_FRAMES`] would stay.
+/// The frames free of contact by the `torques` as read, starting from
+/// the `free` frames given (the quietest readings): [`READING_ROUNDS`]
+/// rounds of each joint's σ over the free frames ([`trimmed_sigma`]) and
+/// the gate at `threshold` (χ²) under it, the quietest `share` always
+/// free. `None` where fewer than [`MIN_FREE_FRAMES`] would stay.
 ///
 /// Where the fit finds no model error, its residuals still hold what its
 /// columns took from the frames it was fitted on, and a press's weak
@@ -1046,8 +1046,9 @@ pub fn calibrate(
         // some joint, presses crowd them, and the readings' are kept.
         let quietest = quiet_point(&sorted, CROWDED_SHARE);
         let start = loudness.iter().map(|l| *l <= quietest).collect();
-        let readings = free_readings(times, torques, start, (threshold, gain, CROWDED_SHARE))
-            .filter(|_| !settings.free_motion)
+        let readings = (!settings.free_motion)
+            .then(|| free_readings(times, torques, start, (threshold, gain, CROWDED_SHARE)))
+            .flatten()
             .map(|free| {
                 let before: Vec<(f64, f64)> = (0..n).map(|j| free_runs(&free, &|k| torques[k][j])).collect();
                 (free, before)
