@@ -3,6 +3,7 @@
 
 use glam::{DAffine3, DMat3, DVec3};
 
+use super::free::QUIET_SHARE;
 use super::*;
 use crate::core::numerics::rng::Rng;
 use crate::core::over_time::observer::Lag;
