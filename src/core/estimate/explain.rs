@@ -31,7 +31,7 @@ pub const KINETIC_GAIN: f64 = 15.0;
 /// slide (`--avoid-covered`) slips 7 mm at `μ_k` 0.52, which the fit from
 /// the true places explains at 855 against 381,412 without friction (a
 /// fixed γ refused, over 4μ; `docs/decisions.md`, session 71).
-const MIN_SLIDE_M: f64 = 0.005;
+pub(crate) const MIN_SLIDE_M: f64 = 0.005;
 
 /// The shortest slide elsewhere, m. A press that holds its place and
 /// drags is left to the fixed γ: the track's jitter of a few millimetres,

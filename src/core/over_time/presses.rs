@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use glam::DVec3;
 
 use crate::core::estimate::estimator::{Estimator, Update, elapsed_ms, is_pressed};
-use crate::core::estimate::explain::{PressAnswer, explain_press};
+use crate::core::estimate::explain::{MIN_SLIDE_M, PressAnswer, explain_press};
 use crate::core::estimate::friction::friction_evidence;
 use crate::core::estimate::measurement::Measurement;
 use crate::core::estimate::press::{FRICTION_GAIN, PressFrame, PressSettings, locate, press_spreads};
@@ -31,7 +31,8 @@ impl Estimator {
     /// frames' own contacts (`alone`, one per frame; see
     /// [`PRESS_MISFIT_PER_FRAME`], and [`SLIDE_MISFIT_PER_FRAME`] where
     /// kinetic friction explains it), hands the frames to `each`, each with
-    /// its share of the time, and empties `press` and `alone`.
+    /// its share of the time, and empties `press` and `alone`. Returns the
+    /// fit (`None` where the press keeps its estimates).
     fn settle_press(
         &self,
         robot: &Robot,
@@ -40,7 +41,7 @@ impl Estimator {
         press: &mut Vec<(usize, Update, f64)>,
         alone: &mut Vec<Option<Summary>>,
         each: &mut impl FnMut(usize, Update, f64),
-    ) -> Option<(f64, LinkId)> {
+    ) -> Option<Fitted> {
         if press.is_empty() {
             alone.clear();
             return None;
@@ -62,7 +63,7 @@ impl Estimator {
         for (i, update, cost_ms) in press.drain(..) {
             each(i, update, cost_ms + share_ms);
         }
-        fit.map(|(_, cost, link)| (cost, link))
+        fit.map(|(slides, cost, link)| Fitted { cost, link, slides })
     }
 
     /// [`Estimator::settle_press`]'s fit: whether kinetic friction along
@@ -623,7 +624,8 @@ struct PressContext<'a> {
 
 impl PressJob<'_> {
     /// Bytes its frames' posteriors hold while it is fitted: twice over
-    /// for a press that bridged a hop (its whole fit works on a copy),
+    /// for a press in pieces, one that bridged a hop or is longer than
+    /// [`PRESS_PIECE_FRAMES`] (its whole fit works on a copy),
     /// and twice that again for a press that jumps (fitted whole and side
     /// by side).
     pub(crate) fn bytes(&self) -> usize {
@@ -703,36 +705,76 @@ impl PressJob<'_> {
     /// one: on the `../shared` link 6 slide the smoother's hops back to
     /// link 6 are the truth, and the whole press they bridge on link 7
     /// moves to link 5, 130 mm off (`docs/decisions.md`, *A press across
-    /// a hop*).
+    /// a hop*). A press longer than [`PRESS_PIECE_FRAMES`] is also cut
+    /// into pieces of that length, and kept whole only where kinetic
+    /// friction explains it whole as well.
     fn fit_side(self) -> Vec<(usize, Update, f64)> {
         let pieces = self.pieces();
         if pieces.len() < 2 {
             return self.fit_whole().0;
         }
         let press_link = self.held.first().map(|(_, u, _)| u.summary.map.link);
+        let long = self.held.len() > PRESS_PIECE_FRAMES;
+        // A long press whose places stay within the shortest slide cannot
+        // be kept whole: its pieces alone.
+        if long && !self.places_spread() {
+            return self.fit_apart(&pieces).0;
+        }
         let whole = self.clone_job();
-        let apart = self.split_at(pieces.get(1..).unwrap_or_default());
         // The two fits do not depend on each other.
-        let ((whole, whole_ms), (apart, apart_ms)) = timed_join(
-            || whole.fit_whole(),
-            || {
-                let fits: Vec<_> = apart.into_iter().map(PressJob::fit_whole).collect();
-                let cost: Option<f64> = fits.iter().map(|(_, cost)| cost.map(|(c, _)| c)).sum();
-                let frames: Vec<FrameOut> = fits.into_iter().flat_map(|(frames, _)| frames).collect();
-                (frames, cost)
-            },
-        );
+        let ((whole, whole_ms), (apart, apart_ms)) = timed_join(|| whole.fit_whole(), || self.fit_apart(&pieces));
         let extra = (pieces.len() - 1) as f64 * FRICTION_GAIN;
         let keep_whole = match (whole.1, apart.1) {
-            (Some((_, link)), _) if Some(link) != press_link => false,
-            (Some((whole_cost, _)), Some(apart_cost)) => whole_cost <= apart_cost + extra,
-            (whole_cost, _) => whole_cost.is_some(),
+            (Some(fitted), _) if Some(fitted.link) != press_link || (long && !fitted.slides) => false,
+            (Some(fitted), Some(apart_cost)) => fitted.cost <= apart_cost + extra,
+            (whole_fit, _) => whole_fit.is_some(),
         };
+        log::debug!(
+            "press of {} frames from frame {}: whole {:?}, {} pieces {:?}: {}",
+            whole.0.len(),
+            whole.0.first().map_or(0, |(i, _, _)| *i),
+            whole.1.map(|f| (f.cost.round(), f.slides)),
+            pieces.len(),
+            apart.1.map(f64::round),
+            if keep_whole { "whole" } else { "pieces" }
+        );
         if keep_whole {
             with_share(whole.0, apart_ms)
         } else {
             with_share(apart.0, whole_ms)
         }
+    }
+
+    /// The press fitted piece by piece (`pieces` as [`PressJob::pieces`]
+    /// gives them): every frame in order, and the pieces' summed cost
+    /// (`None` where a piece keeps its estimates).
+    fn fit_apart(self, pieces: &[usize]) -> (Vec<FrameOut>, Option<f64>) {
+        let fits: Vec<_> = self
+            .split_at(pieces.get(1..).unwrap_or_default())
+            .into_iter()
+            .map(PressJob::fit_whole)
+            .collect();
+        let cost: Option<f64> = fits.iter().map(|(_, fitted)| fitted.map(|f| f.cost)).sum();
+        let frames: Vec<FrameOut> = fits.into_iter().flat_map(|(frames, _)| frames).collect();
+        (frames, cost)
+    }
+
+    /// Whether the recording's places on the press's link spread over the
+    /// shortest slide kinetic friction may explain or more (their farthest
+    /// from the first, in the link's frame).
+    fn places_spread(&self) -> bool {
+        let Some(link) = self.held.first().map(|(_, u, _)| u.summary.map.link) else {
+            return false;
+        };
+        let places: Vec<DVec3> = self
+            .held
+            .iter()
+            .filter(|(_, u, _)| u.summary.map.link == link)
+            .filter_map(|(_, u, _)| in_link_frame(u, link, u.summary.map.point_world))
+            .collect();
+        places
+            .first()
+            .is_some_and(|&first| places.iter().any(|p| p.distance(first) >= MIN_SLIDE_M))
     }
 
     /// A copy of the press, to fit beside itself.
@@ -760,15 +802,20 @@ impl PressJob<'_> {
         jobs
     }
 
-    /// Where each run of frames on one link starts (the first at 0).
+    /// Where each piece of the press starts (the first at 0): each run of
+    /// frames on one link, cut again every [`PRESS_PIECE_FRAMES`] frames.
     fn pieces(&self) -> Vec<usize> {
         let mut starts = Vec::new();
         let mut last = None;
+        let mut run_start = 0;
         for (k, (_, update, _)) in self.held.iter().enumerate() {
             let link = update.summary.map.link;
             if last != Some(link) {
-                starts.push(k);
+                run_start = k;
                 last = Some(link);
+            }
+            if (k - run_start) % PRESS_PIECE_FRAMES == 0 {
+                starts.push(k);
             }
         }
         starts
@@ -776,7 +823,7 @@ impl PressJob<'_> {
 
     /// The press fitted whole: its frames in order, the fit's cost and
     /// link (`None` where it keeps its estimates).
-    fn fit_whole(mut self) -> (Vec<FrameOut>, Option<(f64, LinkId)>) {
+    fn fit_whole(mut self) -> (Vec<FrameOut>, Option<Fitted>) {
         let mut out = Vec::with_capacity(self.held.len());
         let c = self.context;
         let cost = c.estimator.settle_press(
@@ -789,6 +836,17 @@ impl PressJob<'_> {
         );
         (out, cost)
     }
+}
+
+/// A press's fit, where it changed the press's estimates.
+#[derive(Debug, Clone, Copy)]
+struct Fitted {
+    /// `-2 ln` of the fit's posterior.
+    cost: f64,
+    /// The link it placed the press on.
+    link: LinkId,
+    /// Whether kinetic friction along a slide explains it.
+    slides: bool,
 }
 
 /// `a` and `b` run side by side, each with its milliseconds.
@@ -836,10 +894,24 @@ fn with_share(mut out: Vec<FrameOut>, other_ms: f64) -> Vec<FrameOut> {
 /// millions (`docs/decisions.md`, *Slides placed centimetres off*).
 pub const FOLLOW_SLIDE_M_PER_SQRT_S: f64 = 0.1;
 
-/// Longest run of frames fitted as one press (2 s at 200 Hz): a longer
-/// contact is fitted in pieces, so that what waits for a press's end
-/// stays bounded (each frame's posterior is held until then).
-pub const MAX_PRESS_FRAMES: usize = 400;
+/// Longest run of frames held as one press (6 s at 200 Hz, 1.2 s at
+/// 1 kHz): a longer contact is fitted in parts, so that what waits for a
+/// press's end stays bounded (each frame's posterior is held until then).
+pub const MAX_PRESS_FRAMES: usize = 1200;
+
+/// A press longer than this (frames; 2 s at 200 Hz) is fitted whole only
+/// where kinetic friction explains it whole (a slide, whose rests before
+/// and after belong in one fit), and otherwise in pieces of this length
+/// (`PressJob::fit_side`). Cut into pieces, a generated link 5 slide
+/// (`synth --seconds 12 --seed 1 --links lwr_5_link --slide 0.1
+/// --slide-min 0.02 --kinetic-friction 0.3,0.6 --press-secs 1.5,3`, 483
+/// frames) stood 81–110 mm off through its slip, and its 61 mm path
+/// read as 452 mm; whole, 62 mm. A press without a slide keeps its
+/// pieces: on the `../shared` observer examples (720-frame presses at
+/// 1 kHz) a whole fit costs less than the pieces and lands farther off
+/// (motor side 8.6 → 11.1 mm, `docs/decisions.md`, *A longer press
+/// before the cut*).
+pub const PRESS_PIECE_FRAMES: usize = 400;
 
 /// A press continues across a hop to another link shorter than this (s;
 /// five frames at 200 Hz), its frames fitted with the press. The

@@ -158,3 +158,27 @@ fn a_bridged_press_is_fitted_and_hands_on_each_of_its_frames_once_in_order() {
     assert_eq!(out, vec![Out::Press((0..=6).collect())]);
     assert_eq!(pieces, vec![vec![0, 3, 5]]);
 }
+
+#[test]
+fn a_long_press_is_held_up_to_its_limit_and_cut_into_pieces_of_at_most_a_piece() {
+    // 1,300 frames on link 6: held as 1,200 (`MAX_PRESS_FRAMES`) and
+    // 100; after a frame without contact, 450 more. Each run on one link
+    // is cut every 400 frames (`PRESS_PIECE_FRAMES`).
+    let pattern = format!("{}-{}", "a".repeat(1300), "a".repeat(450));
+    let (out, pieces) = queued(&pattern, "lwr_6_link", "lwr_7_link", false);
+    assert_eq!(
+        out,
+        vec![
+            Out::Press((0..1200).collect()),
+            Out::Press((1200..1300).collect()),
+            Out::Frame(1300),
+            Out::Press((1301..1751).collect()),
+        ]
+    );
+    assert_eq!(pieces, vec![vec![0, 400, 800], vec![0], vec![0, 400]]);
+    // A bridged hop starts a piece, and so does the run after it, which
+    // counts its frames afresh.
+    let pattern = format!("{}bb{}", "a".repeat(402), "a".repeat(405));
+    let (_, pieces) = queued(&pattern, "lwr_6_link", "lwr_7_link", false);
+    assert_eq!(pieces, vec![vec![0, 400, 402, 404, 804]]);
+}
