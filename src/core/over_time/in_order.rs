@@ -7,7 +7,7 @@ use std::collections::VecDeque;
 use crate::core::estimate::estimator::{PendingUpdate, Update};
 use crate::core::estimate::posterior::CompactPosterior;
 use crate::core::estimate::summary::Summary;
-use crate::core::over_time::presses::{Offered, PressJob, PressQueue};
+use crate::core::over_time::press_queue::{Offered, PressJob, PressQueue};
 use crate::core::robot::kinematics::RobotPose;
 
 /// A frame settled by its press's fit or on its own.

@@ -15,6 +15,7 @@ pub mod offsets;
 pub mod pairs;
 pub mod parallel;
 mod pipeline;
+pub mod press_queue;
 pub mod presses;
 pub mod sequence;
 pub mod smoother;

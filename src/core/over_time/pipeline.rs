@@ -34,7 +34,7 @@ use crate::core::over_time::in_order::{InOrder, Settled, Waiting, WaitingFrame, 
 use crate::core::over_time::parallel::{
     BLOCK_FRAMES, Callbacks, Done, PreparedBlock, SequenceError, frame_likelihood, into_steps, settle_frame, succeeded,
 };
-use crate::core::over_time::presses::{PressJob, PressQueue};
+use crate::core::over_time::press_queue::{PressJob, PressQueue};
 use crate::core::over_time::stretches::{PreparedStep, StepPreparer, Stretch, StretchSmoother};
 use crate::core::over_time::temporal::{TemporalError, TemporalModel};
 use crate::core::robot::model::Robot;

@@ -6,6 +6,7 @@ use crate::core::estimate::settings::EstimatorSettings;
 use crate::core::estimate::summary::Verdict;
 use crate::core::robot::builtin;
 use crate::core::robot::kinematics::RobotPose;
+use crate::core::robot::torque::TorqueModel;
 use crate::core::surface::sampling::SurfaceRequest;
 
 /// What the queue handed on: a press's frame numbers, or a frame alone.
